@@ -1,0 +1,19 @@
+//! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
+//! own file, turns raw arguments into a validated configuration, calls the library and prints.
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(name = "brdf-rig", version, about = "Drive a turntable BRDF rig and recover an object's BRDF")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {}
+
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {}
+}

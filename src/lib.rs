@@ -1,0 +1,15 @@
+//! brdf-rig: drive a turntable BRDF rig and recover an object's isotropic BRDF.
+//!
+//! The crate is split by concern (see `docs/architecture.md`):
+//! pure computation (`protocol`, `geometry`, `brdf`, `render`) never touches files, ports or
+//! the terminal; `devices`, `sim`, `capture`, `calib` and `report` live at the edges.
+
+pub mod brdf;
+pub mod calib;
+pub mod capture;
+pub mod devices;
+pub mod geometry;
+pub mod protocol;
+pub mod render;
+pub mod report;
+pub mod sim;
