@@ -5,7 +5,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser, Debug)]
-#[command(name = "brdf-rig", version, about = "Drive a turntable BRDF rig and recover an object's BRDF")]
+#[command(
+    name = "brdf-rig",
+    version,
+    about = "Drive a turntable BRDF rig and recover an object's BRDF"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
