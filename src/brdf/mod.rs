@@ -1,1 +1,15 @@
-//! brdf
+//! BRDFs: the MERL table and Rusinkiewicz coordinates, the neural MERL fits, the PCA basis,
+//! optimal sampling, reconstruction, trial selection and analytic models. Pure: no files here
+//! except in the loaders, which name the file in every error.
+//!
+//! Convention for every BRDF in this crate: directions are unit vectors in the local shading
+//! frame (normal = +z), both pointing away from the surface (`wi` towards the light, `wo`
+//! towards the viewer); the value is f_r in 1/sr, RGB, without the cosine factor.
+
+use nalgebra::Vector3;
+
+/// An isotropic (or not) BRDF evaluated in the local frame.
+pub trait Brdf: Send + Sync {
+    /// f_r(wi, wo) in 1/sr, RGB. Directions below the surface give zero.
+    fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3];
+}
