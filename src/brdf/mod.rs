@@ -13,3 +13,5 @@ pub trait Brdf: Send + Sync {
     /// f_r(wi, wo) in 1/sr, RGB. Directions below the surface give zero.
     fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3];
 }
+
+pub mod coords;
