@@ -15,3 +15,11 @@ pub trait Brdf: Send + Sync {
 }
 
 pub mod coords;
+pub mod merl;
+
+/// A BRDF known at MERL bins (a table, a network, a reconstruction): what the basis is built
+/// from and what the error metrics compare.
+pub trait BinValues: Sync {
+    /// f_r in 1/sr, RGB, at each flat MERL bin index (bins with no data give zero).
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]>;
+}
