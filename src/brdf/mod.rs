@@ -16,6 +16,7 @@ pub trait Brdf: Send + Sync {
 
 pub mod coords;
 pub mod merl;
+pub mod nbrdf;
 
 /// A BRDF known at MERL bins (a table, a network, a reconstruction): what the basis is built
 /// from and what the error metrics compare.
