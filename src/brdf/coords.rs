@@ -139,7 +139,7 @@ impl MerlBin {
 
     /// Inverse of [`Self::index`]; `None` past the table.
     pub fn from_index(index: usize) -> Option<Self> {
-        (index < MERL_BINS).then(|| Self {
+        (index < MERL_BINS).then_some(Self {
             phi_d: index % PHI_D_BINS,
             theta_d: (index / PHI_D_BINS) % THETA_D_BINS,
             theta_h: index / (PHI_D_BINS * THETA_D_BINS),
