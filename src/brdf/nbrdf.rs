@@ -93,6 +93,16 @@ impl Nbrdf {
         })
     }
 
+    /// The 675 weights as little-endian float32, in file order (inverse of `from_bytes`).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        [
+            &self.fc1, &self.b1, &self.fc2, &self.b2, &self.fc3, &self.b3,
+        ]
+        .iter()
+        .flat_map(|v| v.iter().flat_map(|w| w.to_le_bytes()))
+        .collect()
+    }
+
     /// Reads one `<material>.f32` file.
     pub fn load(path: &Path) -> Result<Self, NbrdfError> {
         let bytes = std::fs::read(path).map_err(|source| NbrdfError::Read {
@@ -259,6 +269,8 @@ impl BinValues for Nbrdf {
 }
 
 #[cfg(test)]
+// Per-channel loops compare several arrays at the same index.
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
 
@@ -367,6 +379,10 @@ mod tests {
         let err = Nbrdf::from_bytes(&bytes, p).expect_err("nan");
         assert!(matches!(err, NbrdfError::NonFinite { index: 10, .. }));
         assert!(err.to_string().contains("broken.f32"));
+        let path = data_dir().join("teflon.f32");
+        let bytes = std::fs::read(&path).expect("read");
+        let net = Nbrdf::from_bytes(&bytes, &path).expect("parse");
+        assert_eq!(net.to_bytes(), bytes);
         let err = Nbrdf::load(Path::new("/no/such/mat.f32")).expect_err("missing");
         assert!(err.to_string().contains("/no/such/mat.f32"));
     }
