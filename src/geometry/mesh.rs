@@ -236,6 +236,7 @@ fn is_degenerate(positions: &[Point3<f64>], f: [u32; 3]) -> bool {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 
