@@ -4,6 +4,8 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod ports;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "brdf-rig",
@@ -16,8 +18,13 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {}
+pub enum Command {
+    /// List serial ports (to find the rig for a profile's `[serial] port`).
+    Ports,
+}
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    match cli.command {}
+    match cli.command {
+        Command::Ports => ports::run(),
+    }
 }
