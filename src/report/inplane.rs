@@ -14,6 +14,7 @@
 //!
 //! Pure: no files; charts of these curves are drawn by [`super::charts`].
 
+use super::charts::{ChartError, ChartSpec, Series, line_chart};
 use crate::brdf::Brdf;
 use nalgebra::Vector3;
 
@@ -133,6 +134,32 @@ pub fn describe(settings: &InPlaneSettings) -> String {
     )
 }
 
+/// The in-plane chart of one channel (0 red, 1 green, 2 blue): one line per curve, x the view
+/// angle from the +x axis in degrees, y f_r in 1/sr (logarithmic if `log_y`, where the grazing
+/// zeros are left out).
+pub fn channel_chart(
+    curves: &[InPlaneCurve],
+    channel: usize,
+    settings: &InPlaneSettings,
+    log_y: bool,
+) -> Result<String, ChartError> {
+    let c = channel.min(2);
+    let series: Vec<Series> = curves
+        .iter()
+        .map(|k| Series::new(k.label.clone(), k.channel_points(c)))
+        .collect();
+    let spec = ChartSpec::new(
+        format!(
+            "In-plane BRDF, {} channel (light at {:.0} deg)",
+            CHANNELS[c], settings.light_alpha_deg
+        ),
+        "view angle from +x axis (deg); normal at 90",
+        "f_r (1/sr)",
+    )
+    .log_y(log_y);
+    line_chart(&series, &spec)
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
@@ -174,6 +201,7 @@ mod tests {
         assert!(wi.x < 0.0 && wi.y == 0.0);
         // The normal is at 90 degrees.
         assert!((in_plane_direction(90.0) - Vector3::z()).norm() < 1e-15);
+        assert_eq!(in_plane_direction(180.0).z, 0.0);
         assert_eq!(signed_theta_o_deg(45.0), 45.0);
         assert_eq!(signed_theta_o_deg(180.0), -90.0);
         let a = view_angles_deg(181);
@@ -246,6 +274,20 @@ mod tests {
                     "{alpha}: {got:?} {want:?}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn channel_chart_has_one_line_per_curve() {
+        let s = InPlaneSettings::default();
+        let curves = compare(&[("lobe", &Lobe), ("lambert", &Lambert([0.5; 3]))], &s);
+        for log_y in [false, true] {
+            let svg = channel_chart(&curves, 1, &s, log_y).unwrap();
+            assert!(svg.contains("green channel"));
+            // Data line + legend swatch per curve (grazing zeros at both ends are dropped on
+            // the log axis without splitting the line, as they are at its ends).
+            assert_eq!(svg.matches("stroke=\"#1F77B4\"").count(), 2, "log {log_y}");
+            assert_eq!(svg.matches("stroke=\"#FF7F0E\"").count(), 2, "log {log_y}");
         }
     }
 }

@@ -5,4 +5,5 @@
 //! holds (tolerantly: a missing piece is reported as "not available" with the reason) and
 //! renders the page; only `html::gather` and [`write_report`] touch files.
 
+pub mod charts;
 pub mod inplane;
