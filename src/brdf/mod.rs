@@ -19,6 +19,8 @@ pub mod basis_cache;
 pub mod coords;
 pub mod merl;
 pub mod nbrdf;
+pub mod ridge;
+pub mod sampling;
 
 /// A BRDF known at MERL bins (a table, a network, a reconstruction): what the basis is built
 /// from and what the error metrics compare.
