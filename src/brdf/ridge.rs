@@ -149,6 +149,8 @@ impl BinValues for Reconstruction {
 }
 
 #[cfg(test)]
+// Per-channel loops compare several arrays at the same index.
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
     use crate::brdf::basis::{BasisSettings, GridStride};
