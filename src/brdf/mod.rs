@@ -18,6 +18,7 @@ pub mod basis;
 pub mod basis_cache;
 pub mod coords;
 pub mod merl;
+pub mod metrics;
 pub mod nbrdf;
 pub mod ridge;
 pub mod sampling;
