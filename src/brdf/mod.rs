@@ -14,6 +14,7 @@ pub trait Brdf: Send + Sync {
     fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3];
 }
 
+pub mod analytic;
 pub mod basis;
 pub mod basis_cache;
 pub mod coords;
