@@ -286,9 +286,9 @@ mod tests {
             };
             let hd = HalfDiff {
                 theta_h,
-                phi_h: rng.gen_range(0.0..6.28),
+                phi_h: rng.gen_range(0.0..2.0 * PI),
                 theta_d: rng.gen_range(0.0..1.3),
-                phi_d: rng.gen_range(0.0..6.28),
+                phi_d: rng.gen_range(0.0..2.0 * PI),
             };
             let (wi, wo) = hd.to_directions();
             if wi.z > 0.05 && wo.z > 0.05 {
