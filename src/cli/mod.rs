@@ -1,6 +1,8 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+mod merl;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -16,8 +18,13 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {}
+pub enum Command {
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
+}
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    match cli.command {}
+    match cli.command {
+        Command::Merl(args) => merl::run(args),
+    }
 }
