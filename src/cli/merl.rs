@@ -24,6 +24,7 @@ pub struct MerlArgs {
 #[derive(Subcommand, Debug)]
 pub enum MerlCommand {
     /// Print f_r (1/sr, R G B) of a MERL .binary or neural .f32 file for one direction pair.
+    #[command(allow_negative_numbers = true)]
     Eval {
         file: PathBuf,
         /// Polar angle of the light direction, degrees from the normal.
