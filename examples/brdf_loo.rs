@@ -8,13 +8,15 @@
 //! (defaults: stride 1 2 2, targets alum-bronze pink-fabric blue-acrylic). The basis is cached
 //! in `$BRDF_RIG_CACHE` or `~/.cache/brdf-rig`.
 
-use brdf_rig::brdf::BinValues;
+use brdf_rig::brdf::analytic::{LambertGgx, ReflectanceSample, cosine_map_weight};
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
+use brdf_rig::brdf::coords::MerlBin;
 use brdf_rig::brdf::metrics::compare_values;
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
 use brdf_rig::brdf::ridge::{Observation, RidgeSettings, reconstruct};
 use brdf_rig::brdf::sampling::{SamplingSettings, select_samples};
+use brdf_rig::brdf::{BinValues, Brdf};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
@@ -91,11 +93,56 @@ fn main() -> anyhow::Result<()> {
                 e.relative, e.cosine_weighted, e.near_specular
             );
         }
+        // Baseline: Lambert + GGX fitted by least squares to every basis bin.
+        let obs_dirs: Vec<ReflectanceSample> = bins
+            .iter()
+            .zip(&truth)
+            .filter_map(|(&b, &rgb)| {
+                let (wi, wo) = MerlBin::from_index(b)?.centre().to_directions();
+                Some(ReflectanceSample { wi, wo, rgb })
+            })
+            .collect();
+        for (label, fit) in [
+            ("Lambert+GGX LS       ", LambertGgx::fit(&obs_dirs)?),
+            (
+                "Lambert+GGX cos-w LS ",
+                LambertGgx::fit_weighted(&obs_dirs, cosine_map_weight)?,
+            ),
+        ] {
+            let fitted: Vec<[f64; 3]> = obs_dirs
+                .iter()
+                .map(|o| fit.eval_local(&o.wi, &o.wo))
+                .collect();
+            let e = compare_values(&bins, &truth, &fitted);
+            println!(
+                "{label}  {:8.4}  {:12.4}  {:13.4}   (all bins; alpha {:.3}, F0 {:.3})",
+                e.relative, e.cosine_weighted, e.near_specular, fit.alpha, fit.f0
+            );
+        }
+        // A fixed light and camera see one theta_d only (METHOD.md section 1).
+        let one_theta_d: Vec<usize> = (0..basis.n_rows())
+            .filter(|&r| {
+                MerlBin::from_index(bins[r])
+                    .is_some_and(|b| b.theta_d / stride.theta_d == 45 / stride.theta_d)
+            })
+            .collect();
         println!(
             "optimal samples:   |S|  relative  cos-weighted  near-specular  (k = min(|S|, 20))"
         );
-        for n in [10, 20, 40] {
-            let s = select_samples(&basis, n, None, &SamplingSettings::default())?;
+        let plans: [(usize, Option<&Vec<usize>>); 5] = [
+            (10, None),
+            (20, None),
+            (40, None),
+            (20, Some(&one_theta_d)),
+            (40, Some(&one_theta_d)),
+        ];
+        for (n, cands) in plans {
+            let s = select_samples(
+                &basis,
+                n,
+                cands.map(|c| c.as_slice()),
+                &SamplingSettings::default(),
+            )?;
             let obs: Vec<Observation> = s
                 .iter()
                 .map(|&row| Observation {
@@ -106,8 +153,15 @@ fn main() -> anyhow::Result<()> {
             let rec = reconstruct(&basis, &obs, &RidgeSettings::default())?;
             let e = compare_values(&bins, &truth, rec.values());
             println!(
-                "                   {n:3}  {:8.4}  {:12.4}  {:13.4}",
-                e.relative, e.cosine_weighted, e.near_specular
+                "                   {n:3}  {:8.4}  {:12.4}  {:13.4}{}",
+                e.relative,
+                e.cosine_weighted,
+                e.near_specular,
+                if cands.is_some() {
+                    "   (theta_d = 45 deg only)"
+                } else {
+                    ""
+                }
             );
         }
     }

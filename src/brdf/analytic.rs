@@ -9,7 +9,8 @@
 //! `F = F0 + (1 - F0)(1 - wi.h)^5` (Schlick, one F0 for all channels; the colour of the
 //! highlight is in `ks`).
 //!
-//! Fits minimise the sum of squared differences in f_r over all observations and channels.
+//! Fits minimise the sum of squared differences in f_r over all observations and channels,
+//! optionally weighted per observation (e.g. by the cosine map, to fit what images see).
 //! Lambert: `kd_c = pi mean(r_c)`, closed form. Lambert + GGX: `kd` and `ks` are linear and
 //! solved in closed form (non-negative) for each `(alpha, F0)`; those two are found by a grid
 //! search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
@@ -114,55 +115,78 @@ fn usable(samples: &[ReflectanceSample]) -> Result<Vec<&ReflectanceSample>, FitE
     Ok(out)
 }
 
+/// The cosine-map weight `clip(cos theta_i cos theta_o, 0.01, 1)` of an observation: weighting
+/// residuals by it fits what images see (radiance), so grazing bins, where f_r is large but
+/// little light arrives, do not dominate the fit.
+pub fn cosine_map_weight(s: &ReflectanceSample) -> f64 {
+    (s.wi.z * s.wo.z).clamp(super::basis::COS_MAP_MIN, 1.0)
+}
+
 impl Lambert {
     /// Least squares: `albedo_c = pi mean(r_c)` over the observations above the horizon.
     pub fn fit(samples: &[ReflectanceSample]) -> Result<Self, FitError> {
+        Self::fit_weighted(samples, |_| 1.0)
+    }
+
+    /// Weighted least squares, minimising `sum (w (f - r))^2`:
+    /// `albedo_c = pi sum(w^2 r_c) / sum(w^2)`.
+    pub fn fit_weighted(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
         let s = usable(samples)?;
-        let n = s.len() as f64;
-        let albedo = std::array::from_fn(|c| PI * s.iter().map(|x| x.rgb[c]).sum::<f64>() / n);
+        let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
+        let total: f64 = w2.iter().sum();
+        if !(total > 0.0) {
+            return Err(FitError::Empty);
+        }
+        let albedo = std::array::from_fn(|c| {
+            PI * s.iter().zip(&w2).map(|(x, w)| w * x.rgb[c]).sum::<f64>() / total
+        });
         Ok(Self { albedo })
     }
 }
 
-/// Non-negative least squares for `r = kd/pi + ks lobe` on one channel; returns
-/// `(kd, ks, sum of squared residuals)`.
-fn solve_linear(lobe: &[f64], r: &[f64]) -> (f64, f64, f64) {
-    let p = 1.0 / PI;
-    let n = r.len() as f64;
-    let (mut sl, mut sll, mut sr, mut slr) = (0.0, 0.0, 0.0, 0.0);
-    for (l, y) in lobe.iter().zip(r) {
-        sl += l;
-        sll += l * l;
-        sr += y;
-        slr += l * y;
+/// Non-negative weighted least squares for `r = kd/pi + ks lobe` on one channel, minimising
+/// `sum w2 (kd/pi + ks lobe - r)^2`; returns `(kd, ks, that sum)`.
+fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64]) -> (f64, f64, f64) {
+    let (mut sw, mut sl, mut sll, mut sr, mut slr) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((l, y), w) in lobe.iter().zip(r).zip(w2) {
+        sw += w;
+        sl += w * l;
+        sll += w * l * l;
+        sr += w * y;
+        slr += w * l * y;
     }
-    let ssr = |kd: f64, ks: f64| -> f64 {
+    let ssr = |a: f64, ks: f64| -> f64 {
         lobe.iter()
             .zip(r)
-            .map(|(l, y)| (kd * p + ks * l - y).powi(2))
+            .zip(w2)
+            .map(|((l, y), w)| w * (a + ks * l - y).powi(2))
             .sum()
     };
-    // Normal equations in (a = kd/pi, ks): [n sl; sl sll] [a ks] = [sr slr].
-    let det = n * sll - sl * sl;
+    // Normal equations in (a = kd/pi, ks): [sw sl; sl sll] [a ks] = [sr slr]; candidates on
+    // the boundary of the non-negative quadrant when the free solution leaves it.
+    let det = sw * sll - sl * sl;
     let mut best = (0.0, 0.0, ssr(0.0, 0.0));
-    let mut consider = |kd: f64, ks: f64| {
-        if kd >= 0.0 && ks >= 0.0 {
-            let e = ssr(kd, ks);
+    let mut consider = |a: f64, ks: f64| {
+        if a >= 0.0 && ks >= 0.0 {
+            let e = ssr(a, ks);
             if e < best.2 {
-                best = (kd, ks, e);
+                best = (a, ks, e);
             }
         }
     };
     if det.abs() > 1e-300 {
-        let a = (sll * sr - sl * slr) / det;
-        let ks = (n * slr - sl * sr) / det;
-        consider(a * PI, ks);
+        consider((sll * sr - sl * slr) / det, (sw * slr - sl * sr) / det);
     }
-    consider(PI * sr / n, 0.0);
+    if sw > 0.0 {
+        consider(sr / sw, 0.0);
+    }
     if sll > 0.0 {
         consider(0.0, slr / sll);
     }
-    best
+    (best.0 * PI, best.1, best.2)
 }
 
 const ALPHA_MIN: f64 = 0.002;
@@ -171,7 +195,20 @@ const ALPHA_MAX: f64 = 1.0;
 impl LambertGgx {
     /// Least-squares fit (see the module header).
     pub fn fit(samples: &[ReflectanceSample]) -> Result<Self, FitError> {
+        Self::fit_weighted(samples, |_| 1.0)
+    }
+
+    /// Weighted least squares, minimising `sum (w (f - r))^2` over observations and channels
+    /// (e.g. with [`cosine_map_weight`]).
+    pub fn fit_weighted(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
         let s = usable(samples)?;
+        let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
+        if !w2.iter().all(|w| w.is_finite()) || !(w2.iter().sum::<f64>() > 0.0) {
+            return Err(FitError::Empty);
+        }
         let channels: [Vec<f64>; 3] = std::array::from_fn(|c| s.iter().map(|x| x.rgb[c]).collect());
         let clamp = |p: [f64; 2]| -> (f64, f64) {
             (p[0].exp().clamp(ALPHA_MIN, ALPHA_MAX), p[1].clamp(0.0, 1.0))
@@ -186,7 +223,7 @@ impl LambertGgx {
             let mut ks = [0.0; 3];
             let mut total = 0.0;
             for c in 0..3 {
-                let (d, k, e) = solve_linear(&lobe, &channels[c]);
+                let (d, k, e) = solve_linear(&lobe, &channels[c], &w2);
                 kd[c] = d;
                 ks[c] = k;
                 total += e;
@@ -196,7 +233,7 @@ impl LambertGgx {
         let cost = |p: [f64; 2]| solve(p).2;
 
         // Grid search over log alpha and F0, then Nelder-Mead from the best point.
-        let mut start = ([0.0f64.ln(), 0.04], f64::INFINITY);
+        let mut start = ([0.1f64.ln(), 0.04], f64::INFINITY);
         for i in 0..16 {
             let la = ALPHA_MIN.ln() + (ALPHA_MAX.ln() - ALPHA_MIN.ln()) * i as f64 / 15.0;
             for f0 in [0.02, 0.05, 0.15, 0.4, 0.8] {
@@ -327,6 +364,9 @@ mod tests {
             assert!((fit.albedo[c] - truth.albedo[c]).abs() < 1e-12);
         }
         assert_eq!(Lambert::fit(&[]), Err(FitError::Empty));
+        // Weights do not move an exact fit.
+        let w = Lambert::fit_weighted(&samples(&truth, 50, 3), cosine_map_weight).expect("fit");
+        assert!((0..3).all(|c| (w.albedo[c] - truth.albedo[c]).abs() < 1e-12));
     }
 
     #[test]
@@ -353,6 +393,12 @@ mod tests {
                 "{fit:?}"
             );
         }
+        // Weighted, on the same exact data: the same answer.
+        let wfit = LambertGgx::fit_weighted(&data, cosine_map_weight).expect("fit");
+        assert!(
+            (wfit.alpha - truth.alpha).abs() < 0.01 * truth.alpha,
+            "{wfit:?}"
+        );
         // Whatever F0 it settles on, the fitted model reproduces the data.
         for s in &data {
             let got = fit.eval_local(&s.wi, &s.wo);
