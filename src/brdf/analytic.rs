@@ -137,7 +137,7 @@ impl Lambert {
         let s = usable(samples)?;
         let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
         let total: f64 = w2.iter().sum();
-        if !(total > 0.0) {
+        if total.is_nan() || total <= 0.0 {
             return Err(FitError::Empty);
         }
         let albedo = std::array::from_fn(|c| {
@@ -206,7 +206,7 @@ impl LambertGgx {
     ) -> Result<Self, FitError> {
         let s = usable(samples)?;
         let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
-        if !w2.iter().all(|w| w.is_finite()) || !(w2.iter().sum::<f64>() > 0.0) {
+        if !w2.iter().all(|w| w.is_finite()) || w2.iter().sum::<f64>() <= 0.0 {
             return Err(FitError::Empty);
         }
         let channels: [Vec<f64>; 3] = std::array::from_fn(|c| s.iter().map(|x| x.rgb[c]).collect());
