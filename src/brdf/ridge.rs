@@ -26,6 +26,23 @@ pub struct Observation {
     pub rgb: [f64; 3],
 }
 
+impl Observation {
+    /// An observation of f_r for the directions `(wi, wo)` (local frame), placed at the basis
+    /// row of its MERL bin; `None` below the horizon or where the basis has no row.
+    pub fn from_directions(
+        basis: &Basis,
+        wi: &nalgebra::Vector3<f64>,
+        wo: &nalgebra::Vector3<f64>,
+        rgb: [f64; 3],
+    ) -> Option<Self> {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return None;
+        }
+        let row = basis.grid().row_of_bin(super::coords::merl_index(wi, wo))?;
+        Some(Self { row, rgb })
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct RidgeSettings {
     /// Components at most (`k`); `min(|S|, k)` are used.
@@ -258,6 +275,16 @@ mod tests {
             reconstruct(&b, &[], &RidgeSettings::default()),
             Err(RidgeError::Empty)
         ));
+        // Directions land on the row of their bin.
+        let bin = b.grid().bins()[123];
+        let (wi, wo) = crate::brdf::coords::MerlBin::from_index(bin)
+            .expect("bin")
+            .centre()
+            .to_directions();
+        let o = Observation::from_directions(&b, &wi, &wo, [1.0; 3]).expect("row");
+        assert_eq!(o.row, 123);
+        let below = nalgebra::Vector3::new(0.0, 0.6, -0.8);
+        assert!(Observation::from_directions(&b, &below, &wo, [1.0; 3]).is_none());
         let bad = [Observation {
             row: b.n_rows(),
             rgb: [0.0; 3],
