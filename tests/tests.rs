@@ -6,4 +6,5 @@
 
 mod geometry;
 mod rig_vectors;
+mod brdf;
 mod util;
