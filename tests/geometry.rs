@@ -183,3 +183,293 @@ fn malformed_meshes_are_errors_naming_file_and_element() {
         MeshIoError::UnknownFormat { .. }
     ));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Analytic meshes shared with the render tests
+
+use brdf_rig::geometry::bvh::Bvh;
+use brdf_rig::geometry::camera::{Intrinsics, Pose};
+use brdf_rig::geometry::mesh::Mesh;
+use brdf_rig::geometry::raster::rasterise;
+use brdf_rig::geometry::shadow::shadow_mask;
+use nalgebra::{Point3, Vector3};
+
+/// An axis-aligned square `[x0, x1] x [y0, y1]` at height `z`, facing +z, as an n x n grid.
+pub fn grid(
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+    z: f64,
+    n: usize,
+) -> (Vec<Point3<f64>>, Vec<[i64; 3]>) {
+    let mut p = Vec::new();
+    let mut f = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+            p.push(Point3::new(x0 + s * (x1 - x0), y0 + t * (y1 - y0), z));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as i64;
+    for j in 0..n {
+        for i in 0..n {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    (p, f)
+}
+
+/// A UV sphere of radius `r` about the origin, outward faces: `rings` latitude bands.
+pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> Mesh {
+    let mut p = vec![Point3::new(0.0, 0.0, r)];
+    for i in 1..rings {
+        let th = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            p.push(Point3::new(
+                r * th.sin() * ph.cos(),
+                r * th.sin() * ph.sin(),
+                r * th.cos(),
+            ));
+        }
+    }
+    p.push(Point3::new(0.0, 0.0, -r));
+    let south = (p.len() - 1) as i64;
+    let id = |i: usize, j: usize| (1 + (i - 1) * segments + j % segments) as i64;
+    let mut f = Vec::new();
+    for j in 0..segments {
+        f.push([0, id(1, j), id(1, j + 1)]);
+        f.push([south, id(rings - 1, j + 1), id(rings - 1, j)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..segments {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Mesh::new(p, f, "<uv sphere>").unwrap().0
+}
+
+#[test]
+fn rasterised_square_covers_exactly_its_projection_at_its_depth() {
+    // square [-0.5, 0.5]^2 at z = 0, camera 4 units up the z axis looking down
+    let (p, f) = grid(-0.5, 0.5, -0.5, 0.5, 0.0, 4);
+    let (mesh, _) = Mesh::new(p, f, "<grid>").unwrap();
+    let bvh = Bvh::build(&mesh);
+    let k = Intrinsics::pinhole(96, 72, 80.0, 80.0, 48.0, 36.0);
+    let pose = Pose::look_at(Point3::new(0.0, 0.0, 4.0), Point3::origin(), Vector3::y());
+    let g = rasterise(&mesh, &bvh, &k, &pose, None);
+    // the square's half width in pixels: fx * 0.5 / 4 = 10
+    let mut checked = 0;
+    for y in 0..72 {
+        for x in 0..96 {
+            let (dx, dy) = ((x as f64 + 0.5 - 48.0).abs(), (y as f64 + 0.5 - 36.0).abs());
+            let inside = dx < 10.0 && dy < 10.0;
+            let frag = g.get(x, y);
+            assert_eq!(frag.is_some(), inside, "pixel {x},{y}");
+            if let Some(fr) = frag {
+                checked += 1;
+                assert!((fr.depth - 4.0).abs() < 1e-12);
+                assert!(fr.position.z.abs() < 1e-12);
+                assert!((fr.normal - Vector3::z()).norm() < 1e-12);
+                assert!((fr.bary.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            }
+        }
+    }
+    assert_eq!(checked, 400);
+    assert_eq!(g.covered(), 400);
+}
+
+#[test]
+fn bunny_fragments_reproject_to_their_pixel_centres_even_with_distortion() {
+    let (bunny, _) = load_mesh(&meshes().join("stanford-bunny.obj")).unwrap();
+    let bvh = Bvh::build(&bunny);
+    let (lo, hi) = bunny.bounds();
+    let c = Point3::from((lo.coords + hi.coords) / 2.0);
+    let eye = c + Vector3::new(0.3, 0.1, 0.6) * (bunny.diagonal() * 2.0);
+    let pose = Pose::look_at(eye, c, Vector3::y());
+    let mut k = Intrinsics::pinhole(96, 72, 110.0, 110.0, 47.0, 37.0);
+    k.k1 = -0.08;
+    k.p2 = 0.002;
+    let g = rasterise(&bunny, &bvh, &k, &pose, None);
+    assert!(g.covered() > 500, "bunny covers {} pixels", g.covered());
+    for y in 0..72 {
+        for x in 0..96 {
+            if let Some(fr) = g.get(x, y) {
+                let pc = pose.camera_from_world(&fr.position);
+                let (px, py) = k.project(&pc).unwrap();
+                assert!((px - x as f64 - 0.5).abs() < 1e-6 && (py - y as f64 - 0.5).abs() < 1e-6);
+                assert!((pc.z - fr.depth).abs() < 1e-9);
+                // the hit lies on its face (barycentric blend of the corners)
+                let t = bunny.triangle(fr.face as usize);
+                let q: Vector3<f64> = (0..3).map(|i| t[i].coords * fr.bary[i]).sum();
+                assert!((q - fr.position.coords).norm() < 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn an_occluder_casts_its_footprint_as_shadow() {
+    // floor [-2, 2]^2 at z = 0, occluder [-0.5, 0.5]^2 at z = 1, light straight above
+    let (mut p, mut f) = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 8);
+    let (p2, f2) = grid(-0.5, 0.5, -0.5, 0.5, 1.0, 2);
+    let base = p.len() as i64;
+    p.extend(p2);
+    f.extend(f2.into_iter().map(|t| t.map(|i| i + base)));
+    let (mesh, _) = Mesh::new(p, f, "<floor>").unwrap();
+    let bvh = Bvh::build(&mesh);
+    // oblique camera so the floor under the occluder is partly visible
+    let eye = Point3::new(3.0, 0.5, 3.0);
+    let pose = Pose::look_at(eye, Point3::origin(), Vector3::z());
+    let k = Intrinsics::pinhole(96, 72, 60.0, 60.0, 48.0, 36.0);
+    let g = rasterise(&mesh, &bvh, &k, &pose, None);
+    let up = Vector3::z();
+    let mask = shadow_mask(&mesh, &bvh, &g, &eye, &up);
+    let (mut lit, mut dark) = (0, 0);
+    for (frag, m) in g.fragments().iter().zip(&mask) {
+        let Some(fr) = frag else { continue };
+        let m = m.unwrap();
+        let q = fr.position;
+        if q.z > 0.5 {
+            assert!(m, "occluder top is lit");
+            continue;
+        }
+        let margin = (q.x.abs().max(q.y.abs()) - 0.5).abs();
+        if margin < 0.02 {
+            continue; // pixel centres too close to the footprint's edge to call
+        }
+        let under = q.x.abs() < 0.5 && q.y.abs() < 0.5;
+        assert_eq!(m, !under, "floor point {q:?}");
+        if m { lit += 1 } else { dark += 1 }
+    }
+    assert!(lit > 100 && dark > 20, "lit {lit} dark {dark}");
+    // a light below the floor: every floor pixel is turned away from it
+    let mask = shadow_mask(&mesh, &bvh, &g, &eye, &-up);
+    assert!(mask.iter().flatten().all(|m| !m));
+}
+
+/// Timing, not correctness: run in release with
+/// `cargo test --release --test tests -- --ignored --nocapture timing_bunny`.
+#[test]
+#[ignore]
+fn timing_bunny_640x480_raster_and_shadow() {
+    let (bunny, _) = load_mesh(&meshes().join("stanford-bunny.obj")).unwrap();
+    let t = std::time::Instant::now();
+    let bvh = Bvh::build(&bunny);
+    let t_build = t.elapsed();
+    let (lo, hi) = bunny.bounds();
+    let c = Point3::from((lo.coords + hi.coords) / 2.0);
+    let eye = c + Vector3::new(0.0, 0.0, 1.0) * (bunny.diagonal() * 1.2);
+    let pose = Pose::look_at(eye, c, Vector3::y());
+    let k = Intrinsics::pinhole(640, 480, 600.0, 600.0, 320.0, 240.0);
+    let runs = 5;
+    let t = std::time::Instant::now();
+    let mut g = rasterise(&bunny, &bvh, &k, &pose, None);
+    for _ in 1..runs {
+        g = rasterise(&bunny, &bvh, &k, &pose, None);
+    }
+    let t_raster = t.elapsed() / runs;
+    let t = std::time::Instant::now();
+    let l = Vector3::new(0.3, 0.8, 0.5).normalize();
+    for _ in 0..runs {
+        std::hint::black_box(shadow_mask(&bunny, &bvh, &g, &eye, &l));
+    }
+    let t_shadow = t.elapsed() / runs;
+    println!(
+        "bunny {} tris, {} covered px of 640x480: bvh build {:?}, rasterise {:?}, shadow mask {:?} ({} threads)",
+        bunny.faces().len(),
+        g.covered(),
+        t_build,
+        t_raster,
+        t_shadow,
+        rayon::current_num_threads()
+    );
+}
+
+use brdf_rig::geometry::curvature::principal_curvatures;
+
+/// An open cylinder of radius `r` along z, `rings` x `segments` quads over length `len`.
+pub fn cylinder(r: f64, len: f64, rings: usize, segments: usize) -> Mesh {
+    let mut p = Vec::new();
+    for i in 0..=rings {
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            p.push(Point3::new(
+                r * ph.cos(),
+                r * ph.sin(),
+                len * (i as f64 / rings as f64 - 0.5),
+            ));
+        }
+    }
+    let id = |i: usize, j: usize| (i * segments + j % segments) as i64;
+    let mut f = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i + 1, j)]);
+        }
+    }
+    Mesh::new(p, f, "<cylinder>").unwrap().0
+}
+
+#[test]
+fn curvature_of_a_sphere_is_one_over_r_everywhere() {
+    // tolerance 2%: the estimator's error on a regular tessellation of this density
+    let r = 2.0;
+    let s = uv_sphere(r, 40, 80);
+    let c = principal_curvatures(&s);
+    for i in 0..s.positions().len() {
+        assert!(
+            (c.mean[i] * r - 1.0).abs() < 0.02,
+            "vertex {i}: H = {}",
+            c.mean[i]
+        );
+        assert!((c.k_max[i] * r - 1.0).abs() < 0.02 && (c.k_min[i] * r - 1.0).abs() < 0.02);
+    }
+}
+
+#[test]
+fn curvature_of_a_cylinder_is_one_over_2r_with_the_axis_as_minimum_direction() {
+    // tolerance 2% on H and k_max, 0.02/r on k_min = 0; the open ends are left out (one-sided)
+    let r = 0.5;
+    let rings = 20;
+    let cyl = cylinder(r, 4.0, rings, 64);
+    let c = principal_curvatures(&cyl);
+    let mut n = 0;
+    for (i, p) in cyl.positions().iter().enumerate() {
+        if p.z.abs() > 1.7 {
+            continue;
+        }
+        n += 1;
+        assert!(
+            (c.mean[i] * 2.0 * r - 1.0).abs() < 0.02,
+            "vertex {i}: H = {}",
+            c.mean[i]
+        );
+        assert!((c.k_max[i] * r - 1.0).abs() < 0.02);
+        assert!(c.k_min[i].abs() * r < 0.02);
+        assert!(
+            c.dir_min[i].z.abs() > 0.99,
+            "min direction {:?}",
+            c.dir_min[i]
+        );
+    }
+    assert!(n > 64 * 10);
+    // reversing the winding flips the normals and the sign
+    let faces: Vec<[i64; 3]> = cyl
+        .faces()
+        .iter()
+        .map(|f| [f[0] as i64, f[2] as i64, f[1] as i64])
+        .collect();
+    let (flipped, _) = Mesh::new(cyl.positions().to_vec(), faces, "<flipped>").unwrap();
+    let cf = principal_curvatures(&flipped);
+    let mid = cyl
+        .positions()
+        .iter()
+        .position(|p| p.z.abs() < 0.01)
+        .unwrap();
+    assert!((cf.mean[mid] + c.mean[mid]).abs() < 1e-9);
+}
