@@ -5,4 +5,5 @@
 #![allow(clippy::unwrap_used)]
 
 mod geometry;
+mod render;
 mod util;
