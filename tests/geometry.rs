@@ -473,3 +473,266 @@ fn curvature_of_a_cylinder_is_one_over_2r_with_the_axis_as_minimum_direction() {
         .unwrap();
     assert!((cf.mean[mid] + c.mean[mid]).abs() < 1e-9);
 }
+
+// ---------------------------------------------------------------------------------------------
+// COLMAP models
+
+use brdf_rig::geometry::colmap::{
+    CameraModel, ColmapCamera, ColmapError, ColmapImage, ColmapModel, read_model, write_text,
+};
+use nalgebra::UnitQuaternion;
+
+fn sample_model() -> ColmapModel {
+    let mut m = ColmapModel::default();
+    let mut k = Intrinsics::pinhole(640, 480, 500.25, 500.25, 320.5, 239.75);
+    for (id, model) in [
+        (1, CameraModel::SimplePinhole),
+        (2, CameraModel::Pinhole),
+        (3, CameraModel::SimpleRadial),
+        (4, CameraModel::Radial),
+        (5, CameraModel::Opencv),
+    ] {
+        match model {
+            CameraModel::Pinhole => k.fy = 501.125,
+            CameraModel::SimpleRadial => {
+                k.fy = k.fx;
+                k.k1 = -0.0123;
+            }
+            CameraModel::Radial => k.k2 = 0.0045,
+            CameraModel::Opencv => {
+                k.fy = 498.0;
+                k.p1 = 1e-4;
+                k.p2 = -2e-4;
+            }
+            CameraModel::SimplePinhole => {}
+        }
+        assert_eq!(CameraModel::simplest_for(&k), model);
+        m.cameras.insert(
+            id,
+            ColmapCamera {
+                id,
+                model,
+                intrinsics: k,
+            },
+        );
+    }
+    for i in 0..7u32 {
+        let a = i as f64 * 0.7;
+        let rotation = UnitQuaternion::from_euler_angles(0.1 * a, a, -0.3 * a);
+        m.images.push(ColmapImage {
+            id: 10 + i,
+            camera_id: 1 + i % 5,
+            name: format!("light/view_{i:03}.exr"),
+            pose: Pose {
+                rotation,
+                translation: Vector3::new(a.sin(), 0.25 * a, 3.0 + a.cos()),
+            },
+        });
+    }
+    m
+}
+
+fn assert_models_equal(a: &ColmapModel, b: &ColmapModel) {
+    assert_eq!(a.cameras, b.cameras);
+    assert_eq!(a.images.len(), b.images.len());
+    for (x, y) in a.images.iter().zip(&b.images) {
+        assert_eq!((x.id, x.camera_id, &x.name), (y.id, y.camera_id, &y.name));
+        assert!(x.pose.rotation.angle_to(&y.pose.rotation) < 1e-12);
+        assert_eq!(x.pose.translation, y.pose.translation);
+    }
+}
+
+#[test]
+fn colmap_text_round_trip_keeps_every_model_and_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = sample_model();
+    write_text(dir.path(), &m).unwrap();
+    assert!(dir.path().join("points3D.txt").is_file());
+    let back = read_model(dir.path()).unwrap();
+    assert_models_equal(&m, &back);
+    let (k, pose) = back.view("light/view_003.exr").unwrap();
+    assert_eq!(k, &m.cameras[&4].intrinsics);
+    assert_eq!(pose.translation, m.images[3].pose.translation);
+    assert!(back.view("nope.exr").is_none());
+}
+
+#[test]
+fn colmap_simple_radial_projects_as_colmap_defines_it() {
+    // COLMAP SIMPLE_RADIAL: u = x/z, v = y/z, d = 1 + k (u^2 + v^2), pixel = f d (u, v) + c
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("cameras.txt"),
+        "# c\n7 SIMPLE_RADIAL 100 80 90 50.5 40.25 -0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("images.txt"),
+        "# i\n1 1 0 0 0 0.5 -0.25 2 7 a.png\n1.0 2.0 -1\n",
+    )
+    .unwrap();
+    let m = read_model(dir.path()).unwrap();
+    let (k, pose) = m.view("a.png").unwrap();
+    let pw = Point3::new(0.3, 0.2, 1.0);
+    let pc = Vector3::new(0.3 + 0.5, 0.2 - 0.25, 1.0 + 2.0);
+    assert!((pose.camera_from_world(&pw) - pc).norm() < 1e-15);
+    let (u, v) = (pc.x / pc.z, pc.y / pc.z);
+    let d = 1.0 - 0.2 * (u * u + v * v);
+    let (px, py) = k.project(&pc).unwrap();
+    assert!(
+        (px - (90.0 * d * u + 50.5)).abs() < 1e-12 && (py - (90.0 * d * v + 40.25)).abs() < 1e-12
+    );
+}
+
+/// Writes the binary model the way COLMAP's `WriteCamerasBinary`/`WriteImagesBinary` do.
+fn write_colmap_binary(dir: &std::path::Path, m: &ColmapModel) {
+    let mut c = Vec::new();
+    c.extend_from_slice(&(m.cameras.len() as u64).to_le_bytes());
+    for cam in m.cameras.values() {
+        let k = &cam.intrinsics;
+        c.extend_from_slice(&cam.id.to_le_bytes());
+        c.extend_from_slice(&cam.model.id().to_le_bytes());
+        c.extend_from_slice(&(k.width as u64).to_le_bytes());
+        c.extend_from_slice(&(k.height as u64).to_le_bytes());
+        let p: Vec<f64> = match cam.model {
+            CameraModel::SimplePinhole => vec![k.fx, k.cx, k.cy],
+            CameraModel::Pinhole => vec![k.fx, k.fy, k.cx, k.cy],
+            CameraModel::SimpleRadial => vec![k.fx, k.cx, k.cy, k.k1],
+            CameraModel::Radial => vec![k.fx, k.cx, k.cy, k.k1, k.k2],
+            CameraModel::Opencv => vec![k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2],
+        };
+        for v in p {
+            c.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("cameras.bin"), c).unwrap();
+    let mut b = Vec::new();
+    b.extend_from_slice(&(m.images.len() as u64).to_le_bytes());
+    for img in &m.images {
+        b.extend_from_slice(&img.id.to_le_bytes());
+        let q = img.pose.rotation.quaternion();
+        let t = img.pose.translation;
+        for v in [q.w, q.i, q.j, q.k, t.x, t.y, t.z] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&img.camera_id.to_le_bytes());
+        b.extend_from_slice(img.name.as_bytes());
+        b.push(0);
+        // two 2D points, one without a 3D point (id -1 as u64::MAX)
+        b.extend_from_slice(&2u64.to_le_bytes());
+        for (x, y, id) in [(1.5f64, 2.5f64, 4u64), (3.0, 4.0, u64::MAX)] {
+            b.extend_from_slice(&x.to_le_bytes());
+            b.extend_from_slice(&y.to_le_bytes());
+            b.extend_from_slice(&id.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("images.bin"), b).unwrap();
+}
+
+#[test]
+fn colmap_binary_model_reads_and_truncation_names_the_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = sample_model();
+    write_colmap_binary(dir.path(), &m);
+    let back = read_model(dir.path()).unwrap();
+    assert_models_equal(&m, &back);
+    // truncate images.bin in the middle of the third image
+    let p = dir.path().join("images.bin");
+    let bytes = std::fs::read(&p).unwrap();
+    let per_image = 4 + 56 + 4 + "light/view_000.exr".len() + 1 + 8 + 48;
+    std::fs::write(&p, &bytes[..8 + 2 * per_image + 30]).unwrap();
+    let e = read_model(dir.path()).unwrap_err();
+    match &e {
+        ColmapError::Binary { path, offset, .. } => {
+            assert!(path.ends_with("images.bin"));
+            assert_eq!(*offset, 8 + 2 * per_image + 28); // start of the unfinished f64
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("images.bin"));
+    // unsupported model id 5 (OPENCV_FISHEYE)
+    let p = dir.path().join("cameras.bin");
+    let mut bytes = std::fs::read(&p).unwrap();
+    bytes[12..16].copy_from_slice(&5i32.to_le_bytes());
+    std::fs::write(&p, bytes).unwrap();
+    let e = read_model(dir.path()).unwrap_err();
+    assert!(
+        matches!(&e, ColmapError::Binary { offset: 8, .. }) && e.to_string().contains("model id 5"),
+        "{e}"
+    );
+}
+
+#[test]
+fn colmap_malformed_text_names_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cams = "# header\n#\n1 PINHOLE 640 480 500 500 320 240\n";
+    let imgs_ok = "# header\n1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 1 1 b.png\n\n";
+    let cases: [(&str, &str, &str, &str); 6] = [
+        (
+            "1 PINHOLE 640 480 500 500 320\n",
+            imgs_ok,
+            "cameras.txt:1",
+            "takes 4 parameters",
+        ),
+        (
+            "# x\n1 OPENCV_FISHEYE 640 480 1 1 1 1 0 0 0 0\n",
+            imgs_ok,
+            "cameras.txt:2",
+            "unsupported camera model",
+        ),
+        (
+            "1 PINHOLE 640 abc 500 500 320 240\n",
+            imgs_ok,
+            "cameras.txt:1",
+            "HEIGHT",
+        ),
+        (
+            cams,
+            "# h\n1 1 0 0 0 0 0 zero 1 a.png\n\n",
+            "images.txt:2",
+            "TZ",
+        ),
+        (
+            cams,
+            "1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 0 9 b.png\n\n",
+            "images.txt:3",
+            "unknown camera 9",
+        ),
+        (
+            cams,
+            "1 0 0 0 0 0 0 0 1 a.png\n\n",
+            "images.txt:1",
+            "zero quaternion",
+        ),
+    ];
+    for (c, i, place, what) in cases {
+        std::fs::write(d.join("cameras.txt"), c).unwrap();
+        std::fs::write(d.join("images.txt"), i).unwrap();
+        let e = read_model(d).unwrap_err().to_string();
+        assert!(
+            e.contains(place) && e.contains(what),
+            "expected {place} / {what}: {e}"
+        );
+    }
+    std::fs::write(d.join("cameras.txt"), cams).unwrap();
+    std::fs::write(d.join("images.txt"), imgs_ok).unwrap();
+    assert_eq!(read_model(d).unwrap().images.len(), 2);
+    let empty = tempfile::tempdir().unwrap();
+    assert!(matches!(
+        read_model(empty.path()).unwrap_err(),
+        ColmapError::NoModel { .. }
+    ));
+    // export refuses what COLMAP could not read back
+    let mut m = sample_model();
+    m.images[0].name = "has space.png".into();
+    assert!(matches!(
+        write_text(d, &m).unwrap_err(),
+        ColmapError::Export { .. }
+    ));
+    let mut m = sample_model();
+    m.cameras.get_mut(&1).unwrap().intrinsics.k1 = 0.1; // SIMPLE_PINHOLE cannot hold k1
+    assert!(matches!(
+        write_text(d, &m).unwrap_err(),
+        ColmapError::Export { camera: 1, .. }
+    ));
+}

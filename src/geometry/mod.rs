@@ -3,6 +3,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod colmap;
 pub mod curvature;
 pub mod mesh;
 pub mod mesh_io;
