@@ -119,12 +119,20 @@ impl CameraModel {
 
     /// The simplest model that expresses `k` exactly.
     pub fn simplest_for(k: &Intrinsics) -> Self {
-        match (k.fx == k.fy, k.p1 == 0.0 && k.p2 == 0.0, k.k1, k.k2) {
-            (true, true, k1, k2) if k1 == 0.0 && k2 == 0.0 => Self::SimplePinhole,
-            (false, true, k1, k2) if k1 == 0.0 && k2 == 0.0 => Self::Pinhole,
-            (true, true, _, k2) if k2 == 0.0 => Self::SimpleRadial,
-            (true, true, _, _) => Self::Radial,
-            _ => Self::Opencv,
+        let square = k.fx == k.fy;
+        let radial_only = k.p1 == 0.0 && k.p2 == 0.0;
+        if !k.has_distortion() {
+            if square {
+                Self::SimplePinhole
+            } else {
+                Self::Pinhole
+            }
+        } else if square && radial_only && k.k2 == 0.0 {
+            Self::SimpleRadial
+        } else if square && radial_only {
+            Self::Radial
+        } else {
+            Self::Opencv
         }
     }
 
