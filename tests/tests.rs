@@ -7,4 +7,5 @@
 mod geometry;
 mod rig_vectors;
 mod brdf;
+mod render;
 mod util;
