@@ -7,5 +7,6 @@
 mod brdf;
 mod geometry;
 mod render;
+mod report;
 mod rig_vectors;
 mod util;

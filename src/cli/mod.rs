@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod ports;
+mod report;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -25,11 +26,14 @@ pub enum Command {
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
+    /// Write a self-contained HTML report of a session or reconstruction folder.
+    Report(report::ReportArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
+        Command::Report(args) => report::run(args),
     }
 }

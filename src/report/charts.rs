@@ -393,7 +393,11 @@ where
         dashed: bool,
         label: Option<&str>,
     ) -> Result<(), String> {
-        let anno = if dashed {
+        // A lone point (a run between gaps, or a one-point series) would draw nothing as a line.
+        let anno = if pts.len() == 1 {
+            self.draw_series(pts.iter().map(|&p| Circle::new(p, 3, style.filled())))
+                .map_err(|e| e.to_string())?
+        } else if dashed {
             self.draw_series(DashedLineSeries::new(pts.iter().copied(), 6, 4, style))
                 .map_err(|e| e.to_string())?
         } else {

@@ -156,7 +156,8 @@ pub fn channel_chart(
         "view angle from +x axis (deg); normal at 90",
         "f_r (1/sr)",
     )
-    .log_y(log_y);
+    .log_y(log_y)
+    .size(540, 380);
     line_chart(&series, &spec)
 }
 
