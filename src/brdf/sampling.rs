@@ -8,7 +8,8 @@
 //!
 //! Candidates default to every basis row; on the rig they are the rows observed by reliable
 //! pixels (the reconstruction picks among pixels), so every step, descent included, stays inside
-//! the given candidate set. Seeded and deterministic. Pure: no files, no I/O.
+//! the given candidate set. Seeded and deterministic. Pure: no files, no I/O; depends on the
+//! basis only (not on the reconstruction, the materials or the rig).
 
 use super::basis::Basis;
 use nalgebra::DMatrix;
