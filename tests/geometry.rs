@@ -736,3 +736,83 @@ fn colmap_malformed_text_names_file_and_line() {
         ColmapError::Export { camera: 1, .. }
     ));
 }
+
+// ---------------------------------------------------------------------------------------------
+// SfM-like meshes
+
+use brdf_rig::geometry::sfm_like::{SfmLikeParams, mean_edge_length, sfm_like};
+
+#[test]
+fn sfm_like_noise_is_seeded_along_normals_with_the_stated_sigma() {
+    let truth = uv_sphere(1.0, 60, 120);
+    let params = SfmLikeParams {
+        iterations: 0,
+        noise_rel: 0.1,
+        seed: 42,
+        ..Default::default()
+    };
+    let a = sfm_like(&truth, &params);
+    let b = sfm_like(&truth, &params);
+    assert_eq!(a.positions(), b.positions());
+    let c = sfm_like(&truth, &SfmLikeParams { seed: 43, ..params });
+    assert_ne!(a.positions(), c.positions());
+    let sigma = 0.1 * mean_edge_length(&truth);
+    let mut sum2 = 0.0;
+    for ((p, q), n) in a
+        .positions()
+        .iter()
+        .zip(truth.positions())
+        .zip(truth.vertex_normals())
+    {
+        let d = p - q;
+        // along the normal only
+        assert!((d - n * d.dot(n)).norm() < 1e-12);
+        sum2 += d.norm_squared();
+    }
+    let rms = (sum2 / truth.positions().len() as f64).sqrt();
+    // 7000 samples: the RMS of a Gaussian is within 5% of sigma with overwhelming probability
+    assert!((rms / sigma - 1.0).abs() < 0.05, "rms {rms} sigma {sigma}");
+}
+
+#[test]
+fn sfm_like_smoothing_keeps_a_sphere_and_bends_normals_where_curvature_is_high() {
+    // Taubin keeps a sphere's size (plain Laplacian smoothing would shrink it)
+    let s = uv_sphere(1.0, 30, 60);
+    let params = SfmLikeParams {
+        noise_rel: 0.0,
+        ..Default::default()
+    };
+    let smooth = sfm_like(&s, &params);
+    let mean_r: f64 = smooth
+        .positions()
+        .iter()
+        .map(|p| p.coords.norm())
+        .sum::<f64>()
+        / s.positions().len() as f64;
+    assert!((mean_r - 1.0).abs() < 0.01, "mean radius {mean_r}");
+    // on Spot, normal error after smoothing grows with |H| (METHOD.md assumption 1)
+    let (spot, _) = load_mesh(&meshes().join("spot_triangulated.obj")).unwrap();
+    let h = principal_curvatures(&spot).mean;
+    let smooth = sfm_like(
+        &spot,
+        &SfmLikeParams {
+            iterations: 20,
+            ..params
+        },
+    );
+    let err: Vec<f64> = spot
+        .vertex_normals()
+        .iter()
+        .zip(smooth.vertex_normals())
+        .map(|(a, b)| a.dot(b).clamp(-1.0, 1.0).acos())
+        .collect();
+    let mut idx: Vec<usize> = (0..h.len()).collect();
+    idx.sort_by(|&i, &j| h[i].abs().total_cmp(&h[j].abs()));
+    let q = idx.len() / 4;
+    let mean = |s: &[usize]| s.iter().map(|&i| err[i]).sum::<f64>() / s.len() as f64;
+    let (flat, curved) = (mean(&idx[..q]), mean(&idx[idx.len() - q..]));
+    assert!(
+        curved > 2.0 * flat,
+        "normal error: flattest quarter {flat}, most curved {curved}"
+    );
+}

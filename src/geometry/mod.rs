@@ -8,4 +8,5 @@ pub mod curvature;
 pub mod mesh;
 pub mod mesh_io;
 pub mod raster;
+pub mod sfm_like;
 pub mod shadow;
