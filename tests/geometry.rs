@@ -378,14 +378,24 @@ fn timing_bunny_640x480_raster_and_shadow() {
         std::hint::black_box(shadow_mask(&bunny, &bvh, &g, &eye, &l));
     }
     let t_shadow = t.elapsed() / runs;
+    let t = std::time::Instant::now();
+    let curv = principal_curvatures(&bunny);
+    let t_curv = t.elapsed();
+    let t = std::time::Instant::now();
+    let sfm = sfm_like(&bunny, &SfmLikeParams::default());
+    let t_sfm = t.elapsed();
+    std::hint::black_box((&curv, &sfm));
     println!(
-        "bunny {} tris, {} covered px of 640x480: bvh build {:?}, rasterise {:?}, shadow mask {:?} ({} threads)",
+        "bunny {} tris, {} covered px of 640x480, {} threads: bvh build {:?}, rasterise {:?}, \
+         shadow mask {:?}, curvature {:?}, sfm_like {:?}",
         bunny.faces().len(),
         g.covered(),
+        rayon::current_num_threads(),
         t_build,
         t_raster,
         t_shadow,
-        rayon::current_num_threads()
+        t_curv,
+        t_sfm
     );
 }
 
@@ -814,5 +824,30 @@ fn sfm_like_smoothing_keeps_a_sphere_and_bends_normals_where_curvature_is_high()
     assert!(
         curved > 2.0 * flat,
         "normal error: flattest quarter {flat}, most curved {curved}"
+    );
+}
+
+#[test]
+fn rasterised_fragments_carry_interpolated_mean_curvature() {
+    let r = 0.8;
+    let s = uv_sphere(r, 30, 60);
+    let bvh = Bvh::build(&s);
+    let h = principal_curvatures(&s).mean;
+    let k = Intrinsics::pinhole(48, 36, 50.0, 50.0, 24.0, 18.0);
+    let pose = Pose::look_at(Point3::new(0.0, -3.0, 1.0), Point3::origin(), Vector3::z());
+    let g = rasterise(&s, &bvh, &k, &pose, Some(&h));
+    assert!(g.covered() > 100);
+    for f in g.fragments().iter().flatten() {
+        assert!((f.mean_curvature.unwrap() * r - 1.0).abs() < 0.02);
+        // the interpolated normal of a fine sphere is close to the true radial direction
+        assert!(f.normal.dot(&f.position.coords.normalize()) > 0.999);
+    }
+    // a curvature slice for another mesh is ignored rather than misread
+    let g = rasterise(&s, &bvh, &k, &pose, Some(&h[1..]));
+    assert!(
+        g.fragments()
+            .iter()
+            .flatten()
+            .all(|f| f.mean_curvature.is_none())
     );
 }

@@ -435,3 +435,65 @@ fn sphere_casts_a_shadow_on_the_board_in_an_analytic_scene() {
         assert!((rgb[0] as f64 - want).abs() < 1e-5, "{q:?}: {rgb:?}");
     }
 }
+
+/// Timing, not correctness: run in release with
+/// `cargo test --release --test tests -- --ignored --nocapture timing_shade`.
+#[test]
+#[ignore]
+fn timing_shade_bunny_640x480() {
+    use brdf_rig::geometry::mesh_io::load_mesh;
+    let (bunny, _) =
+        load_mesh(&crate::util::shared_data().join("meshes/stanford-bunny.obj")).unwrap();
+    let bvh = Bvh::build(&bunny);
+    let (lo, hi) = bunny.bounds();
+    let c = Point3::from((lo.coords + hi.coords) / 2.0);
+    let eye = c + Vector3::new(0.0, 0.0, 1.0) * (bunny.diagonal() * 1.2);
+    let pose = Pose::look_at(eye, c, Vector3::y());
+    let k = Intrinsics::pinhole(640, 480, 600.0, 600.0, 320.0, 240.0);
+    let g = rasterise(&bunny, &bvh, &k, &pose, None);
+    let light = DirectionalLight::new(Vector3::new(0.3, 0.8, 0.5), E).unwrap();
+    let opts = ShadeOptions::single_light(light);
+    let runs = 5;
+    let t = std::time::Instant::now();
+    for _ in 0..runs {
+        std::hint::black_box(shade(&bunny, &bvh, &g, &eye, &Phong(50.0), &opts));
+    }
+    let t_shade = t.elapsed() / runs;
+    let env = ShadeOptions {
+        light: None,
+        environment: Some(UniformEnvironment {
+            radiance: [1.0; 3],
+            samples: 16,
+            occlusion: true,
+            seed: 0,
+        }),
+        shadows: false,
+        background: [0.0; 3],
+    };
+    let t = std::time::Instant::now();
+    std::hint::black_box(shade(&bunny, &bvh, &g, &eye, &Lambert([0.5; 3]), &env));
+    let t_env = t.elapsed();
+    let sphere = Sphere {
+        centre: Point3::origin(),
+        radius: 1.0,
+    };
+    let sk = Intrinsics::pinhole(640, 480, 600.0, 600.0, 320.0, 240.0);
+    let sp = Pose::look_at(Point3::new(0.0, 0.0, 4.0), Point3::origin(), Vector3::y());
+    let t = std::time::Instant::now();
+    std::hint::black_box(render_sphere(
+        &sphere,
+        &Phong(50.0),
+        &light,
+        &sk,
+        &sp,
+        [0.0; 3],
+    ));
+    let t_sphere = t.elapsed();
+    println!(
+        "640x480, {} covered px: shade (light + shadows) {:?}, ambient 16 samples with occlusion {:?}, analytic sphere {:?}",
+        g.covered(),
+        t_shade,
+        t_env,
+        t_sphere
+    );
+}
