@@ -190,7 +190,7 @@ fn malformed_meshes_are_errors_naming_file_and_element() {
 use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::geometry::mesh::Mesh;
-use brdf_rig::geometry::raster::rasterise;
+use brdf_rig::geometry::raster::{Rasteriser, rasterise};
 use brdf_rig::geometry::shadow::shadow_mask;
 use nalgebra::{Point3, Vector3};
 
@@ -280,6 +280,13 @@ fn rasterised_square_covers_exactly_its_projection_at_its_depth() {
     }
     assert_eq!(checked, 400);
     assert_eq!(g.covered(), 400);
+    // single sub-pixel queries agree with the G-buffer and land where they were asked
+    let r = Rasteriser::new(&mesh, &bvh, &k, &pose, None);
+    assert_eq!(r.fragment(50.5, 30.5).as_ref(), g.get(50, 30));
+    let f = r.fragment(52.3, 31.9).unwrap();
+    let (px, py) = k.project(&pose.camera_from_world(&f.position)).unwrap();
+    assert!((px - 52.3).abs() < 1e-9 && (py - 31.9).abs() < 1e-9);
+    assert!(r.fragment(10.0, 10.0).is_none());
 }
 
 #[test]

@@ -40,6 +40,22 @@ impl Intrinsics {
         }
     }
 
+    /// The same camera for an image resampled by `scale` (0.5: half width and height). With
+    /// pixel centres at half-integers and the origin at the image corner, image coordinates
+    /// scale exactly: focal lengths and principal point multiply by `scale`; distortion, which
+    /// acts on normalised coordinates, is unchanged. The size is rounded to whole pixels.
+    pub fn scaled(&self, scale: f64) -> Self {
+        Self {
+            width: (self.width as f64 * scale).round() as usize,
+            height: (self.height as f64 * scale).round() as usize,
+            fx: self.fx * scale,
+            fy: self.fy * scale,
+            cx: self.cx * scale,
+            cy: self.cy * scale,
+            ..*self
+        }
+    }
+
     pub fn has_distortion(&self) -> bool {
         self.k1 != 0.0 || self.k2 != 0.0 || self.p1 != 0.0 || self.p2 != 0.0
     }
@@ -150,6 +166,17 @@ mod tests {
         // world up appears as image up (negative y)
         let up = pose.dir_to_camera(&Vector3::z());
         assert!(up.y < 0.0);
+    }
+
+    #[test]
+    fn scaled_camera_projects_to_scaled_image_coordinates() {
+        let mut k = Intrinsics::pinhole(640, 480, 500.0, 510.0, 321.0, 239.0);
+        k.k1 = -0.05;
+        let h = k.scaled(0.25);
+        assert_eq!((h.width, h.height), (160, 120));
+        let p = Vector3::new(0.3, -0.2, 2.0);
+        let (a, b) = (k.project(&p).unwrap(), h.project(&p).unwrap());
+        assert!((b.0 - a.0 * 0.25).abs() < 1e-12 && (b.1 - a.1 * 0.25).abs() < 1e-12);
     }
 
     #[test]
