@@ -6,11 +6,11 @@ use brdf_rig::brdf::Brdf;
 use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::geometry::mesh::Mesh;
-use brdf_rig::geometry::raster::rasterise;
+use brdf_rig::geometry::raster::{Rasteriser, rasterise};
 use brdf_rig::render::analytic::{SceneObject, render_analytic};
 use brdf_rig::render::board::{Board, render_board};
 use brdf_rig::render::light::{DirectionalLight, UniformEnvironment};
-use brdf_rig::render::shade::{ShadeOptions, render_mesh, shade};
+use brdf_rig::render::shade::{ShadeOptions, render_mesh, shade, shade_fragment};
 use brdf_rig::render::sphere::{Sphere, render_sphere};
 use nalgebra::{Point3, Vector3};
 use std::f64::consts::PI;
@@ -238,6 +238,13 @@ fn shading_frame_gives_the_brdf_the_true_view_and_light_cosines() {
         }
     }
     assert!(n > 1000);
+    // the per-pixel kernel gives what the image holds, for a pixel asked on its own
+    let f = Rasteriser::new(&mesh, &bvh, &k, &pose, None)
+        .fragment(40.5, 30.5)
+        .unwrap();
+    let opts = ShadeOptions::single_light(light);
+    let one = shade_fragment(&mesh, &bvh, &f, &eye, &Probe, &opts, 0);
+    assert_eq!(one.map(|v| v as f32), img.get(40, 30));
 }
 
 #[test]
