@@ -80,6 +80,17 @@ fn quads_are_triangulated_and_big_endian_binary_reads() {
     for n in m.vertex_normals() {
         assert!((n.z - 1.0).abs() < 1e-12);
     }
+    // integer coordinates (some scanners) and a `vertex_index` list with extra properties
+    let p = write(
+        dir.path(),
+        "int.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty int x\nproperty short y\n\
+         property uchar z\nproperty uchar red\nelement face 1\n\
+         property list uchar ushort vertex_index\nproperty int flags\nend_header\n\
+         0 0 0 255\n2 0 0 255\n0 3 1 255\n3 0 1 2 7\n",
+    );
+    let (m, _) = load_mesh(&p).unwrap();
+    assert_eq!(m.positions()[2], Point3::new(0.0, 3.0, 1.0));
 }
 
 fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
