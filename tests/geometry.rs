@@ -869,3 +869,30 @@ fn rasterised_fragments_carry_interpolated_mean_curvature() {
             .all(|f| f.mean_curvature.is_none())
     );
 }
+
+#[test]
+fn a_convex_mesh_never_shadows_itself_beyond_its_terminator() {
+    // no shadow acne: on a sphere, every face turned towards the light is lit
+    let s = uv_sphere(0.7, 40, 80);
+    let bvh = Bvh::build(&s);
+    let k = Intrinsics::pinhole(96, 72, 70.0, 70.0, 48.0, 36.0);
+    let eye = Point3::new(0.4, -2.5, 0.8);
+    let pose = Pose::look_at(eye, Point3::origin(), Vector3::z());
+    let g = rasterise(&s, &bvh, &k, &pose, None);
+    for l in [
+        Vector3::new(0.3, -0.2, 0.9),
+        Vector3::new(-0.95, 0.1, 0.05),
+        Vector3::new(0.0, 1.0, 0.0),
+    ] {
+        let l = l.normalize();
+        let mask = shadow_mask(&s, &bvh, &g, &eye, &l);
+        let mut lit = 0;
+        for (f, m) in g.fragments().iter().zip(&mask) {
+            let Some(f) = f else { continue };
+            let facing = s.face_normals()[f.face as usize].dot(&l) > 0.0;
+            assert_eq!(m.unwrap(), facing, "face {} at {:?}", f.face, f.position);
+            lit += facing as usize;
+        }
+        assert!(lit > 0 || l.y > 0.9);
+    }
+}
