@@ -130,14 +130,13 @@ pub fn shade_fragment(
         let n_side = stratified_count(env.samples);
         let seed = env.seed ^ pixel_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let (ju, jv): (f64, f64) = (rng.r#gen(), rng.r#gen());
         let front = if fnorm.dot(&v) >= 0.0 { fnorm } else { -fnorm };
         let mut sum = [0.0f64; 3];
         for i in 0..n_side {
             for j in 0..n_side {
-                // stratum (i, j), shifted by one per-pixel jitter (Cranley-Patterson rotation)
-                let u1 = ((i as f64 + ju) / n_side as f64).fract();
-                let u2 = ((j as f64 + jv) / n_side as f64).fract();
+                // jittered stratification: one uniform point inside stratum (i, j)
+                let u1 = (i as f64 + rng.r#gen::<f64>()) / n_side as f64;
+                let u2 = (j as f64 + rng.r#gen::<f64>()) / n_side as f64;
                 let wi = cosine_direction(u1, u2);
                 if env.occlusion {
                     let d = frame.to_world(&wi);
