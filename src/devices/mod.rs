@@ -6,6 +6,8 @@
 //! protocol uses millidegrees), light levels in [0, 1], exposure in seconds.
 
 pub mod error;
+pub mod link;
+pub mod rig;
 
 pub use error::DeviceError;
 
