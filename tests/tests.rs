@@ -1,6 +1,7 @@
 //! Integration tests compile to one binary (one link on a 2-core machine). Each module drives
 //! the library or the real binary the way a user would.
 
+mod rig_cli;
 mod rig_sim;
 mod rig_vectors;
 mod util;

@@ -178,6 +178,13 @@ struct Pty {
     _slave: TTYPort,
 }
 
+/// A bare pty pair `(master, slave)`, made under the same lock as the runner's (for tests that
+/// need a port where nothing answers, or their own fake).
+pub fn pty_pair() -> std::io::Result<(TTYPort, TTYPort)> {
+    let _guard = PTY_LOCK.lock().unwrap_or_else(|p| p.into_inner());
+    TTYPort::pair().map_err(std::io::Error::other)
+}
+
 fn open_pty(link: &Path) -> std::io::Result<Pty> {
     let _guard = PTY_LOCK.lock().unwrap_or_else(|p| p.into_inner());
     let (mut master, slave) = TTYPort::pair().map_err(std::io::Error::other)?;
