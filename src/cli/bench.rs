@@ -89,6 +89,16 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
     if let Some(w) = &a.write {
         command += &format!(" --write {}", w.display());
     }
+    for (i, w) in report.walls.iter().enumerate() {
+        if *w > report.step_wall[0] * 3 / 2 {
+            eprintln!(
+                "note: step {} took {:.1} ms (median {:.1} ms)",
+                i + 1,
+                w.as_secs_f64() * 1e3,
+                report.step_wall[0].as_secs_f64() * 1e3
+            );
+        }
+    }
     let md = report.markdown(&command, &machine());
     print!("{md}");
     if let Some(w) = &a.write {

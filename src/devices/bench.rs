@@ -44,6 +44,10 @@ pub struct RigBenchReport {
     pub step_wall: [Duration; 2],
     /// Median of wall minus motion.
     pub overhead: Duration,
+    /// Link counters over the whole run (resends mean a reply took longer than the timeout).
+    pub link: super::link::LinkStats,
+    /// Every step's wall time, in order.
+    pub walls: Vec<Duration>,
 }
 
 impl RigBenchReport {
@@ -74,7 +78,9 @@ impl RigBenchReport {
              at rest.\n\n\
              | motion time | wall (median) | wall (max) | overhead (median) | overhead | target |\n\
              |---|---|---|---|---|---|\n\
-             | {m} ms | {w0} ms | {w1} ms | {o} ms | {op:.2} % | < 5 %: {ook} |\n",
+             | {m} ms | {w0} ms | {w1} ms | {o} ms | {op:.2} % | < 5 %: {ook} |\n\n\
+             Link counters over the run: {req} requests, {res} re-sent after a timeout, {st} \
+             stale replies, {rej} rejected frames.\n",
             profile = self.profile,
             speed = self.speed_deg_s,
             accel = self.accel_deg_s2,
@@ -93,6 +99,10 @@ impl RigBenchReport {
             o = ms(self.overhead),
             op = self.overhead_pct(),
             ook = ok(ovh_ok),
+            req = self.link.requests,
+            res = self.link.resends,
+            st = self.link.stale,
+            rej = self.link.rejected,
         )
     }
 }
@@ -136,6 +146,7 @@ pub fn run(profile: &Profile, opts: &RigBenchOptions) -> Result<RigBenchReport, 
         tt.move_to(i as f64 * opts.step_deg)?;
         walls.push(t.elapsed());
     }
+    let in_order = walls.clone();
     walls.sort();
     let med = percentile(&walls, 0.5);
     Ok(RigBenchReport {
@@ -153,5 +164,7 @@ pub fn run(profile: &Profile, opts: &RigBenchOptions) -> Result<RigBenchReport, 
         motion,
         step_wall: [med, percentile(&walls, 1.0)],
         overhead: med.saturating_sub(motion),
+        link: r.link_stats(),
+        walls: in_order,
     })
 }
