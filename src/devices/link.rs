@@ -68,7 +68,11 @@ impl SerialLink {
             cfg,
             port: None,
             decoder: Decoder::new(),
-            next_id: 0,
+            // A random start: the firmware may still remember the last id of a previous
+            // session, and a request that reuses it would be answered from memory. Every
+            // session starts with HELLO, whose replay is harmless, and the random start makes
+            // even that rare.
+            next_id: rand::random::<u16>(),
             last_tx: Instant::now(),
             stats: LinkStats::default(),
             last_io_error: String::new(),
