@@ -7,5 +7,7 @@
 mod brdf;
 mod geometry;
 mod render;
+mod rig_cli;
+mod rig_sim;
 mod rig_vectors;
 mod util;
