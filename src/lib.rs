@@ -11,6 +11,7 @@ pub mod devices;
 pub mod geometry;
 pub mod imageio;
 pub mod protocol;
+pub mod reconstruct;
 pub mod render;
 pub mod report;
 pub mod sim;

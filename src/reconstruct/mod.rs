@@ -1,0 +1,24 @@
+//! Reconstruction of an isotropic BRDF from a mesh, camera poses and single-light images
+//! (METHOD.md sections 2-6; the paper: Ono et al., NAIST).
+//!
+//! The flow, one file per concept:
+//! - [`job`]: the job file (mesh, COLMAP model, light images with light direction and irradiance);
+//! - [`observe`]: per pixel directions, reflectance, Rusinkiewicz angles and MERL bin;
+//! - [`reliable`]: the three assumptions (curvature, monotonicity, brightest pixel);
+//! - [`prior`]: what a BRDF prior offers (sample selection, ridge fit), [`nielsen`] the real one;
+//! - [`components`]: the number of basis components, by validation on held-back pixels;
+//! - [`trials`]: random trials, chosen by cosine similarity with the captured images.
+//!
+//! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and runs
+//! everything; [`output`] writes the results. Only `pipeline` and `output` touch files.
+
+pub mod components;
+pub mod core;
+pub mod job;
+pub mod observe;
+pub mod prior;
+pub mod reliable;
+pub mod trials;
+
+pub use core::{CoreOutput, CoreSettings, reconstruct_observations};
+pub use job::{Job, JobError, LightImageSpec};
