@@ -6,6 +6,7 @@
 
 mod brdf;
 mod geometry;
+mod reconstruct;
 mod render;
 mod rig_vectors;
 mod util;

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod ports;
+mod reconstruct;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -25,11 +26,14 @@ pub enum Command {
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
+    /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
+    Reconstruct(reconstruct::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
     }
 }

@@ -1,5 +1,7 @@
-//! Choosing the number of basis components per scene (the best k ranges from 5 to 80 depending
-//! on the material, so a fixed k costs accuracy somewhere).
+//! Choosing the number of basis components k (and the ridge weight eta) per scene: the best k
+//! ranges from 5 to 80 depending on the material, so a fixed k costs accuracy somewhere; eta
+//! scales with the basis (its entries grow with the square root of the number of materials), so
+//! Nielsen's 40 for 100 materials is not right for every basis.
 //!
 //! Validation on held-back pixels: a seeded random fraction of the reliable pixels is held back;
 //! samples are selected from the rest exactly as a trial does (brightest first, eq. 1, prior's
@@ -8,8 +10,8 @@
 //! predicted against the observed `f cos(theta_i)` (the image-space quantity, so grazing pixels
 //! weigh less), summed over channels:
 //! `sqrt(sum (cos_i (f_pred - r))^2) / sqrt(sum (cos_i r)^2)`.
-//! The chosen k is the smallest whose error is within `tolerance` (relative) of the minimum:
-//! the simplest model that explains the held-back data.
+//! The chosen pair is the simplest whose error is within `tolerance` (relative) of the minimum:
+//! smallest k first, then largest eta (the most regularised).
 //!
 //! Pure: no I/O.
 
@@ -26,21 +28,26 @@ use serde::Serialize;
 pub struct ComponentSettings {
     /// Candidate k; capped by the number of samples and by the basis.
     pub grid: Vec<usize>,
+    /// Candidate ridge weights.
+    pub etas: Vec<f64>,
     /// Fraction of reliable pixels held back.
     pub held_out_fraction: f64,
     /// Choose the smallest k whose error is at most (1 + tolerance) times the minimum.
     pub tolerance: f64,
     /// Used when validation is impossible (too few pixels) or switched off (`grid` of one).
     pub fallback: usize,
+    pub fallback_eta: f64,
 }
 
 impl Default for ComponentSettings {
     fn default() -> Self {
         Self {
             grid: vec![5, 10, 20, 40, 80],
+            etas: vec![1.0, 10.0, 40.0],
             held_out_fraction: 0.25,
             tolerance: 0.02,
             fallback: 20,
+            fallback_eta: 40.0,
         }
     }
 }
@@ -49,6 +56,7 @@ impl Default for ComponentSettings {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ValidationPoint {
     pub k: usize,
+    pub eta: f64,
     /// Relative error on the held-back pixels; `None` when the fit failed.
     pub error: Option<f64>,
 }
@@ -56,6 +64,7 @@ pub struct ValidationPoint {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ComponentChoice {
     pub k: usize,
+    pub eta: f64,
     pub curve: Vec<ValidationPoint>,
     pub held_out_pixels: usize,
     pub samples: usize,
@@ -96,9 +105,10 @@ pub fn choose_components(
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xC0FF_EE00);
     pool.shuffle(&mut rng);
     let held_n = (pool.len() as f64 * settings.held_out_fraction).round() as usize;
-    if held_n < 10 || pool.len() - held_n < 10 || settings.grid.len() < 2 {
+    if held_n < 10 || pool.len() - held_n < 10 || settings.grid.len() * settings.etas.len() < 2 {
         return ComponentChoice {
             k: fallback,
+            eta: settings.fallback_eta,
             curve: Vec::new(),
             held_out_pixels: 0,
             samples: 0,
@@ -116,6 +126,13 @@ pub fn choose_components(
         reliable.brightest.as_ref(),
         reliable_settings,
         samples,
+        settings
+            .grid
+            .iter()
+            .copied()
+            .max()
+            .unwrap_or(samples)
+            .min(max_k),
         seed,
     );
     let fit_samples = samples_of(&sel.pixels);
@@ -127,12 +144,20 @@ pub fn choose_components(
         .collect();
     grid.sort_unstable();
     grid.dedup();
+    let mut etas = settings.etas.clone();
+    if etas.is_empty() {
+        etas.push(settings.fallback_eta);
+    }
+    // Most regularised first, so among equals the first found is the simplest.
+    etas.sort_by(|a, b| b.total_cmp(a));
     let curve: Vec<ValidationPoint> = grid
         .iter()
-        .map(|&k| ValidationPoint {
+        .flat_map(|&k| etas.iter().map(move |&eta| (k, eta)))
+        .map(|(k, eta)| ValidationPoint {
             k,
+            eta,
             error: prior
-                .fit(&fit_samples, k)
+                .fit(&fit_samples, k, eta)
                 .ok()
                 .map(|c| held_out_error(c.as_ref(), &held))
                 .filter(|e| e.is_finite()),
@@ -148,9 +173,10 @@ pub fn choose_components(
             p.error
                 .is_some_and(|e| e <= best * (1.0 + settings.tolerance))
         })
-        .map(|p| p.k);
+        .map(|p| (p.k, p.eta));
     ComponentChoice {
-        k: chosen.unwrap_or(fallback),
+        k: chosen.map_or(fallback, |c| c.0),
+        eta: chosen.map_or(settings.fallback_eta, |c| c.1),
         note: chosen
             .is_none()
             .then(|| format!("every validation fit failed: k = {fallback}")),
@@ -210,6 +236,7 @@ mod tests {
             30,
             &ComponentSettings {
                 grid: vec![1, 2, 3, 5, 8],
+                etas: vec![1.0],
                 ..Default::default()
             },
             7,

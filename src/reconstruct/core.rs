@@ -12,13 +12,27 @@ use serde::Serialize;
 use std::time::Instant;
 
 /// Settings of the steps after observation.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CoreSettings {
     pub reliable: ReliableSettings,
     pub trials: TrialSettings,
     pub components: ComponentSettings,
     /// Use this k instead of choosing one by validation.
     pub fixed_components: Option<usize>,
+    /// Ridge weight used with `fixed_components` (validation chooses its own otherwise).
+    pub fixed_eta: f64,
+}
+
+impl Default for CoreSettings {
+    fn default() -> Self {
+        Self {
+            reliable: ReliableSettings::default(),
+            trials: TrialSettings::default(),
+            components: ComponentSettings::default(),
+            fixed_components: None,
+            fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
+        }
+    }
 }
 
 /// Reasons the core cannot produce a BRDF.
@@ -70,6 +84,7 @@ pub fn reconstruct_observations(
     let components = match settings.fixed_components {
         Some(k) => ComponentChoice {
             k: k.min(prior.max_components()).max(1),
+            eta: settings.fixed_eta,
             curve: Vec::new(),
             held_out_pixels: 0,
             samples: 0,
@@ -91,8 +106,8 @@ pub fn reconstruct_observations(
 
     let t = Instant::now();
     progress(&format!(
-        "{} trials ({} samples, k = {})",
-        settings.trials.trials, settings.trials.samples, components.k
+        "{} trials ({} samples, k = {}, eta = {})",
+        settings.trials.trials, settings.trials.samples, components.k, components.eta
     ));
     let mut trials = run_trials(
         prior,
@@ -101,6 +116,7 @@ pub fn reconstruct_observations(
         &settings.reliable,
         &settings.trials,
         components.k,
+        components.eta,
     );
     let chosen = best_trial(&trials).ok_or(CoreError::AllTrialsFailed)?;
     let brdf = trials[chosen]

@@ -8,11 +8,12 @@
 //! (`Pose::dir_to_world`), which is how a turntable capture is seen from the object.
 //! Reflectance `r = I / (E cos theta_i)` per channel (1/sr when I is radiance and E irradiance).
 //! Rusinkiewicz angles use a local frame with the normal as +z and any tangent (the BRDF is
-//! isotropic), then `brdf::coords`.
+//! isotropic; `render::frame`), then `brdf::coords`.
 //!
 //! Pure: the surface samples come from the rasteriser, the image and mask from the loader.
 
 use crate::brdf::coords::{HalfDiff, merl_index};
+use crate::render::frame::ShadingFrame;
 use crate::render::image::LinearImage;
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
@@ -57,21 +58,15 @@ pub struct Observation {
     pub bin: usize,
 }
 
-/// Local frame of a normal: returns (wi, wo) in coordinates where `n` is +z.
+/// `(wi, wo)` in the local shading frame of `n` (normal = +z; `render::frame`, shared with
+/// the renderer so observation and rendering agree).
 pub fn to_local(
     n: &Vector3<f64>,
     l: &Vector3<f64>,
     v: &Vector3<f64>,
 ) -> (Vector3<f64>, Vector3<f64>) {
-    let helper = if n.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let t = n.cross(&helper).normalize();
-    let b = n.cross(&t);
-    let local = |d: &Vector3<f64>| Vector3::new(d.dot(&t), d.dot(&b), d.dot(n));
-    (local(l), local(v))
+    let frame = ShadingFrame::new(*n);
+    (frame.to_local(l), frame.to_local(v))
 }
 
 impl Observation {

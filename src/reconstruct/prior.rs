@@ -6,6 +6,8 @@
 //!
 //! Convention: a bin is a flat MERL index (`brdf::coords`), reflectance is f_r in 1/sr, RGB.
 
+use crate::brdf::merl::MerlTable;
+
 /// One reflectance sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sample {
@@ -17,6 +19,11 @@ pub struct Sample {
 pub trait Candidate: Send + Sync {
     /// f_r at the centre of a bin, RGB, 1/sr.
     fn eval_bin(&self, bin: usize) -> [f64; 3];
+
+    /// The full MERL table (every bin evaluated; a prior on a coarser grid overrides this).
+    fn to_merl_table(&self) -> MerlTable {
+        MerlTable::from_fn(|b| Some(self.eval_bin(b.index())))
+    }
 }
 
 /// A basis-backed prior.
@@ -29,12 +36,21 @@ pub trait Prior: Send + Sync {
     fn row_of(&self, bin: usize) -> Option<usize>;
 
     /// Extends `chosen` (rows already selected, in order, kept as the prefix) to at most `n`
-    /// rows drawn from `candidates`, minimising the condition number of the basis sub-matrix;
-    /// returns the whole ordered list. `seed` drives the random candidate draws.
-    fn select(&self, chosen: &[usize], candidates: &[usize], n: usize, seed: u64) -> Vec<usize>;
+    /// rows drawn from `candidates`, minimising the condition number of the basis sub-matrix
+    /// on its first `min(|S|, k)` columns; returns the whole ordered list. `seed` drives the
+    /// random candidate draws.
+    fn select(
+        &self,
+        chosen: &[usize],
+        candidates: &[usize],
+        n: usize,
+        k: usize,
+        seed: u64,
+    ) -> Vec<usize>;
 
-    /// Fits a BRDF to the samples with the first `min(k, samples)` components.
-    fn fit(&self, samples: &[Sample], k: usize) -> Result<Box<dyn Candidate>, String>;
+    /// Fits a BRDF to the samples with the first `min(k, samples)` components and ridge
+    /// weight `eta` (a prior without regularisation may ignore it).
+    fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String>;
 }
 
 /// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least
@@ -87,6 +103,7 @@ pub mod synthetic {
             chosen: &[usize],
             candidates: &[usize],
             n: usize,
+            _k: usize,
             seed: u64,
         ) -> Vec<usize> {
             let mut rest: Vec<usize> = candidates
@@ -103,7 +120,12 @@ pub mod synthetic {
                 .collect()
         }
 
-        fn fit(&self, samples: &[Sample], k: usize) -> Result<Box<dyn Candidate>, String> {
+        fn fit(
+            &self,
+            samples: &[Sample],
+            k: usize,
+            _eta: f64,
+        ) -> Result<Box<dyn Candidate>, String> {
             let k = k.min(samples.len()).min(self.k);
             if k == 0 {
                 return Err("no samples".into());

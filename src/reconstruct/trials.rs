@@ -107,18 +107,21 @@ pub struct Selection {
     pub rejected_by_monotonicity: usize,
 }
 
-/// Re-runs of the prior's selection after a bin's pixels all failed eq. 1, before the rest is
-/// filled greedily in the prior's order.
-const MAX_RESELECTIONS: usize = 12;
+/// Rounds of the prior's selection: after a round whose rows partly failed eq. 1, the prior
+/// re-selects the missing samples around the pixels accepted so far.
+const MAX_ROUNDS: usize = 6;
 
-/// Chooses up to `n` pixels among `pool`: bins by the prior, pixels by eq. 1, `first` always
-/// first (the brightest pixel when assumption 3 is on).
+/// Chooses up to `n` pixels among `pool`: basis rows by the prior (conditioning on the first
+/// `min(|S|, k)` components), for each row the first pixel (pool order) that satisfies eq. 1
+/// against every pixel already chosen; `first` always first (the brightest pixel when
+/// assumption 3 is on). A row none of whose pixels passes is dropped from the candidates.
 pub fn select_pixels(
     prior: &dyn Prior,
     pool: &[Observation],
     first: Option<&Observation>,
     reliable: &ReliableSettings,
     n: usize,
+    k: usize,
     seed: u64,
 ) -> Selection {
     // Pixels grouped by the basis row of their bin: the prior chooses rows.
@@ -140,51 +143,34 @@ pub fn select_pixels(
     let mut candidates: Vec<usize> = by_row.keys().copied().collect();
     candidates.sort_unstable();
     let mut rejected = 0;
-    let mut rounds = 0;
-    // Tries a bin: the first pixel (pool order) that satisfies eq. 1; removes the bin's failures.
-    let mut take = |bin: usize, mono: &mut MonotonicSet, pixels: &mut Vec<Observation>| -> bool {
-        let Some(list) = by_row.get(&bin) else {
-            return false;
-        };
-        for o in list {
-            if mono.accepts(o) {
-                mono.push(o);
-                pixels.push(**o);
-                return true;
-            }
-            rejected += 1;
+    for round in 0..MAX_ROUNDS {
+        if pixels.len() >= n || candidates.is_empty() {
+            break;
         }
-        false
-    };
-    while pixels.len() < n && !candidates.is_empty() {
         let chosen: Vec<usize> = pixels.iter().filter_map(|p| prior.row_of(p.bin)).collect();
-        let order = prior.select(&chosen, &candidates, n, seed.wrapping_add(rounds as u64));
-        let new: Vec<usize> = order.into_iter().skip(chosen.len()).collect();
+        let order = prior.select(&chosen, &candidates, n, k, seed.wrapping_add(round as u64));
+        let new: Vec<usize> = order
+            .into_iter()
+            .skip(chosen.len())
+            .filter(|r| by_row.contains_key(r))
+            .collect();
         if new.is_empty() {
             break;
         }
-        let greedy = rounds >= MAX_RESELECTIONS;
-        let mut restart = false;
-        for bin in new {
-            candidates.retain(|&c| c != bin);
-            if !take(bin, &mut mono, &mut pixels) && !greedy {
-                restart = true;
-                break;
-            }
+        for row in new {
             if pixels.len() >= n {
                 break;
             }
-        }
-        if !restart && greedy {
-            // Fill the rest in candidate order, still honouring eq. 1.
-            for bin in std::mem::take(&mut candidates) {
-                if pixels.len() >= n {
+            candidates.retain(|&c| c != row);
+            for o in by_row.get(&row).map(Vec::as_slice).unwrap_or(&[]) {
+                if mono.accepts(o) {
+                    mono.push(o);
+                    pixels.push(**o);
                     break;
                 }
-                take(bin, &mut mono, &mut pixels);
+                rejected += 1;
             }
         }
-        rounds += 1;
     }
     Selection {
         pixels,
@@ -212,6 +198,7 @@ pub fn run_trials(
     reliable_settings: &ReliableSettings,
     settings: &TrialSettings,
     k: usize,
+    eta: f64,
 ) -> Vec<Trial> {
     (0..settings.trials.max(1))
         .into_par_iter()
@@ -232,9 +219,10 @@ pub fn run_trials(
                 reliable.brightest.as_ref(),
                 reliable_settings,
                 settings.samples,
+                k,
                 seed,
             );
-            let candidate = prior.fit(&samples_of(&sel.pixels), k).ok();
+            let candidate = prior.fit(&samples_of(&sel.pixels), k, eta).ok();
             let similarity = candidate
                 .as_deref()
                 .map(|c| cosine_similarity(c, observations))
@@ -335,6 +323,7 @@ mod tests {
             Some(&first),
             &settings,
             40,
+            4,
             3,
         );
         assert_eq!(sel.pixels[0].bin, first.bin);
@@ -350,7 +339,15 @@ mod tests {
         assert!(sel.rejected_by_monotonicity > 0);
         // Without the assumption, corrupted pixels get in.
         let none = ReliableSettings::none();
-        let sel = select_pixels(&CosinePrior { k: 4 }, &reliable.pixels, None, &none, 100, 3);
+        let sel = select_pixels(
+            &CosinePrior { k: 4 },
+            &reliable.pixels,
+            None,
+            &none,
+            100,
+            4,
+            3,
+        );
         assert!(sel.pixels.iter().any(|p| p.reflectance[0] == 10.0));
     }
 
@@ -373,7 +370,15 @@ mod tests {
             samples: 12,
             seed: 5,
         };
-        let trials = run_trials(&CosinePrior { k: 3 }, &reliable, &obs, &settings, &ts, 3);
+        let trials = run_trials(
+            &CosinePrior { k: 3 },
+            &reliable,
+            &obs,
+            &settings,
+            &ts,
+            3,
+            1.0,
+        );
         assert_eq!(trials.len(), 6);
         let best = best_trial(&trials).unwrap();
         for t in &trials {
@@ -381,7 +386,15 @@ mod tests {
             assert_eq!(t.samples.len(), 12);
         }
         // Deterministic for a seed.
-        let again = run_trials(&CosinePrior { k: 3 }, &reliable, &obs, &settings, &ts, 3);
+        let again = run_trials(
+            &CosinePrior { k: 3 },
+            &reliable,
+            &obs,
+            &settings,
+            &ts,
+            3,
+            1.0,
+        );
         for (a, b) in trials.iter().zip(&again) {
             assert_eq!(a.similarity, b.similarity);
         }
