@@ -6,8 +6,12 @@ mod merl;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod bench;
+mod light;
 mod ports;
 mod reconstruct;
+mod rig;
+mod turntable;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -28,6 +32,14 @@ pub enum Command {
     Merl(merl::MerlArgs),
     /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
     Reconstruct(reconstruct::Args),
+    /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
+    Rig(rig::RigCommandArgs),
+    /// Home, move or query the turntable.
+    Turntable(turntable::TurntableArgs),
+    /// Switch light channels on and off, or query them.
+    Light(light::LightArgs),
+    /// Measurements behind the tables in docs/benchmarks-*.md.
+    Bench(bench::BenchArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -35,5 +47,9 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Rig(a) => rig::run(a),
+        Command::Turntable(a) => turntable::run(a),
+        Command::Light(a) => light::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }
