@@ -8,6 +8,7 @@ mod brdf;
 mod geometry;
 mod reconstruct;
 mod render;
+mod report;
 mod rig_cli;
 mod rig_sim;
 mod rig_vectors;

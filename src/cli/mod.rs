@@ -10,6 +10,7 @@ mod bench;
 mod light;
 mod ports;
 mod reconstruct;
+mod report;
 mod rig;
 mod turntable;
 
@@ -32,6 +33,8 @@ pub enum Command {
     Merl(merl::MerlArgs),
     /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
     Reconstruct(reconstruct::Args),
+    /// Write a self-contained HTML report of a session or reconstruction folder.
+    Report(report::ReportArgs),
     /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
     Rig(rig::RigCommandArgs),
     /// Home, move or query the turntable.
@@ -47,6 +50,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Report(args) => report::run(args),
         Command::Rig(a) => rig::run(a),
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
