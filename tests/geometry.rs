@@ -896,3 +896,23 @@ fn a_convex_mesh_never_shadows_itself_beyond_its_terminator() {
         assert!(lit > 0 || l.y > 0.9);
     }
 }
+
+#[test]
+fn obj_objects_sharing_vertices_stay_connected() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "two.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 1\no a\nf 1 2 3\no b\nf 1 3 4\n",
+    );
+    let (m, _) = load_mesh(&p).unwrap();
+    // the shared edge (1, 3) must be one edge, so both faces blend normals at its ends
+    assert_eq!(m.positions().len(), 4);
+    let (f0, f1) = (m.faces()[0], m.faces()[1]);
+    assert_eq!((f0[0], f0[2]), (f1[0], f1[1]));
+    let n = m.vertex_normals()[f0[0] as usize];
+    assert!(
+        n.y < -0.1 && n.z > 0.5,
+        "normal at the shared corner blends both faces: {n:?}"
+    );
+}
