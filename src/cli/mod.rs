@@ -1,8 +1,16 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+mod merl;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+
+mod bench;
+mod light;
+mod ports;
+mod rig;
+mod turntable;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -16,8 +24,28 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {}
+pub enum Command {
+    /// List serial ports (to find the rig for a profile's `[serial] port`).
+    Ports,
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
+    /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
+    Rig(rig::RigCommandArgs),
+    /// Home, move or query the turntable.
+    Turntable(turntable::TurntableArgs),
+    /// Switch light channels on and off, or query them.
+    Light(light::LightArgs),
+    /// Measurements behind the tables in docs/benchmarks-*.md.
+    Bench(bench::BenchArgs),
+}
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    match cli.command {}
+    match cli.command {
+        Command::Ports => ports::run(),
+        Command::Merl(args) => merl::run(args),
+        Command::Rig(a) => rig::run(a),
+        Command::Turntable(a) => turntable::run(a),
+        Command::Light(a) => light::run(a),
+        Command::Bench(a) => bench::run(a),
+    }
 }
