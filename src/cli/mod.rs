@@ -1,6 +1,8 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+mod merl;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -33,6 +35,8 @@ pub enum Command {
     Light(light::LightArgs),
     /// Measurements behind the tables in docs/benchmarks-*.md.
     Bench(bench::BenchArgs),
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -42,5 +46,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Merl(args) => merl::run(args),
     }
 }
