@@ -357,3 +357,26 @@ fn a_reset_during_a_motion_rehomes_and_finishes_the_move() {
     );
     assert!(r.events().contains(&RigEvent::Rehomed));
 }
+
+#[test]
+fn a_reset_seen_between_moves_returns_the_platter_and_the_light() {
+    let p = fast_profile(&[]);
+    let mut r = rig::open(&p, None).unwrap();
+    let sim = r.sim.clone().unwrap();
+    r.turntable.home().unwrap();
+    r.turntable.move_to(123.0).unwrap();
+    r.light.on(0, 1.0, true).unwrap();
+    sim.reset();
+    // A capture would now take a picture: status is what it asks first.
+    let s = r.turntable.status().unwrap();
+    assert_eq!((s.angle_deg, s.homed, s.moving), (123.0, true, false));
+    let snap = sim.snapshot();
+    assert_eq!((snap.boot, snap.levels[0]), (2, 1.0));
+    assert!((snap.angle_deg - 123.0).abs() < 1e-9);
+    assert!(r.events().contains(&RigEvent::Resumed {
+        angle_mdeg: 123_000
+    }));
+    // A relative move after the reset is relative to where the platter was put back.
+    r.turntable.move_by(7.0).unwrap();
+    assert_eq!(r.turntable.status().unwrap().angle_deg, 130.0);
+}
