@@ -43,6 +43,8 @@ pub enum Command {
     Light(light::LightArgs),
     /// Measurements behind the tables in docs/benchmarks-*.md.
     Bench(bench::BenchArgs),
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -55,5 +57,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Merl(args) => merl::run(args),
     }
 }
