@@ -1,0 +1,253 @@
+//! Light direction from synthetic sphere images against the light the renderer used.
+
+#![allow(clippy::unwrap_used)] // tests: a panic is the failure report
+
+use crate::calib_synth::{SphereScene, random_dir_around};
+use brdf_rig::calib::light::LightError;
+use brdf_rig::calib::light::{OutlineInput, SphereShot, calibrate_light};
+use brdf_rig::calib::sphere::{SphereError, SphereOptions, detect_outline};
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    a.normalize()
+        .dot(&b.normalize())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
+}
+
+/// Errors (degrees) over `n` seeded random light directions within 10..70 degrees of the view.
+fn errors_over_directions(
+    n: usize,
+    seed: u64,
+    configure: impl Fn(&mut SphereScene),
+    use_ambient_outline: bool,
+) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut errors = Vec::new();
+    for i in 0..n {
+        let mut scene = SphereScene::new(Vector3::z());
+        let l = random_dir_around(&mut rng, &scene.view_axis(), 10.0, 70.0);
+        scene.light_dir = l;
+        configure(&mut scene);
+        let light = scene.render_light(seed * 1000 + i as u64);
+        let ambient = scene.render_ambient(seed * 1000 + 500 + i as u64);
+        let outline = if use_ambient_outline {
+            OutlineInput::Image(&ambient)
+        } else {
+            OutlineInput::FromLightImage
+        };
+        let cal = calibrate_light(
+            &[SphereShot {
+                light: &light,
+                outline,
+            }],
+            &scene.intr,
+            &SphereOptions::default(),
+        )
+        .unwrap_or_else(|e| panic!("direction {i} ({l:?}): {e}"));
+        let err = angle_deg(&cal.dir_camera, &l);
+        assert!(cal.uncertainty_deg > 0.0 && cal.uncertainty_deg < 1.0);
+        errors.push(err);
+    }
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    let max = errors.iter().copied().fold(0.0, f64::max);
+    eprintln!("light direction error over {n} directions: mean {mean:.3} deg, max {max:.3} deg");
+    errors
+}
+
+#[test]
+fn saturated_highlight_within_half_a_degree_over_12_directions() {
+    let errors = errors_over_directions(12, 7, |_| {}, true);
+    // the default scene clips the highlight: check that it really is clipped
+    let scene = SphereScene::new(Vector3::new(0.3, -0.2, -1.0));
+    let img = scene.render_light(1);
+    assert!(img.data().iter().filter(|&&v| v >= 1.0).count() > 20);
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
+}
+
+#[test]
+fn unclipped_highlight_outline_from_the_light_image_within_half_a_degree() {
+    let errors = errors_over_directions(
+        10,
+        11,
+        |s| {
+            s.specular = 0.8;
+            s.noise.saturation = None;
+        },
+        false,
+    );
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
+}
+
+#[test]
+fn wide_angle_lens_with_the_sphere_near_the_corner() {
+    // a strongly off-axis sphere: its outline is visibly elliptical
+    let errors = errors_over_directions(
+        4,
+        23,
+        |s| {
+            s.intr = brdf_rig::geometry::camera::Intrinsics::pinhole(
+                320, 240, 180.0, 180.0, 160.0, 120.0,
+            );
+            s.centre = Vector3::new(0.1, 0.07, 0.25);
+            s.radius = 0.06;
+        },
+        true,
+    );
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
+}
+
+#[test]
+fn a_small_second_highlight_is_ignored() {
+    let l = Vector3::new(0.4, -0.3, -1.0).normalize();
+    let mut scene = SphereScene::new(l);
+    scene.second_light = Some((Vector3::new(-0.5, 0.4, -1.0).normalize(), 0.05));
+    scene.specular = 10.0;
+    let light = scene.render_light(3);
+    let ambient = scene.render_ambient(4);
+    let cal = calibrate_light(
+        &[SphereShot {
+            light: &light,
+            outline: OutlineInput::Image(&ambient),
+        }],
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap();
+    assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
+}
+
+#[test]
+fn several_images_combine_with_a_spread() {
+    let l = Vector3::new(-0.3, 0.2, -1.0).normalize();
+    let mut scenes = Vec::new();
+    for (k, c) in [
+        Vector3::new(0.02, 0.0, 0.4),
+        Vector3::new(-0.03, 0.01, 0.45),
+        Vector3::new(0.0, -0.02, 0.38),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut s = SphereScene::new(l);
+        s.centre = c;
+        scenes.push((
+            s.render_light(100 + k as u64),
+            s.render_ambient(200 + k as u64),
+            s,
+        ));
+    }
+    let shots: Vec<SphereShot> = scenes
+        .iter()
+        .map(|(light, amb, _)| SphereShot {
+            light,
+            outline: OutlineInput::Image(amb),
+        })
+        .collect();
+    let cal = calibrate_light(&shots, &scenes[0].2.intr, &SphereOptions::default()).unwrap();
+    assert_eq!(cal.per_image.len(), 3);
+    assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
+    assert!(cal.spread_deg > 0.0 && cal.spread_deg < 0.5);
+    assert!(cal.uncertainty_deg >= cal.std_error_deg);
+}
+
+#[test]
+fn user_circle_outline_on_the_axis() {
+    // on the optical axis the outline is an exact circle of radius f tan(alpha)
+    let l = Vector3::new(0.2, 0.3, -1.0).normalize();
+    let mut scene = SphereScene::new(l);
+    scene.intr.cx = 160.0;
+    scene.intr.cy = 120.0;
+    scene.centre = Vector3::new(0.0, 0.0, 0.42);
+    let alpha = (scene.radius / 0.42f64).asin();
+    let light = scene.render_light(9);
+    let cal = calibrate_light(
+        &[SphereShot {
+            light: &light,
+            outline: OutlineInput::Circle {
+                cx: 160.0,
+                cy: 120.0,
+                radius_px: 520.0 * alpha.tan(),
+            },
+        }],
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap();
+    assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
+}
+
+#[test]
+fn no_sphere_gives_a_clear_error() {
+    let mut scene = SphereScene::new(Vector3::new(0.0, 0.0, -1.0));
+    scene.radius = 0.0; // nothing in front of the backdrop
+    let img = scene.render_ambient(5);
+    let err = detect_outline(&img, &scene.intr, &SphereOptions::default()).unwrap_err();
+    assert!(matches!(err, SphereError::NoSphere { .. }), "{err}");
+    assert!(err.to_string().contains("no sphere found"));
+}
+
+#[test]
+fn sphere_cut_by_the_frame_gives_a_clear_error() {
+    let mut scene = SphereScene::new(Vector3::new(0.0, 0.0, -1.0));
+    scene.centre = Vector3::new(0.12, 0.0, 0.42); // right edge of the frame
+    let img = scene.render_ambient(6);
+    let err = detect_outline(&img, &scene.intr, &SphereOptions::default()).unwrap_err();
+    assert!(matches!(err, SphereError::SphereCut { .. }), "{err}");
+    assert!(err.to_string().contains("cut by the frame edge"));
+}
+
+#[test]
+fn no_highlight_and_highlight_outside_the_sphere_are_errors() {
+    let scene = SphereScene::new(Vector3::new(0.2, 0.1, -1.0));
+    let ambient = scene.render_ambient(7);
+    // the ambient image as "light image": nothing on the sphere stands out
+    let err = calibrate_light(
+        &[SphereShot {
+            light: &ambient,
+            outline: OutlineInput::Image(&ambient),
+        }],
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            LightError::Image {
+                index: 0,
+                source: SphereError::NoHighlight { .. }
+            }
+        ),
+        "{err}"
+    );
+    // a lamp in the frame, brighter and bigger than the highlight
+    let mut light = scene.render_light(8);
+    for y in 10..30 {
+        for x in 10..30 {
+            light.set(x, y, [1.0; 3]);
+        }
+    }
+    let err = calibrate_light(
+        &[SphereShot {
+            light: &light,
+            outline: OutlineInput::Image(&ambient),
+        }],
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            LightError::Image {
+                source: SphereError::HighlightOutsideSphere { .. },
+                ..
+            }
+        ),
+        "{err}"
+    );
+}
