@@ -3,4 +3,5 @@
 
 mod calib_sphere;
 mod calib_synth;
+mod calib_white;
 mod util;

@@ -11,3 +11,4 @@ pub mod light;
 pub mod regions;
 pub mod robust;
 pub mod sphere;
+pub mod white;

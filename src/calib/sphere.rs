@@ -24,7 +24,7 @@
 //! outside levels is the sub-pixel edge (exact for an anti-aliased straight step edge).
 //! Depends on `geometry::camera` and `render::image` only; pure, no I/O.
 
-use super::regions::{self, Plane};
+use super::regions::{self, Plane, saturation_level};
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -269,25 +269,6 @@ fn fit_cone(rays: &[Vector3<f64>]) -> Option<(Vector3<f64>, f64)> {
     }
     let d = d.normalize();
     Some((d, d.dot(&mean)))
-}
-
-/// The clip level: given, or detected as a maximum shared by several pixels.
-pub fn saturation_level(img: &LinearImage, given: Option<f32>) -> Option<f32> {
-    if given.is_some() {
-        return given;
-    }
-    let max = img
-        .data()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(f32::MIN, f32::max);
-    let at_max = img
-        .data()
-        .chunks_exact(3)
-        .filter(|c| c.iter().any(|&v| v >= max))
-        .count();
-    (max > 0.0 && at_max >= 4).then_some(max)
 }
 
 fn check_size(img: &LinearImage, intr: &Intrinsics, what: &str) -> Result<(), SphereError> {
