@@ -287,6 +287,7 @@ pub fn fit_circle(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 

@@ -69,6 +69,7 @@ pub fn robust_mean(values: &[f64], k: f64) -> Option<RobustMean> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 

@@ -697,6 +697,7 @@ pub fn light_from_sphere(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 

@@ -355,6 +355,7 @@ fn erode(m: &[bool], w: usize, h: usize) -> Vec<bool> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 

@@ -1,6 +1,8 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+pub mod calibrate;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -16,8 +18,13 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {}
+pub enum Command {
+    /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
+    Calibrate(calibrate::CalibrateArgs),
+}
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    match cli.command {}
+    match cli.command {
+        Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
+    }
 }
