@@ -6,6 +6,8 @@ pub mod calibrate;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod ports;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "brdf-rig",
@@ -19,12 +21,15 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// List serial ports (to find the rig for a profile's `[serial] port`).
+    Ports,
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Ports => ports::run(),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }
