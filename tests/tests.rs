@@ -4,6 +4,7 @@
 // Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
 #![allow(clippy::unwrap_used)]
 
+mod calib_cli;
 mod calib_hdr;
 mod calib_sphere;
 mod calib_synth;

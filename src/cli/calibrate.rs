@@ -122,16 +122,13 @@ fn check_saturation(s: Option<f32>) -> Result<()> {
     Ok(())
 }
 
-/// Reads a linear image.
-// TODO(imageio): switch to `brdf_rig::imageio::read_linear(path, scale)` once branch `geom`
-// lands in main; until then files cannot be read and the commands stop here, naming the file.
+/// Reads a linear image (EXR, or 16-bit PNG/TIFF as `value / 65535 * scale`); the error names
+/// the file.
 fn read_image(path: &Path, scale: f32) -> Result<LinearImage> {
-    let _ = scale;
-    bail!(
-        "{}: cannot read images yet: the image reader (brdf_rig::imageio) is not merged into \
-         this build",
-        path.display()
-    )
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--scale: must be a positive number, got {scale}");
+    }
+    Ok(brdf_rig::imageio::read_linear(path, scale)?)
 }
 
 struct SphereConfig {
