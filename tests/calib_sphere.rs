@@ -50,6 +50,12 @@ fn errors_over_directions(
         .unwrap_or_else(|e| panic!("direction {i} ({l:?}): {e}"));
         let err = angle_deg(&cal.dir_camera, &l);
         assert!(cal.uncertainty_deg > 0.0 && cal.uncertainty_deg < 1.0);
+        // the reported (1 sigma) uncertainty must cover the actual error
+        assert!(
+            err < 3.0 * cal.uncertainty_deg,
+            "error {err} deg vs uncertainty {} deg",
+            cal.uncertainty_deg
+        );
         errors.push(err);
     }
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
@@ -94,6 +100,27 @@ fn wide_angle_lens_with_the_sphere_near_the_corner() {
             );
             s.centre = Vector3::new(0.1, 0.07, 0.25);
             s.radius = 0.06;
+        },
+        true,
+    );
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
+}
+
+#[test]
+fn barrel_distortion_is_undone_through_the_intrinsics() {
+    let errors = errors_over_directions(
+        3,
+        29,
+        |s| {
+            let mut k = brdf_rig::geometry::camera::Intrinsics::pinhole(
+                320, 240, 260.0, 260.0, 158.0, 121.0,
+            );
+            k.k1 = -0.15;
+            k.k2 = 0.03;
+            s.intr = k;
+            s.centre = Vector3::new(0.07, -0.05, 0.3);
+            s.radius = 0.06;
+            s.supersample = 3; // each distorted ray costs an undistortion
         },
         true,
     );
@@ -250,4 +277,54 @@ fn no_highlight_and_highlight_outside_the_sphere_are_errors() {
         ),
         "{err}"
     );
+}
+
+/// The mirror normal of a sphere for light `l`: `n = (l + v) / |l + v|` with `v` the view
+/// direction at the point of normal `n` (fixed point; perspective makes `v` depend on `n`).
+fn true_mirror_normal(scene: &SphereScene) -> Vector3<f64> {
+    let c = scene.centre;
+    let mut n = (scene.light_dir - c.normalize()).normalize();
+    for _ in 0..100 {
+        let v = -(c + n * scene.radius).normalize();
+        n = (scene.light_dir + v).normalize();
+    }
+    n
+}
+
+#[test]
+fn error_budget_outline_and_highlight_separately() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (mut centre_err, mut radius_err, mut normal_err) = (0.0f64, 0.0f64, 0.0f64);
+    for i in 0..6 {
+        let mut scene = SphereScene::new(Vector3::z());
+        scene.light_dir = random_dir_around(&mut rng, &scene.view_axis(), 10.0, 70.0);
+        let ambient = scene.render_ambient(900 + i);
+        let light = scene.render_light(950 + i);
+        let outline = detect_outline(&ambient, &scene.intr, &SphereOptions::default()).unwrap();
+        let alpha = (scene.radius / scene.centre.norm()).asin();
+        centre_err = centre_err.max(outline.centre_dir.angle(&scene.centre.normalize()));
+        radius_err = radius_err.max((outline.angular_radius_rad - alpha).abs());
+        let h = brdf_rig::calib::sphere::find_highlight(
+            &light,
+            &outline,
+            &scene.intr,
+            &SphereOptions::default(),
+        )
+        .unwrap();
+        normal_err = normal_err.max(h.normal.angle(&true_mirror_normal(&scene)));
+    }
+    let px = 1.0 / scene_focal();
+    eprintln!(
+        "worst over 6: outline centre {:.3} px, angular radius {:.3} px, highlight normal {:.3} deg",
+        centre_err / px,
+        radius_err / px,
+        normal_err.to_degrees()
+    );
+    // the outline to a tenth of a pixel; the highlight normal to a tenth of a degree
+    assert!(centre_err < 0.1 * px && radius_err < 0.1 * px);
+    assert!(normal_err.to_degrees() < 0.1);
+}
+
+fn scene_focal() -> f64 {
+    SphereScene::new(Vector3::z()).intr.fx
 }

@@ -75,8 +75,14 @@ fn render(
                 for i in 0..ss {
                     let px = x as f64 + (i as f64 + 0.5) / ss as f64;
                     let py = y as f64 + (j as f64 + 0.5) / ss as f64;
-                    let ray = Vector3::new((px - intr.cx) / intr.fx, (py - intr.cy) / intr.fy, 1.0)
-                        .normalize();
+                    // with lens distortion the pixel's ray goes through the camera model's
+                    // undistortion (itself tested by a round trip in geometry::camera)
+                    let ray = if intr.has_distortion() {
+                        intr.ray(px, py)
+                    } else {
+                        Vector3::new((px - intr.cx) / intr.fx, (py - intr.cy) / intr.fy, 1.0)
+                            .normalize()
+                    };
                     let c = shade(&ray, px, py);
                     for k in 0..3 {
                         acc[k] += c[k] * inv;

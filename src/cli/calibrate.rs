@@ -41,8 +41,13 @@ pub struct SphereArgs {
     /// The outline as a circle in pixels instead of detecting it: cx,cy,radius.
     #[arg(long, value_name = "CX,CY,R", conflicts_with = "outline_images")]
     pub circle: Option<String>,
-    /// Pinhole intrinsics in pixels (COLMAP convention, pixel centres at +0.5).
-    #[arg(long, value_name = "FX,FY,CX,CY")]
+    /// Pinhole intrinsics in pixels (COLMAP convention, pixel centres at +0.5), optionally
+    /// followed by OPENCV distortion k1,k2,p1,p2.
+    #[arg(
+        long,
+        value_name = "FX,FY,CX,CY[,K1,K2,P1,P2]",
+        allow_hyphen_values = true
+    )]
     pub intrinsics: String,
     /// Clip level of the camera, in image units (default: detected).
     #[arg(long)]
@@ -132,16 +137,22 @@ fn read_image(path: &Path, scale: f32) -> Result<LinearImage> {
 }
 
 struct SphereConfig {
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
+    /// fx, fy, cx, cy, k1, k2, p1, p2
+    k: [f64; 8],
     circle: Option<(f64, f64, f64)>,
     opts: SphereOptions,
 }
 
 fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
-    let k = parse_numbers("--intrinsics", &a.intrinsics, 4, "fx,fy,cx,cy")?;
+    let k = parse_numbers("--intrinsics", &a.intrinsics, 4, "fx,fy,cx,cy")
+        .or_else(|_| parse_numbers("--intrinsics", &a.intrinsics, 8, ""))
+        .map_err(|_| {
+            anyhow::anyhow!(
+                "--intrinsics: expected 4 comma-separated numbers fx,fy,cx,cy, or 8 with the \
+                 distortion k1,k2,p1,p2 appended, got '{}'",
+                a.intrinsics
+            )
+        })?;
     if k[0] <= 0.0 || k[1] <= 0.0 {
         bail!(
             "--intrinsics: focal lengths must be positive, got fx {} fy {}",
@@ -164,11 +175,10 @@ fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
         );
     }
     check_saturation(a.saturation)?;
+    let mut all = [0.0; 8];
+    all[..k.len()].copy_from_slice(&k);
     Ok(SphereConfig {
-        fx: k[0],
-        fy: k[1],
-        cx: k[2],
-        cy: k[3],
+        k: all,
         circle,
         opts: SphereOptions {
             saturation: a.saturation,
@@ -206,7 +216,9 @@ fn sphere(a: SphereArgs) -> Result<()> {
             );
         }
     }
-    let intr = Intrinsics::pinhole(w, h, cfg.fx, cfg.fy, cfg.cx, cfg.cy);
+    let k = cfg.k;
+    let mut intr = Intrinsics::pinhole(w, h, k[0], k[1], k[2], k[3]);
+    (intr.k1, intr.k2, intr.p1, intr.p2) = (k[4], k[5], k[6], k[7]);
     let shots: Vec<SphereShot> = lights
         .iter()
         .enumerate()
