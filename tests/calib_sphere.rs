@@ -179,6 +179,16 @@ fn several_images_combine_with_a_spread() {
     assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
     assert!(cal.spread_deg > 0.0 && cal.spread_deg < 0.5);
     assert!(cal.uncertainty_deg >= cal.std_error_deg);
+    // the summary a session stores survives a JSON round trip
+    let s = cal.summary();
+    let back: brdf_rig::calib::light::LightSummary =
+        serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
+    // (serde_json's default float parsing may differ in the last bit)
+    for (a, b) in back.dir_camera.iter().zip(s.dir_camera) {
+        assert!((a - b).abs() < 1e-12);
+    }
+    assert!((back.uncertainty_deg - s.uncertainty_deg).abs() < 1e-12);
+    assert_eq!(s.images, 3);
 }
 
 #[test]

@@ -12,6 +12,7 @@ use super::sphere::{self, SphereError, SphereLight, SphereOptions, SphereOutline
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -68,6 +69,32 @@ pub struct LightCalibration {
     /// First-order uncertainty from the outline fits, combined over the images.
     pub fit_uncertainty_deg: f64,
     pub per_image: Vec<SphereLight>,
+}
+
+/// What a capture session stores of a [`LightCalibration`] (plain numbers, serde).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightSummary {
+    /// Unit vector towards the light, camera axes (x right, y down, z forward).
+    pub dir_camera: [f64; 3],
+    pub uncertainty_deg: f64,
+    pub spread_deg: f64,
+    pub std_error_deg: f64,
+    pub fit_uncertainty_deg: f64,
+    pub images: usize,
+}
+
+impl LightCalibration {
+    pub fn summary(&self) -> LightSummary {
+        let d = self.dir_camera;
+        LightSummary {
+            dir_camera: [d.x, d.y, d.z],
+            uncertainty_deg: self.uncertainty_deg,
+            spread_deg: self.spread_deg,
+            std_error_deg: self.std_error_deg,
+            fit_uncertainty_deg: self.fit_uncertainty_deg,
+            images: self.per_image.len(),
+        }
+    }
 }
 
 /// Measures the light direction from each shot and combines them.

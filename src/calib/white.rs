@@ -23,6 +23,7 @@ use super::regions::{self, Plane, saturation_level};
 use super::robust::{RobustMean, robust_mean};
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use thiserror::Error;
 
@@ -102,7 +103,7 @@ impl Default for WhiteOptions {
 }
 
 /// The 3x3 flat-field check.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FlatField {
     /// Robust mean luminance per cell, row-major from the top-left; `None` when a cell holds
     /// too few board pixels.
@@ -111,8 +112,8 @@ pub struct FlatField {
     pub spread: f64,
 }
 
-/// Irradiance per channel with how it was obtained.
-#[derive(Clone, Debug, PartialEq)]
+/// Irradiance per channel with how it was obtained (serde: what a capture session stores).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct IrradianceCalibration {
     /// `E` per channel (R, G, B).
     pub irradiance: [f64; 3],
