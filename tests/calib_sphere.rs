@@ -261,17 +261,16 @@ fn no_highlight_and_highlight_outside_the_sphere_are_errors() {
         ),
         "{err}"
     );
-    // a lamp in the frame, brighter and bigger than the highlight
-    let mut light = scene.render_light(8);
-    for y in 10..30 {
-        for x in 10..30 {
-            light.set(x, y, [1.0; 3]);
-        }
-    }
+    // an outline that misses the sphere: its highlight lies off the outline
+    let light = scene.render_light(8);
     let err = calibrate_light(
         &[SphereShot {
             light: &light,
-            outline: OutlineInput::Image(&ambient),
+            outline: OutlineInput::Circle {
+                cx: 60.0,
+                cy: 170.0,
+                radius_px: 40.0,
+            },
         }],
         &scene.intr,
         &SphereOptions::default(),
@@ -287,6 +286,31 @@ fn no_highlight_and_highlight_outside_the_sphere_are_errors() {
         ),
         "{err}"
     );
+    assert!(err.to_string().contains("outside the sphere"));
+}
+
+#[test]
+fn a_brighter_lamp_elsewhere_in_the_frame_is_ignored() {
+    let l = Vector3::new(0.2, 0.1, -1.0).normalize();
+    let mut scene = SphereScene::new(l);
+    scene.specular = 0.9; // unclipped highlight, the lamp clips: the lamp is the brightest thing
+    let ambient = scene.render_ambient(7);
+    let mut light = scene.render_light(8);
+    for y in 10..40 {
+        for x in 10..40 {
+            light.set(x, y, [1.0; 3]);
+        }
+    }
+    let cal = calibrate_light(
+        &[SphereShot {
+            light: &light,
+            outline: OutlineInput::Image(&ambient),
+        }],
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap();
+    assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
 }
 
 /// The mirror normal of a sphere for light `l`: `n = (l + v) / |l + v|` with `v` the view

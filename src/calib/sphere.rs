@@ -552,9 +552,12 @@ pub struct Highlight {
     pub peak: f32,
 }
 
-/// Finds the highlight: the connected region above half way from the sphere's typical level
-/// to the brightest value, with the largest summed excess (so a small second highlight or a hot
-/// pixel loses to the real one). Clipped pixels count at the clip level.
+/// Finds the highlight: among the connected regions above half way from the sphere's typical
+/// level to its brightest pixel, centred on the sphere, the one with the largest summed excess
+/// (so a small second highlight or a hot pixel loses to the real one). Clipped pixels count at
+/// the clip level. Brighter things elsewhere in the frame (a lamp, a lit wall) are ignored; when
+/// nothing on the sphere stands out but a compact bright spot lies off it, the outline and the
+/// light image disagree: [`SphereError::HighlightOutsideSphere`].
 pub fn find_highlight(
     img: &LinearImage,
     outline: &SphereOutline,
@@ -590,6 +593,26 @@ pub fn find_highlight(
     let sigma = super::robust::mad_sigma(&inside, level).unwrap_or(0.0);
     let floor = level + (10.0 * sigma).max(0.05 * level.abs()).max(1e-9);
     if (peak_inside as f64) <= floor {
+        // nothing on the sphere; a compact bright spot elsewhere means the highlight is off the
+        // outline (an outline image or circle that does not match the light image)
+        let peak = eff.iter().copied().fold(f32::MIN, f32::max) as f64;
+        if peak > floor {
+            let thr = level + 0.5 * (peak - level);
+            if let Some((c, (x, y), _)) = bright_regions(&eff, w, h, thr)
+                .into_iter()
+                .max_by(|a, b| a.2.total_cmp(&b.2))
+                && !c.touches_border
+                && c.pixels.len() < inside.len()
+            {
+                return Err(SphereError::HighlightOutsideSphere {
+                    x,
+                    y,
+                    cx: outline.centre_px[0],
+                    cy: outline.centre_px[1],
+                    radius_px: outline.radius_px,
+                });
+            }
+        }
         return Err(SphereError::NoHighlight {
             reason: format!(
                 "the brightest pixel on the sphere ({peak_inside:.4}) barely exceeds its typical \
@@ -597,19 +620,14 @@ pub fn find_highlight(
             ),
         });
     }
-    let peak = eff.iter().copied().fold(f32::MIN, f32::max) as f64;
-    let thr = level + 0.5 * (peak - level);
-    let mask: Vec<bool> = eff.iter().map(|&v| v as f64 >= thr).collect();
-    let best = regions::components(&mask, w, h)
+    let thr = level + 0.5 * (peak_inside as f64 - level);
+    let (best, _) = bright_regions(&eff, w, h, thr)
         .into_iter()
-        .map(|c| {
-            let s: f64 = c.pixels.iter().map(|&i| eff[i] as f64 - thr).sum();
-            (c, s)
-        })
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(c, _)| c)
+        .filter(|(_, (x, y), _)| outline.contains_pixel(intr, *x, *y))
+        .max_by(|a, b| a.2.total_cmp(&b.2))
+        .map(|(c, xy, _)| (c, xy))
         .ok_or_else(|| SphereError::NoHighlight {
-            reason: "no bright region".into(),
+            reason: "no bright region is centred on the sphere".into(),
         })?;
     let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
     let mut n_sum = Vector3::zeros();
@@ -633,13 +651,9 @@ pub fn find_highlight(
         }
     }
     let (x, y) = (sx / sw, sy / sw);
-    if !outline.contains_pixel(intr, x, y) || n_sum.norm() == 0.0 {
-        return Err(SphereError::HighlightOutsideSphere {
-            x,
-            y,
-            cx: outline.centre_px[0],
-            cy: outline.centre_px[1],
-            radius_px: outline.radius_px,
+    if n_sum.norm() == 0.0 {
+        return Err(SphereError::NoHighlight {
+            reason: format!("the bright region at ({x:.1}, {y:.1}) px misses the sphere"),
         });
     }
     Ok(Highlight {
@@ -649,6 +663,30 @@ pub fn find_highlight(
         saturated_pixels: saturated,
         peak: peak_region,
     })
+}
+
+/// Connected regions of `eff >= thr`: component, weighted centroid (pixel coordinates) and
+/// summed excess over `thr`.
+fn bright_regions(
+    eff: &[f32],
+    w: usize,
+    h: usize,
+    thr: f64,
+) -> Vec<(regions::Component, (f64, f64), f64)> {
+    let mask: Vec<bool> = eff.iter().map(|&v| v as f64 >= thr).collect();
+    regions::components(&mask, w, h)
+        .into_iter()
+        .map(|c| {
+            let (mut sx, mut sy, mut s) = (0.0, 0.0, 0.0);
+            for &i in &c.pixels {
+                let e = (eff[i] as f64 - thr).max(1e-12);
+                sx += e * ((i % w) as f64 + 0.5);
+                sy += e * ((i / w) as f64 + 0.5);
+                s += e;
+            }
+            (c, (sx / s, sy / s), s)
+        })
+        .collect()
 }
 
 /// Mirror `v` about `n`: `2 (n.v) n - v`.
