@@ -362,3 +362,17 @@ fn error_budget_outline_and_highlight_separately() {
 fn scene_focal() -> f64 {
     SphereScene::new(Vector3::z()).intr.fx
 }
+
+#[test]
+fn a_sphere_brighter_than_its_backdrop_is_found_too() {
+    let scene = SphereScene::new(Vector3::new(0.0, 0.0, -1.0));
+    let mut img = scene.render_ambient(12);
+    for v in img.data_mut() {
+        *v = 0.4 - *v; // the sphere now bright on a dark backdrop
+    }
+    let outline = detect_outline(&img, &scene.intr, &SphereOptions::default()).unwrap();
+    let px = 1.0 / scene.intr.fx;
+    assert!(outline.centre_dir.angle(&scene.centre.normalize()) < 0.1 * px);
+    let alpha = (scene.radius / scene.centre.norm()).asin();
+    assert!((outline.angular_radius_rad - alpha).abs() < 0.1 * px);
+}
