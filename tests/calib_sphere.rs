@@ -24,6 +24,25 @@ fn errors_over_directions(
     seed: u64,
     configure: impl Fn(&mut SphereScene),
     use_ambient_outline: bool,
+    check_uncertainty: bool,
+) -> Vec<f64> {
+    errors_over_directions_with(
+        n,
+        seed,
+        configure,
+        use_ambient_outline,
+        check_uncertainty,
+        &SphereOptions::default(),
+    )
+}
+
+fn errors_over_directions_with(
+    n: usize,
+    seed: u64,
+    configure: impl Fn(&mut SphereScene),
+    use_ambient_outline: bool,
+    check_uncertainty: bool,
+    opts: &SphereOptions,
 ) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut errors = Vec::new();
@@ -45,14 +64,14 @@ fn errors_over_directions(
                 outline,
             }],
             &scene.intr,
-            &SphereOptions::default(),
+            opts,
         )
         .unwrap_or_else(|e| panic!("direction {i} ({l:?}): {e}"));
         let err = angle_deg(&cal.dir_camera, &l);
         assert!(cal.uncertainty_deg > 0.0 && cal.uncertainty_deg < 1.0);
-        // the reported (1 sigma) uncertainty must cover the actual error
+        // the reported (1 sigma) uncertainty must cover the actual error (of what it models)
         assert!(
-            err < 3.0 * cal.uncertainty_deg,
+            !check_uncertainty || err < 3.0 * cal.uncertainty_deg,
             "error {err} deg vs uncertainty {} deg",
             cal.uncertainty_deg
         );
@@ -66,7 +85,7 @@ fn errors_over_directions(
 
 #[test]
 fn saturated_highlight_within_half_a_degree_over_12_directions() {
-    let errors = errors_over_directions(12, 7, |_| {}, true);
+    let errors = errors_over_directions(12, 7, |_| {}, true, true);
     // the default scene clips the highlight: check that it really is clipped
     let scene = SphereScene::new(Vector3::new(0.3, -0.2, -1.0));
     let img = scene.render_light(1);
@@ -84,6 +103,7 @@ fn unclipped_highlight_outline_from_the_light_image_within_half_a_degree() {
             s.noise.saturation = None;
         },
         false,
+        true,
     );
     assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
 }
@@ -101,6 +121,7 @@ fn wide_angle_lens_with_the_sphere_near_the_corner() {
             s.centre = Vector3::new(0.1, 0.07, 0.25);
             s.radius = 0.06;
         },
+        true,
         true,
     );
     assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
@@ -122,6 +143,7 @@ fn barrel_distortion_is_undone_through_the_intrinsics() {
             s.radius = 0.06;
             s.supersample = 3; // each distorted ray costs an undistortion
         },
+        true,
         true,
     );
     assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
@@ -375,4 +397,50 @@ fn a_sphere_brighter_than_its_backdrop_is_found_too() {
     assert!(outline.centre_dir.angle(&scene.centre.normalize()) < 0.1 * px);
     let alpha = (scene.radius / scene.centre.norm()).asin();
     assert!((outline.angular_radius_rad - alpha).abs() < 0.1 * px);
+}
+
+#[test]
+fn without_the_rim_correction_a_fresnel_rim_biases_the_light() {
+    // the same scenes, outline taken as seen: the rim shrinks it by ~0.9 % of its radius
+    let plain = SphereOptions {
+        rim_fresnel_f0: None,
+        ..SphereOptions::default()
+    };
+    let scene = SphereScene::new(Vector3::z());
+    let outline = detect_outline(&scene.render_ambient(3), &scene.intr, &plain).unwrap();
+    let alpha = (scene.radius / scene.centre.norm()).asin();
+    let bias_px = (outline.angular_radius_rad - alpha) * scene.intr.fx;
+    let corrected = detect_outline(
+        &scene.render_ambient(3),
+        &scene.intr,
+        &SphereOptions::default(),
+    )
+    .unwrap();
+    let after_px = (corrected.angular_radius_rad - alpha) * scene.intr.fx;
+    eprintln!(
+        "fresnel rim (Schlick F0 0.04): outline radius bias {bias_px:.3} px uncorrected, \
+         {after_px:.3} px corrected"
+    );
+    assert!(bias_px < -0.3 && after_px.abs() < 0.1);
+    // what the bias does to the light direction (same seeds as the corrected run below reports)
+    let errors = errors_over_directions_with(6, 41, |_| {}, true, false, &plain);
+    assert!(errors.iter().any(|&e| e > 0.3), "{errors:?}");
+    let corrected = errors_over_directions(6, 41, |_| {}, true, true);
+    assert!(corrected.iter().all(|&e| e < 0.5), "{corrected:?}");
+}
+
+#[test]
+fn a_sphere_without_a_fresnel_rim_needs_no_correction() {
+    let errors = errors_over_directions_with(
+        6,
+        43,
+        |s| s.fresnel_rim = false,
+        true,
+        true,
+        &SphereOptions {
+            rim_fresnel_f0: None,
+            ..SphereOptions::default()
+        },
+    );
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
 }

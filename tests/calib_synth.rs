@@ -60,6 +60,11 @@ pub fn random_dir_around(
     (a * theta.cos() + (e1 * phi.cos() + e2 * phi.sin()) * theta.sin()).normalize()
 }
 
+/// Schlick's Fresnel reflectance of a dielectric with F0 = 0.04 (black glossy plastic).
+pub fn schlick(cos: f64) -> f64 {
+    0.04 + 0.96 * (1.0 - cos.clamp(0.0, 1.0)).powi(5)
+}
+
 /// Casts `ss x ss` rays per pixel and averages `shade(ray, x, y)`.
 fn render(
     intr: &Intrinsics,
@@ -115,6 +120,9 @@ pub struct SphereScene {
     pub ambient: f64,
     /// A second, weaker light: direction and strength relative to the main one.
     pub second_light: Option<(Vector3<f64>, f64)>,
+    /// Fresnel reflection of the backdrop (Schlick, F0 = 0.04) in both images: a real glossy
+    /// sphere's rim fades into the backdrop at grazing angles, which shrinks its apparent outline.
+    pub fresnel_rim: bool,
     pub noise: Noise,
     pub supersample: usize,
 }
@@ -134,6 +142,7 @@ impl SphereScene {
             backdrop: 0.25,
             ambient: 0.3,
             second_light: None,
+            fresnel_rim: true,
             noise: Noise {
                 abs: 0.004,
                 rel: 0.01,
@@ -175,7 +184,16 @@ impl SphereScene {
             if let Some((l2, k)) = &self.second_light {
                 s += k * lobe(l2);
             }
-            self.irradiance.map(|e| e * s)
+            let mut rgb = self.irradiance.map(|e| e * s);
+            if self.fresnel_rim {
+                // the rim mirrors the lit backdrop just behind the silhouette
+                let f = schlick(n.dot(&v));
+                let b = self.backdrop * (1.0 + 0.3 * (px / w - 0.5));
+                for (c, tint) in rgb.iter_mut().zip([1.0, 0.97, 0.94]) {
+                    *c += f * b * tint;
+                }
+            }
+            rgb
         });
         self.noise.apply(&mut img, seed);
         img
@@ -186,7 +204,12 @@ impl SphereScene {
         let mut img = render(&self.intr, self.supersample, |ray, _, py| {
             match self.hit(ray) {
                 Some(n) => {
-                    let s = 0.02 + 0.03 * n.dot(&-ray);
+                    let cos = n.dot(&-ray).max(0.0);
+                    let mut s = 0.02 + 0.03 * cos;
+                    if self.fresnel_rim {
+                        let f = schlick(cos);
+                        s = s * (1.0 - f) + f * self.ambient * (1.0 + 0.3 * (py / h - 0.5));
+                    }
                     [s; 3]
                 }
                 None => [self.ambient * (1.0 + 0.3 * (py / h - 0.5)); 3],

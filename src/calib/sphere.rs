@@ -21,7 +21,10 @@
 //! Edge points: a threshold (Otsu) finds the sphere as the largest round region darker (or
 //! brighter) than its surround, a circle fit to its border pixels seeds radial intensity
 //! profiles, and each profile's crossing of the level half way between the local inside and
-//! outside levels is the sub-pixel edge (exact for an anti-aliased straight step edge).
+//! outside levels is the sub-pixel edge (exact for an anti-aliased straight step edge). A glossy
+//! dielectric sphere's rim fades into the backdrop it mirrors at grazing angles (Fresnel), which
+//! shrinks that edge by ~0.9 % of the radius for `f0 = 0.04`, about 0.5 degree of light
+//! direction; it is corrected in closed form ([`SphereOutline::corrected_for_fresnel_rim`]).
 //! Depends on `geometry::camera` and `render::image` only; pure, no I/O.
 
 use super::regions::{self, Plane, saturation_level};
@@ -80,6 +83,11 @@ pub struct SphereOptions {
     pub saturation: Option<f32>,
     /// Smallest sphere radius, in pixels, worth considering.
     pub min_radius_px: f64,
+    /// Normal-incidence Fresnel reflectance of the sphere's surface, to correct the detected
+    /// outline for the bright (or dark) rim a glossy dielectric shows: see
+    /// [`SphereOutline::corrected_for_fresnel_rim`]. 0.04 for black glossy plastic or glass;
+    /// `None` for a matte outline image or a metal (chrome) sphere.
+    pub rim_fresnel_f0: Option<f64>,
 }
 
 impl Default for SphereOptions {
@@ -87,8 +95,14 @@ impl Default for SphereOptions {
         Self {
             saturation: None,
             min_radius_px: 8.0,
+            rim_fresnel_f0: Some(0.04),
         }
     }
+}
+
+/// `n.v` on the sphere where Schlick's Fresnel reflectance is one half, for `f0 < 0.5`.
+pub fn half_fresnel_cos(f0: f64) -> Option<f64> {
+    (f0.is_finite() && (0.0..0.5).contains(&f0)).then(|| 1.0 - ((0.5 - f0) / (1.0 - f0)).powf(0.2))
 }
 
 /// Where an outline came from.
@@ -224,6 +238,30 @@ impl SphereOutline {
             })?;
         o.source = OutlineSource::UserCircle;
         Ok(o)
+    }
+
+    /// The outline of the sphere itself from the apparent outline of a glossy dielectric one.
+    ///
+    /// Near the silhouette a glossy sphere mirrors what lies just behind it, with a Fresnel
+    /// reflectance rising to 1 at grazing angles, so its rim fades into the backdrop and the
+    /// half-level edge sits where the reflectance is 1/2: radiance `(1 - F) I + F B` equals
+    /// `(I + B) / 2` exactly when `F = 1/2`, whatever the sphere's own level `I` and the backdrop's
+    /// `B`. With Schlick's `F = f0 + (1 - f0)(1 - n.v)^5` that is `n.v = c*`, and a ray at angle
+    /// `beta` from the centre direction meets the sphere where `sin(theta) = sin(beta) / sin(alpha)`;
+    /// so the true `sin(alpha) = sin(alpha_apparent) / sqrt(1 - c*^2)` (0.94 % larger for
+    /// `f0 = 0.04`, independent of the sphere's size in pixels). No change for `f0 >= 0.5` (a
+    /// metal's rim does not cross the half level).
+    pub fn corrected_for_fresnel_rim(&self, f0: f64, intr: &Intrinsics) -> Self {
+        let Some(c) = half_fresnel_cos(f0) else {
+            return self.clone();
+        };
+        let sin_a = (self.angular_radius_rad.sin() / (1.0 - c * c).sqrt()).min(0.999_999);
+        let alpha = sin_a.asin();
+        Self {
+            angular_radius_rad: alpha,
+            radius_px: alpha.tan() * 0.5 * (intr.fx + intr.fy),
+            ..self.clone()
+        }
     }
 
     /// First-order standard uncertainty (radians) of a sphere normal read off this outline: a
@@ -369,10 +407,13 @@ pub fn detect_outline(
         });
     }
     let rays: Vec<Vector3<f64>> = points.iter().map(|&(x, y)| intr.ray(x, y)).collect();
-    let outline =
+    let mut outline =
         SphereOutline::from_edge_rays(&rays, intr).ok_or_else(|| SphereError::NoSphere {
             reason: "the edge points do not fit a sphere's outline".into(),
         })?;
+    if let Some(f0) = opts.rim_fresnel_f0 {
+        outline = outline.corrected_for_fresnel_rim(f0, intr);
+    }
     // the fitted outline itself must lie inside the frame
     for i in 0..72 {
         let a = i as f64 * 2.0 * PI / 72.0;
@@ -621,9 +662,18 @@ pub fn find_highlight(
         });
     }
     let thr = level + 0.5 * (peak_inside as f64 - level);
+    // on the sphere: centred on it, and mostly on it (a ring of backdrop around the sphere, joined
+    // through a bright Fresnel rim, is centred on it too)
+    let on_sphere = |c: &regions::Component, x: f64, y: f64| {
+        let pixel_on = |i: &&usize| {
+            outline.contains_pixel(intr, (**i % w) as f64 + 0.5, (**i / w) as f64 + 0.5)
+        };
+        outline.contains_pixel(intr, x, y)
+            && 2 * c.pixels.iter().filter(pixel_on).count() >= c.pixels.len()
+    };
     let (best, _) = bright_regions(&eff, w, h, thr)
         .into_iter()
-        .filter(|(_, (x, y), _)| outline.contains_pixel(intr, *x, *y))
+        .filter(|(c, (x, y), _)| on_sphere(c, *x, *y))
         .max_by(|a, b| a.2.total_cmp(&b.2))
         .map(|(c, xy, _)| (c, xy))
         .ok_or_else(|| SphereError::NoHighlight {
@@ -772,6 +822,30 @@ mod tests {
         // the normal at the centre pixel faces the camera
         let (_, n) = fit.intersect(&d).unwrap();
         assert!((n + d).norm() < 1e-12);
+    }
+
+    #[test]
+    fn fresnel_half_point_and_rim_correction() {
+        let c = half_fresnel_cos(0.04).unwrap();
+        let f = 0.04 + 0.96 * (1.0 - c).powi(5);
+        assert!((f - 0.5).abs() < 1e-12);
+        assert!(half_fresnel_cos(0.6).is_none());
+        // the ray at the apparent edge meets the true sphere where n.v = c
+        let intr = Intrinsics::pinhole(320, 240, 300.0, 300.0, 160.0, 120.0);
+        let apparent = SphereOutline {
+            centre_dir: Vector3::z(),
+            angular_radius_rad: 0.2,
+            centre_px: [160.0, 120.0],
+            radius_px: 60.0,
+            edge_points: 100,
+            rms_residual_rad: 0.0,
+            source: OutlineSource::Detected,
+        };
+        let truth = apparent.corrected_for_fresnel_rim(0.04, &intr);
+        assert!(truth.angular_radius_rad > apparent.angular_radius_rad);
+        let ray = tangent_ray(&apparent, 0.7);
+        let (_, n) = truth.intersect(&ray).unwrap();
+        assert!((n.dot(&-ray) - c).abs() < 1e-9, "{} vs {c}", n.dot(&-ray));
     }
 
     #[test]

@@ -52,6 +52,10 @@ pub struct SphereArgs {
     /// Clip level of the camera, in image units (default: detected).
     #[arg(long)]
     pub saturation: Option<f32>,
+    /// Normal-incidence Fresnel reflectance of the sphere, to correct the outline for its rim
+    /// fading into the backdrop; "none" for a chrome sphere or a matte outline image.
+    #[arg(long = "rim-f0", default_value = "0.04", value_name = "F0|none")]
+    pub rim_f0: String,
     /// Scale of 16-bit PNG/TIFF images.
     #[arg(long, default_value_t = 1.0)]
     pub scale: f32,
@@ -175,6 +179,13 @@ fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
         );
     }
     check_saturation(a.saturation)?;
+    let rim_fresnel_f0 = match a.rim_f0.trim() {
+        "none" => None,
+        t => match t.parse::<f64>() {
+            Ok(f) if (0.0..1.0).contains(&f) => Some(f),
+            _ => bail!("--rim-f0: expected a reflectance in [0, 1) or 'none', got '{t}'"),
+        },
+    };
     let mut all = [0.0; 8];
     all[..k.len()].copy_from_slice(&k);
     Ok(SphereConfig {
@@ -182,6 +193,7 @@ fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
         circle,
         opts: SphereOptions {
             saturation: a.saturation,
+            rim_fresnel_f0,
             ..SphereOptions::default()
         },
     })
