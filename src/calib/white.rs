@@ -180,7 +180,7 @@ pub fn calibrate_irradiance(
     if cos_theta < 0.1 {
         return Err(WhiteError::Grazing { cos_theta });
     }
-    let (w, h) = (img.width(), img.height());
+    let w = img.width();
     let members = board_pixels(img, region, opts)?;
     let sat = saturation_level(img, opts.saturation);
     let data = img.data();
@@ -257,7 +257,6 @@ pub fn calibrate_irradiance(
     if saturated > 0 {
         warnings.push(format!("{saturated} clipped board pixels ignored"));
     }
-    let _ = h;
     Ok(IrradianceCalibration {
         irradiance,
         std_error,
