@@ -2,6 +2,7 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 mod merl;
+pub mod calibrate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -45,6 +46,8 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
+    /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -58,5 +61,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Merl(args) => merl::run(args),
+        Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }
