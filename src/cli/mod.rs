@@ -1,8 +1,8 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
-mod merl;
 pub mod calibrate;
+mod merl;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
