@@ -5,7 +5,13 @@
 #![allow(clippy::unwrap_used)]
 
 mod brdf;
+mod calib_cli;
+mod calib_hdr;
+mod calib_sphere;
+mod calib_synth;
+mod calib_white;
 mod geometry;
+mod reconstruct;
 mod render;
 mod report;
 mod rig_cli;
