@@ -166,6 +166,9 @@ pub struct ReportData {
     pub warnings: Vec<String>,
     /// `report.json` keys not shown elsewhere, as key and pretty JSON.
     pub other_facts: Vec<(String, String)>,
+    /// Where the result's prior came from, as the producer states it (`basis.note`,
+    /// `provenance`): shown beside the result.
+    pub provenance: Vec<String>,
 }
 
 /// Reads what `dir` holds. Fails only when `dir` cannot be listed or is neither a session folder
@@ -219,9 +222,21 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
     let session_dir = if is_session {
         Some(dir.to_path_buf())
     } else {
-        rj.and_then(|v| v.get("session"))
+        let base = recon_dir.as_deref().unwrap_or(dir);
+        let named = rj
+            .and_then(|v| v.get("session"))
             .and_then(Value::as_str)
-            .map(|s| resolve(recon_dir.as_deref().unwrap_or(dir), s))
+            .map(|s| resolve(base, s));
+        // Else the folder of the job, when the capture step wrote the job into its session.
+        let of_job = || {
+            let job = resolve(base, rj?.get("job")?.as_str()?);
+            let parent = job.parent()?;
+            parent
+                .join(MANIFEST_FILE)
+                .is_file()
+                .then(|| parent.to_path_buf())
+        };
+        named.or_else(of_job)
     };
     let capture = match &session_dir {
         Some(s) if s.is_dir() => Avail::Yes(summarise_session(s, opts)),
@@ -313,6 +328,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         timing,
         warnings,
         other_facts,
+        provenance: rj.map(provenance).unwrap_or_default(),
     })
 }
 
@@ -839,7 +855,21 @@ fn timing_section(v: &Value) -> Avail<Vec<(String, f64)>> {
     }
 }
 
-const INTERPRETED: [&str; 17] = [
+/// Provenance statements of `report.json` (`provenance`, `basis.note`).
+fn provenance(v: &Value) -> Vec<String> {
+    [
+        v.get("provenance"),
+        v.get("basis").and_then(|b| b.get("note")),
+    ]
+    .into_iter()
+    .flatten()
+    .map(value_text)
+    .filter(|t| !t.is_empty())
+    .collect()
+}
+
+const INTERPRETED: [&str; 18] = [
+    "provenance",
     "trials",
     "chosen_trial",
     "chosen",

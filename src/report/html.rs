@@ -287,6 +287,9 @@ fn section_brdf(h: &mut String, data: &ReportData) {
                 escape(&b.file),
                 escape(&b.description)
             );
+            for p in &data.provenance {
+                let _ = write!(h, "<p class=\"note\">Provenance: {}</p>", escape(p));
+            }
             if b.uses_neural_fit {
                 h.push_str(
                     "<p class=\"note\">Curves marked \"neural MERL fit\" are smooth neural \
