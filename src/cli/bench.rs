@@ -83,6 +83,7 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
         steps: a.steps.max(1),
         step_deg: a.step_deg,
     };
+    let machine = machine();
     let report = bench::run(&profile, &opts).context("running the rig benchmark")?;
     let mut command = String::from("cargo run --release -- bench rig");
     if let Some(p) = &a.profile {
@@ -105,7 +106,7 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
-    let md = report.markdown(&command, &machine());
+    let md = report.markdown(&command, &machine);
     print!("{md}");
     if let Some(w) = &a.write {
         std::fs::write(w, &md).with_context(|| format!("writing {}", w.display()))?;
