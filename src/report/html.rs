@@ -33,7 +33,8 @@ table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ddd;padding
 text-align:left;vertical-align:top}th{background:#f4f4f4}.na{color:#a33;font-style:italic}\
 .note{background:#fff8e0;border-left:4px solid #e0b000;padding:.4em .8em}\
 .warn li{color:#8a4b00}figure{display:inline-block;margin:.4em;vertical-align:top}\
-figcaption{font-size:.8em;max-width:320px}.charts svg{max-width:100%;height:auto}\
+figcaption{font-size:.8em;max-width:320px}.charts{display:flex;flex-wrap:wrap;gap:.5em}\
+.charts figure{margin:0}.charts svg{max-width:100%;height:auto}\
 pre{background:#f7f7f7;padding:.5em;overflow:auto;max-height:20em}.chosen{background:#e8f4e8}\
 .hole{display:inline-block;width:200px;height:200px;border:2px dashed #c66;color:#a33;\
 padding:1em;box-sizing:border-box}";
