@@ -1,0 +1,338 @@
+//! The C reference firmware in QEMU (`qemu-system-avr -M mega2560`), driven over its serial
+//! pseudo-terminal: handshake, home, a scan with the light, NAK replies, a retried move, the
+//! host watchdog. The QEMU build (`make qemu`) finds "home" after 5 degrees of travel (SIM_HOME=1,
+//! there is no switch) and uses 800 steps per turn, so angles are checked to half a step.
+
+use crate::firmware_qemu::{Qemu, RawLink, RawStatus, parse_status};
+use std::time::{Duration, Instant};
+
+const HELLO: u8 = 0x01;
+const HEARTBEAT: u8 = 0x02;
+const SET_WATCHDOG: u8 = 0x03;
+const SET_LIMITS: u8 = 0x04;
+const HOME: u8 = 0x10;
+const MOVE_ABS: u8 = 0x11;
+const MOVE_REL: u8 = 0x12;
+const STOP: u8 = 0x13;
+const STATUS: u8 = 0x14;
+const LIGHT_ON: u8 = 0x20;
+const LIGHT_OFF: u8 = 0x21;
+const LIGHT_STATUS: u8 = 0x22;
+const ACK: u8 = 0x80;
+const NAK: u8 = 0x81;
+const HELLO_REPLY: u8 = 0x82;
+const LIGHT_STATUS_REPLY: u8 = 0x84;
+
+/// Half of the QEMU build's step (360 / 800 degrees), in millidegrees.
+const HALF_STEP_MDEG: i32 = 225;
+
+struct Rig {
+    link: RawLink,
+    next_id: u16,
+    _qemu: Qemu,
+}
+
+impl Rig {
+    fn boot() -> Rig {
+        let qemu = Qemu::start();
+        let link = RawLink::open(qemu.pty());
+        Rig {
+            link,
+            next_id: 1,
+            _qemu: qemu,
+        }
+    }
+
+    fn id(&mut self) -> u16 {
+        let id = self.next_id;
+        self.next_id = self.next_id.wrapping_add(1).max(1);
+        id
+    }
+
+    fn request(&mut self, kind: u8, body: &[u8]) -> crate::firmware_qemu::RawFrame {
+        let id = self.id();
+        self.link.request(kind, id, body)
+    }
+
+    fn ack(&mut self, kind: u8, body: &[u8]) {
+        let r = self.request(kind, body);
+        assert_eq!(
+            r.kind, ACK,
+            "kind 0x{kind:02x} {body:?}: expected ACK, got {r:?}"
+        );
+    }
+
+    /// NAK code and detail.
+    fn nak(&mut self, kind: u8, body: &[u8]) -> (u8, u8) {
+        let r = self.request(kind, body);
+        assert_eq!(
+            r.kind, NAK,
+            "kind 0x{kind:02x} {body:?}: expected NAK, got {r:?}"
+        );
+        assert_eq!(r.body.len(), 2);
+        (r.body[0], r.body[1])
+    }
+
+    fn status(&mut self) -> RawStatus {
+        let r = self.request(STATUS, &[]);
+        parse_status(&r)
+    }
+
+    /// Polls STATUS until the turntable is at rest.
+    fn wait_at_rest(&mut self, what: &str) -> RawStatus {
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            let s = self.status();
+            if !s.moving {
+                return s;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "{what}: still moving after 20 s: {s:?}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn home(&mut self) {
+        self.ack(HOME, &[]);
+        let s = self.wait_at_rest("home");
+        assert!(s.homed, "not homed after HOME: {s:?}");
+        assert_eq!((s.angle, s.target), (0, 0), "home is angle 0");
+        assert_eq!(s.faults, 0, "no fault while homing: {s:?}");
+    }
+
+    /// (level, stable) per channel.
+    fn light_status(&mut self) -> Vec<(u16, bool)> {
+        let r = self.request(LIGHT_STATUS, &[]);
+        assert_eq!(r.kind, LIGHT_STATUS_REPLY, "{r:?}");
+        let n = r.body[0] as usize;
+        assert_eq!(r.body.len(), 1 + 3 * n);
+        (0..n)
+            .map(|c| {
+                let o = 1 + 3 * c;
+                (
+                    u16::from_le_bytes([r.body[o], r.body[o + 1]]),
+                    r.body[o + 2] & 1 != 0,
+                )
+            })
+            .collect()
+    }
+}
+
+fn light_on(channel: u8, level: u16, exclusive: bool) -> Vec<u8> {
+    let mut b = vec![channel];
+    b.extend_from_slice(&level.to_le_bytes());
+    b.push(exclusive as u8);
+    b
+}
+
+fn assert_near(angle: i32, target: i32, what: &str) {
+    assert!(
+        (angle - target).abs() <= HALF_STEP_MDEG,
+        "{what}: at {angle} mdeg, wanted {target} (within half a step)"
+    );
+}
+
+#[test]
+fn firmware_handshake_reports_name_limits_and_boot_counter() {
+    let mut rig = Rig::boot();
+    // id 0: always executed, never remembered (section 4).
+    let r = rig.link.request(HELLO, 0, &[]);
+    assert_eq!(r.kind, HELLO_REPLY, "{r:?}");
+    let b = &r.body;
+    assert_eq!((b[0], b[1]), (1, 0), "protocol 1.0");
+    let caps = u16::from_le_bytes([b[2], b[3]]);
+    assert_eq!(
+        caps & 0b111,
+        0b111,
+        "turntable, light, home switch: caps={caps:#x}"
+    );
+    let boot = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
+    assert!(boot >= 1, "boot counter counts this boot");
+    assert_eq!(b[8], 3, "three light channels");
+    let i32_at = |o: usize| i32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+    assert_eq!((i32_at(9), i32_at(13)), (-3_600_000, 3_600_000));
+    assert_eq!(
+        (i32_at(17), i32_at(21)),
+        (180_000, 720_000),
+        "QEMU build limits"
+    );
+    assert_eq!(u16::from_le_bytes([b[25], b[26]]), 2000, "default watchdog");
+    let name_len = b[27] as usize;
+    assert_eq!(&b[28..28 + name_len], b"brdf-mega-qemu");
+
+    let s = rig.status();
+    assert_eq!(s.boot, boot, "STATUS and HELLO agree on the boot counter");
+    assert!(!s.homed && !s.moving && !s.enabled, "fresh boot: {s:?}");
+    assert_eq!(s.faults, 0);
+    rig.ack(HEARTBEAT, &[]);
+    // A second HELLO with id 0 is executed again, not answered from memory.
+    assert_eq!(rig.link.request(HELLO, 0, &[]).kind, HELLO_REPLY);
+}
+
+#[test]
+fn firmware_homes_and_scans_a_turn_with_the_light() {
+    let mut rig = Rig::boot();
+    rig.home();
+    for step in 1..=8i32 {
+        let target = step * 45_000;
+        rig.ack(MOVE_ABS, &target.to_le_bytes());
+        let s = rig.wait_at_rest("scan move");
+        assert_near(s.angle, target, "scan");
+        assert_eq!(s.target, target);
+        assert!(s.homed && s.enabled, "{s:?}");
+        let channel = (step % 3) as u8;
+        rig.ack(LIGHT_ON, &light_on(channel, 40_000, true));
+        let lights = rig.light_status();
+        assert_eq!(lights.len(), 3);
+        for (c, (level, _)) in lights.iter().enumerate() {
+            let want = if c == channel as usize { 40_000 } else { 0 };
+            assert_eq!(*level, want, "exclusive light at step {step}: {lights:?}");
+        }
+    }
+    // Not exclusive: a second channel joins; then all off.
+    rig.ack(LIGHT_ON, &light_on(1, 1000, false));
+    let lights = rig.light_status();
+    assert_eq!((lights[2].0, lights[1].0), (40_000, 1000), "{lights:?}");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while !rig.light_status()[1].1 {
+        assert!(Instant::now() < deadline, "channel 1 never reported stable");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    rig.ack(LIGHT_OFF, &[0xFF]);
+    assert!(rig.light_status().iter().all(|&(l, st)| l == 0 && !st));
+    // Relative move back to zero over the full turn.
+    rig.ack(MOVE_REL, &(-360_000i32).to_le_bytes());
+    let s = rig.wait_at_rest("back to zero");
+    assert_near(s.angle, 0, "back to zero");
+    assert_eq!(s.faults, 0, "{s:?}");
+}
+
+#[test]
+fn firmware_naks_bad_requests_with_the_right_codes() {
+    let mut rig = Rig::boot();
+    // NOT_HOMED (4) before HOME.
+    assert_eq!(rig.nak(MOVE_ABS, &1000i32.to_le_bytes()), (4, 0));
+    assert_eq!(rig.nak(MOVE_REL, &1000i32.to_le_bytes()), (4, 0));
+    // UNKNOWN_KIND (1), also for a reply kind sent as a request.
+    assert_eq!(rig.nak(0x7E, &[]), (1, 0));
+    assert_eq!(rig.nak(ACK, &[]), (1, 0));
+    // BAD_LENGTH (2), detail = expected body length.
+    assert_eq!(rig.nak(MOVE_ABS, &[1, 2]), (2, 4));
+    assert_eq!(rig.nak(HELLO, &[0]), (2, 0));
+    assert_eq!(rig.nak(SET_LIMITS, &[0; 4]), (2, 8));
+    // BAD_CHANNEL (6), detail = channel count; LIGHT_OFF too.
+    assert_eq!(rig.nak(LIGHT_ON, &light_on(3, 100, true)), (6, 3));
+    assert_eq!(rig.nak(LIGHT_OFF, &[7]), (6, 3));
+    // OUT_OF_RANGE (3): watchdog and limits.
+    assert_eq!(rig.nak(SET_WATCHDOG, &99u16.to_le_bytes()), (3, 0));
+    assert_eq!(rig.nak(SET_WATCHDOG, &60_001u16.to_le_bytes()), (3, 0));
+    let limits = |s: u32, a: u32| [s.to_le_bytes(), a.to_le_bytes()].concat();
+    assert_eq!(rig.nak(SET_LIMITS, &limits(0, 1000)), (3, 0));
+    assert_eq!(
+        rig.nak(SET_LIMITS, &limits(180_001, 1000)),
+        (3, 0),
+        "only lower"
+    );
+    rig.ack(SET_LIMITS, &limits(90_000, 360_000));
+    rig.ack(SET_WATCHDOG, &5000u16.to_le_bytes());
+
+    rig.home();
+    assert_eq!(rig.nak(MOVE_ABS, &3_600_001i32.to_le_bytes()), (3, 0));
+    assert_eq!(rig.nak(MOVE_ABS, &(-3_600_001i32).to_le_bytes()), (3, 0));
+    // MOVE_REL is relative to the target: 0 + 3 600 001 is out of range.
+    assert_eq!(rig.nak(MOVE_REL, &3_600_001i32.to_le_bytes()), (3, 0));
+    // BUSY (5) while moving; STOP is always accepted and brings it to rest early.
+    rig.ack(MOVE_ABS, &360_000i32.to_le_bytes());
+    assert_eq!(rig.nak(MOVE_ABS, &0i32.to_le_bytes()), (5, 0));
+    assert_eq!(rig.nak(HOME, &[]), (5, 0));
+    rig.ack(STOP, &[]);
+    let s = rig.wait_at_rest("after STOP");
+    assert!(s.angle < 300_000, "STOP ended the move early: {s:?}");
+    assert_near(s.angle, s.target, "target is where it stopped");
+    rig.ack(STOP, &[]); // at rest: still an ACK
+
+    // Garbage, a corrupt frame and an overlong run are dropped; the next frame is answered.
+    let mut junk = vec![0x13, 0x37, 0x00];
+    let mut bad_crc = crate::firmware_qemu::frame(STATUS, 900, &[]);
+    bad_crc[2] ^= 0x40;
+    junk.extend_from_slice(&bad_crc);
+    junk.extend(std::iter::repeat_n(0x55, 100));
+    junk.push(0);
+    rig.link.write(&junk);
+    assert!(
+        rig.link.recv(Duration::from_millis(500)).is_none(),
+        "dropped frames get no reply"
+    );
+    let s = rig.status();
+    assert!(s.homed, "the firmware survived the garbage: {s:?}");
+}
+
+#[test]
+fn firmware_executes_a_retried_move_once() {
+    let mut rig = Rig::boot();
+    rig.home();
+    let id = 0x4242;
+    let delta = 30_000i32.to_le_bytes();
+    let first = rig.link.request(MOVE_REL, id, &delta);
+    assert_eq!(first.kind, ACK, "{first:?}");
+    // The reply "got lost": the host re-sends the same bytes, twice, while the move runs.
+    for _ in 0..2 {
+        let again = rig.link.request(MOVE_REL, id, &delta);
+        assert_eq!(again, first, "a retry gets the remembered reply, not BUSY");
+    }
+    let s = rig.wait_at_rest("retried move");
+    assert_eq!(s.target, 30_000, "moved once, not three times: {s:?}");
+    assert_near(s.angle, 30_000, "moved once, not three times");
+    // A new id is a new move.
+    assert_eq!(rig.link.request(MOVE_REL, id + 1, &delta).kind, ACK);
+    let s = rig.wait_at_rest("new move");
+    assert_eq!(s.target, 60_000);
+    assert_near(s.angle, 60_000, "a new id moves");
+    // Memory is one request deep: once another request was executed, the old id is new again
+    // (a host only re-sends its latest request).
+    assert_eq!(rig.link.request(MOVE_REL, id, &delta).kind, ACK);
+    assert_eq!(rig.wait_at_rest("old id, later").target, 90_000);
+}
+
+#[test]
+fn firmware_watchdog_switches_the_light_off_and_keeps_home() {
+    let mut rig = Rig::boot();
+    rig.home();
+    rig.ack(SET_WATCHDOG, &300u16.to_le_bytes());
+    rig.ack(LIGHT_ON, &light_on(0, 65_535, true));
+    // Heartbeats keep it alive for longer than the timeout.
+    for _ in 0..8 {
+        std::thread::sleep(Duration::from_millis(80));
+        rig.ack(HEARTBEAT, &[]);
+    }
+    assert_eq!(
+        rig.light_status()[0].0,
+        65_535,
+        "heartbeats keep the light on"
+    );
+    let s = rig.status();
+    assert_eq!(s.faults, 0, "no trip while heartbeats arrive: {s:?}");
+    // Start a long move, then fall silent (QEMU time runs slow: wait in wall time, generously).
+    rig.ack(MOVE_ABS, &3_000_000i32.to_le_bytes());
+    let silent_from = rig.status();
+    std::thread::sleep(Duration::from_millis(2500));
+    let s = rig.status();
+    assert_eq!(s.faults & 1, 1, "WATCHDOG fault latched: {s:?}");
+    assert!(
+        s.uptime_ms >= silent_from.uptime_ms + 300,
+        "{silent_from:?} {s:?}"
+    );
+    assert!(s.homed, "the turntable stays homed");
+    assert!(s.target < 3_000_000, "motion was stopped: {s:?}");
+    assert!(rig.light_status().iter().all(|&(l, _)| l == 0), "light off");
+    let s = rig.wait_at_rest("stopped by the watchdog");
+    assert_eq!(
+        s.faults, 0,
+        "the fault was cleared by the STATUS that reported it"
+    );
+    // The host switches the light on again explicitly.
+    rig.ack(LIGHT_ON, &light_on(0, 65_535, true));
+    assert_eq!(rig.light_status()[0].0, 65_535);
+}
