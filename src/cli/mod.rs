@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod firmware;
+mod ports;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -24,10 +25,13 @@ pub enum Command {
         #[command(subcommand)]
         command: firmware::FirmwareCommand,
     },
+    /// List serial ports (to find the rig for a profile's `[serial] port`).
+    Ports,
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Firmware { command } => firmware::run(command),
+        Command::Ports => ports::run(),
     }
 }
