@@ -267,6 +267,10 @@ fn firmware_naks_bad_requests_with_the_right_codes() {
     );
     let s = rig.status();
     assert!(s.homed, "the firmware survived the garbage: {s:?}");
+    assert_eq!(
+        s.faults, 0x10,
+        "100 bytes without a delimiter latch RX_OVERFLOW: {s:?}"
+    );
 }
 
 #[test]
@@ -335,4 +339,31 @@ fn firmware_watchdog_switches_the_light_off_and_keeps_home() {
     // The host switches the light on again explicitly.
     rig.ack(LIGHT_ON, &light_on(0, 65_535, true));
     assert_eq!(rig.light_status()[0].0, 65_535);
+}
+
+#[test]
+fn firmware_c_codec_passes_the_shared_vectors() {
+    // The pure C parts (cobs.c, crc16.c, protocol.c) built for the host, run over
+    // firmware-protocol/vectors/*.txt: decode to the canonical text, encode back to the bytes.
+    let build = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("firmware-host");
+    let out = std::process::Command::new("make")
+        .arg("-C")
+        .arg(crate::firmware_qemu::firmware_dir())
+        .arg("host-test")
+        .arg(format!("BUILD={}", build.display()))
+        .output()
+        .expect("run make host-test (needs make and a host C compiler; see scripts/setup.sh)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "make host-test failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for file in ["frames.txt", "reject.txt"] {
+        assert!(
+            stdout.contains(file),
+            "the shared vector file {file} was not checked:\n{stdout}"
+        );
+    }
+    assert!(stdout.contains(" 0 failures"), "{stdout}");
 }

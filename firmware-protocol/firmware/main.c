@@ -294,7 +294,9 @@ int main(void)
                 handle_frame(payload, len, now);
             }
         }
-        if (uart_take_overflow()) {
+        /* Frames lost to the UART ring buffer, or to 64 bytes without a delimiter. */
+        if (uart_take_overflow() || rx.overflowed) {
+            rx.overflowed = 0;
             faults |= FAULT_RX_OVERFLOW;
         }
         switch (stepper_take_home_result()) {

@@ -328,6 +328,7 @@ void proto_rx_init(struct proto_rx *rx)
 {
     rx->len = 0;
     rx->discarding = 0;
+    rx->overflowed = 0;
 }
 
 int proto_rx_feed(struct proto_rx *rx, uint8_t byte, uint8_t *payload, size_t *payload_len)
@@ -338,6 +339,7 @@ int proto_rx_feed(struct proto_rx *rx, uint8_t byte, uint8_t *payload, size_t *p
         }
         if (rx->len >= PROTO_RX_MAX) {
             rx->discarding = 1;
+            rx->overflowed = 1;
             rx->len = 0;
             return -1;
         }

@@ -161,6 +161,7 @@ struct proto_rx {
     uint8_t buf[PROTO_RX_MAX];
     uint8_t len;
     uint8_t discarding; /* more than PROTO_RX_MAX bytes without a 0x00: drop until the next 0x00 */
+    uint8_t overflowed; /* set when discarding starts; the owner clears it (RX_OVERFLOW fault) */
 };
 
 void proto_rx_init(struct proto_rx *rx);

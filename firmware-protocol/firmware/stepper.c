@@ -22,6 +22,9 @@ static volatile int32_t pos;        /* microsteps from home */
 static volatile int32_t goal;       /* microsteps */
 static volatile int8_t dir;         /* +1 / -1 while running */
 static volatile uint8_t running;
+/* Home search phases. When HOME starts on a closed switch, the turntable first backs off until
+ * it opens, so home is always approached from the same side (repeatable to a step). */
+enum { HOMING_OFF = 0, HOMING_SEARCH, HOMING_BACKOFF };
 static volatile uint8_t homing;
 static volatile uint32_t speed;     /* steps per tick, 0.32 fixed point */
 static volatile uint32_t vmax;      /* idem */
@@ -106,15 +109,25 @@ ISR(TIMER1_COMPA_vect)
     if (!running) {
         return;
     }
-    if (homing && home_switch_closed()) {
+    if (homing == HOMING_SEARCH && home_switch_closed()) {
         /* Home speed is below the motor's pull-in rate: stopping dead loses no step. */
         running = 0;
-        homing = 0;
+        homing = HOMING_OFF;
         speed = 0;
         ramp = 0;
         pos = 0;
         goal = 0;
         home_result = HOME_FOUND;
+        return;
+    }
+    if (homing == HOMING_BACKOFF && !home_switch_closed()) {
+        /* Off the switch: now search towards it (the main loop sees HOME_NONE meanwhile). */
+        goal = pos + USTEPS_PER_TURN;
+        dir = 1;
+        STEPPER_PORT |= _BV(DIR_BIT);
+        speed = vmin;
+        phase = 0;
+        homing = HOMING_SEARCH;
         return;
     }
     int32_t left = (goal - pos) * dir;
@@ -155,7 +168,8 @@ ISR(TIMER1_COMPA_vect)
         ramp = 0;
         phase = 0;
         if (homing) {
-            homing = 0;
+            /* A whole turn without the switch closing, or a backoff that never opened it. */
+            homing = HOMING_OFF;
             home_result = HOME_FAILED;
         }
     }
@@ -193,7 +207,7 @@ void stepper_set_limits(uint32_t speed_mdeg_s, uint32_t accel_mdeg_s2)
     }
 }
 
-static void start(int32_t goal_steps, uint8_t search)
+static void start(int32_t goal_steps, uint8_t homing_phase)
 {
     STEPPER_PORT &= (uint8_t)~_BV(ENABLE_BIT);
     enabled = 1;
@@ -216,7 +230,7 @@ static void start(int32_t goal_steps, uint8_t search)
         speed = vmin;
         phase = 0;
         ramp = 0;
-        homing = search;
+        homing = homing_phase;
         running = 1;
     }
 }
@@ -243,7 +257,11 @@ void stepper_home(void)
     sim_travel = 0;
 #endif
     target_mdeg = 0;
-    start(from + USTEPS_PER_TURN, 1);
+    if (home_switch_closed()) {
+        start(from - USTEPS_PER_TURN / 8, HOMING_BACKOFF);
+    } else {
+        start(from + USTEPS_PER_TURN, HOMING_SEARCH);
+    }
 }
 
 void stepper_stop(void)
@@ -259,7 +277,7 @@ void stepper_stop(void)
             if ((goal - pos) * dir > ramp + 1) {
                 goal = pos + dir * (ramp + 1);
             }
-            homing = 0; /* an aborted search is no failure: simply not homed */
+            homing = HOMING_OFF; /* an aborted search is no failure: simply not homed */
         }
         g = goal;
     }

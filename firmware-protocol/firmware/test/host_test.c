@@ -160,7 +160,9 @@ static void test_rx_resync(void)
     for (int i = 0; i < 64; i++) {
         CHECK(proto_rx_feed(&rx, 0x41, got, &glen) == -1, "accumulating");
     }
+    CHECK(!rx.overflowed, "64 bytes fit");
     CHECK(proto_rx_feed(&rx, 0x41, got, &glen) == -1, "65th byte starts discarding");
+    CHECK(rx.overflowed, "overflow reported to the owner");
     /* A valid frame's bytes while discarding are swallowed... */
     const uint8_t hello[] = {0x03, 0x01, 0x01, 0x03, 0x9d, 0xc8, 0x00};
     int r = 0;
