@@ -1,7 +1,8 @@
 //! The C reference firmware in QEMU (`qemu-system-avr -M mega2560`), driven over its serial
 //! pseudo-terminal: handshake, home, a scan with the light, NAK replies, a retried move, the
 //! host watchdog. The QEMU build (`make qemu`) finds "home" after 5 degrees of travel (SIM_HOME=1,
-//! there is no switch) and uses 800 steps per turn, so angles are checked to half a step.
+//! there is no switch) and uses 800 steps per turn (0.45 degree steps); at rest on a target it
+//! reports the target as the angle.
 
 use crate::firmware_qemu::{Qemu, RawLink, RawStatus, parse_status};
 use std::time::{Duration, Instant};
@@ -22,9 +23,6 @@ const ACK: u8 = 0x80;
 const NAK: u8 = 0x81;
 const HELLO_REPLY: u8 = 0x82;
 const LIGHT_STATUS_REPLY: u8 = 0x84;
-
-/// Half of the QEMU build's step (360 / 800 degrees), in millidegrees.
-const HALF_STEP_MDEG: i32 = 225;
 
 struct Rig {
     link: RawLink,
@@ -127,10 +125,11 @@ fn light_on(channel: u8, level: u16, exclusive: bool) -> Vec<u8> {
     b
 }
 
-fn assert_near(angle: i32, target: i32, what: &str) {
-    assert!(
-        (angle - target).abs() <= HALF_STEP_MDEG,
-        "{what}: at {angle} mdeg, wanted {target} (within half a step)"
+/// At rest on a target the firmware reports exactly the target (README, "Angles").
+fn assert_at(angle: i32, target: i32, what: &str) {
+    assert_eq!(
+        angle, target,
+        "{what}: at rest, angle must equal the target"
     );
 }
 
@@ -179,7 +178,7 @@ fn firmware_homes_and_scans_a_turn_with_the_light() {
         let target = step * 45_000;
         rig.ack(MOVE_ABS, &target.to_le_bytes());
         let s = rig.wait_at_rest("scan move");
-        assert_near(s.angle, target, "scan");
+        assert_at(s.angle, target, "scan");
         assert_eq!(s.target, target);
         assert!(s.homed && s.enabled, "{s:?}");
         let channel = (step % 3) as u8;
@@ -205,7 +204,7 @@ fn firmware_homes_and_scans_a_turn_with_the_light() {
     // Relative move back to zero over the full turn.
     rig.ack(MOVE_REL, &(-360_000i32).to_le_bytes());
     let s = rig.wait_at_rest("back to zero");
-    assert_near(s.angle, 0, "back to zero");
+    assert_at(s.angle, 0, "back to zero");
     assert_eq!(s.faults, 0, "{s:?}");
 }
 
@@ -250,7 +249,7 @@ fn firmware_naks_bad_requests_with_the_right_codes() {
     rig.ack(STOP, &[]);
     let s = rig.wait_at_rest("after STOP");
     assert!(s.angle < 300_000, "STOP ended the move early: {s:?}");
-    assert_near(s.angle, s.target, "target is where it stopped");
+    assert_at(s.angle, s.target, "target is where it stopped");
     rig.ack(STOP, &[]); // at rest: still an ACK
 
     // Garbage, a corrupt frame and an overlong run are dropped; the next frame is answered.
@@ -288,12 +287,12 @@ fn firmware_executes_a_retried_move_once() {
     }
     let s = rig.wait_at_rest("retried move");
     assert_eq!(s.target, 30_000, "moved once, not three times: {s:?}");
-    assert_near(s.angle, 30_000, "moved once, not three times");
+    assert_at(s.angle, 30_000, "moved once, not three times");
     // A new id is a new move.
     assert_eq!(rig.link.request(MOVE_REL, id + 1, &delta).kind, ACK);
     let s = rig.wait_at_rest("new move");
     assert_eq!(s.target, 60_000);
-    assert_near(s.angle, 60_000, "a new id moves");
+    assert_at(s.angle, 60_000, "a new id moves");
     // Memory is one request deep: once another request was executed, the old id is new again
     // (a host only re-sends its latest request).
     assert_eq!(rig.link.request(MOVE_REL, id, &delta).kind, ACK);

@@ -309,10 +309,22 @@ uint8_t stepper_moving(void) { return running; }
 
 uint8_t stepper_enabled(void) { return enabled; }
 
+/* At rest on the step nearest the target, the angle is the target: the host asked for that
+ * angle and the turntable is there to the motor's resolution (PROTOCOL.md does not say how a
+ * firmware with coarser steps than a millidegree reports arrival; the host driver takes
+ * |angle - target| <= 1 as arrived). Anywhere else, the step position in millidegrees. */
 int32_t stepper_angle_mdeg(void)
 {
     int32_t p;
-    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { p = pos; }
+    uint8_t r;
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
+    {
+        p = pos;
+        r = running;
+    }
+    if (!r && p == mdeg_to_steps(target_mdeg)) {
+        return target_mdeg;
+    }
     return steps_to_mdeg(p);
 }
 
