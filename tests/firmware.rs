@@ -272,6 +272,45 @@ fn firmware_naks_bad_requests_with_the_right_codes() {
     );
 }
 
+/// Duration of a move of `d` (millidegrees) in the firmware's profile: a trapezoid (triangle
+/// when short) that starts and ends at sqrt(2 a) steps/s rather than at rest (stepper.c).
+fn trapezoid_secs(d: f64, v: f64, a: f64, steps_per_turn: f64) -> f64 {
+    let mdeg_per_step = 360_000.0 / steps_per_turn;
+    let v0 = ((2.0 * a / mdeg_per_step).sqrt().floor() * mdeg_per_step).min(v);
+    let ramp = (v * v - v0 * v0) / (2.0 * a);
+    if 2.0 * ramp >= d {
+        let vp = (a * d + v0 * v0).sqrt();
+        2.0 * (vp - v0) / a
+    } else {
+        2.0 * (v - v0) / a + (d - 2.0 * ramp) / v
+    }
+}
+
+#[test]
+fn firmware_moves_in_the_time_its_limits_give() {
+    // Timed on the firmware's own clock (uptime_ms), which QEMU stretches like the step timer.
+    let mut rig = Rig::boot();
+    rig.home();
+    let timed_move = |rig: &mut Rig, target: i32| {
+        let t0 = rig.status().uptime_ms;
+        rig.ack(MOVE_ABS, &target.to_le_bytes());
+        let s = rig.wait_at_rest("timed move");
+        assert_at(s.angle, target, "timed move");
+        (s.uptime_ms - t0) as f64 / 1000.0
+    };
+    let fast = timed_move(&mut rig, 90_000);
+    let limits = [45_000u32.to_le_bytes(), 90_000u32.to_le_bytes()].concat();
+    rig.ack(SET_LIMITS, &limits);
+    let slow = timed_move(&mut rig, 0);
+    for (took, v, a) in [(fast, 180_000.0, 720_000.0), (slow, 45_000.0, 90_000.0)] {
+        let want = trapezoid_secs(90_000.0, v, a, 800.0);
+        assert!(
+            (took - want).abs() <= 0.15 * want + 0.05,
+            "90 degrees at {v} mdeg/s, {a} mdeg/s^2 took {took:.3} s, the profile gives {want:.3} s"
+        );
+    }
+}
+
 #[test]
 fn firmware_executes_a_retried_move_once() {
     let mut rig = Rig::boot();

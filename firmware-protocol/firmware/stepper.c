@@ -139,7 +139,7 @@ ISR(TIMER1_COMPA_vect)
         v = (vmax - v > accel) ? v + accel : vmax;
         speeding_up = 1;
     } else if (v > vmax) {
-        /* The limit was lowered during the move. */
+        /* Defensive: limits change only between motions (stepper_set_limits). */
         v = (v - vmax > accel) ? v - accel : vmax;
     }
     speed = v;
@@ -181,7 +181,6 @@ void stepper_init(void)
     STEPPER_PORT |= _BV(ENABLE_BIT); /* disabled until the first motion */
     STEPPER_DDR &= (uint8_t)~_BV(HOME_BIT);
     STEPPER_PORT |= _BV(HOME_BIT); /* pull-up */
-    stepper_set_limits(MAX_SPEED_MDEG_S, MAX_ACCEL_MDEG_S2);
     /* Timer 1, CTC on OCR1A, prescaler 8: 2 MHz counts. */
     TCCR1A = 0;
     TCCR1B = _BV(WGM12) | _BV(CS11);
@@ -189,16 +188,20 @@ void stepper_init(void)
     TIMSK1 = _BV(OCIE1A);
 }
 
+/* Limits apply from the next motion on: changing the acceleration mid-move would make `ramp`
+ * (steps climbed at the old rate) a wrong stopping distance. */
 void stepper_set_limits(uint32_t speed_mdeg_s, uint32_t accel_mdeg_s2)
 {
     limit_speed_mdeg_s = speed_mdeg_s;
     limit_accel_mdeg_s2 = accel_mdeg_s2;
-    if (homing) {
-        return; /* the search keeps its own speed; the new limits apply to the next move */
-    }
+}
+
+/* Loads the speed profile of a motion; only called while at rest. */
+static void load_profile(uint32_t speed_mdeg_s, uint8_t constant_speed)
+{
     uint32_t v = speed_q32(speed_mdeg_s);
-    uint32_t a = accel_q32(accel_mdeg_s2);
-    uint32_t v0 = speed_q32(start_speed_mdeg_s(accel_mdeg_s2));
+    uint32_t a = accel_q32(limit_accel_mdeg_s2);
+    uint32_t v0 = constant_speed ? v : speed_q32(start_speed_mdeg_s(limit_accel_mdeg_s2));
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
     {
         vmax = v;
@@ -238,18 +241,18 @@ static void start(int32_t goal_steps, uint8_t homing_phase)
 void stepper_move_to(int32_t angle_mdeg)
 {
     target_mdeg = angle_mdeg;
-    start(mdeg_to_steps(angle_mdeg), 0);
+    load_profile(limit_speed_mdeg_s, 0);
+    start(mdeg_to_steps(angle_mdeg), HOMING_OFF);
 }
 
 void stepper_home(void)
 {
     uint32_t home = HOME_SPEED_MDEG_S < limit_speed_mdeg_s ? HOME_SPEED_MDEG_S : limit_speed_mdeg_s;
-    uint32_t v = speed_q32(home);
+    /* Constant speed, below pull-in: the search may stop dead on the switch. */
+    load_profile(home, 1);
     int32_t from;
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
     {
-        vmax = v;
-        vmin = v; /* constant speed, below pull-in: the search may stop dead on the switch */
         home_result = HOME_NONE;
         from = pos;
     }
@@ -283,7 +286,6 @@ void stepper_stop(void)
     }
     if (was_running) {
         target_mdeg = steps_to_mdeg(g);
-        stepper_set_limits(limit_speed_mdeg_s, limit_accel_mdeg_s2);
     }
 }
 
@@ -297,7 +299,6 @@ enum home_result stepper_take_home_result(void)
     }
     if (r != HOME_NONE) {
         target_mdeg = 0;
-        stepper_set_limits(limit_speed_mdeg_s, limit_accel_mdeg_s2);
         if (r == HOME_FAILED) {
             ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { target_mdeg = steps_to_mdeg(pos); }
         }

@@ -11,7 +11,8 @@
 enum home_result { HOME_NONE, HOME_FOUND, HOME_FAILED };
 
 void stepper_init(void);
-/* Current speed and acceleration limits (already checked against the hard limits). */
+/* Speed and acceleration limits (checked against the hard limits by the caller); they apply from
+ * the next motion on. */
 void stepper_set_limits(uint32_t speed_mdeg_s, uint32_t accel_mdeg_s2);
 /* Starts a move to an absolute angle; the caller checked that the turntable is at rest. */
 void stepper_move_to(int32_t angle_mdeg);
