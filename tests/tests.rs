@@ -4,9 +4,11 @@
 // Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
 #![allow(clippy::unwrap_used)]
 
+mod brdf;
 mod firmware;
 mod firmware_flash;
 mod firmware_qemu;
 mod geometry;
+mod render;
 mod rig_vectors;
 mod util;

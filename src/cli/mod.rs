@@ -1,6 +1,8 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+mod merl;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -27,11 +29,14 @@ pub enum Command {
     },
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Firmware { command } => firmware::run(command),
         Command::Ports => ports::run(),
+        Command::Merl(args) => merl::run(args),
     }
 }
