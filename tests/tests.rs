@@ -10,5 +10,7 @@ mod firmware_flash;
 mod firmware_qemu;
 mod geometry;
 mod render;
+mod rig_cli;
+mod rig_sim;
 mod rig_vectors;
 mod util;

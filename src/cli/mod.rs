@@ -7,7 +7,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod firmware;
+mod bench;
+mod light;
 mod ports;
+mod rig;
+mod turntable;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -31,6 +35,14 @@ pub enum Command {
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
+    /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
+    Rig(rig::RigCommandArgs),
+    /// Home, move or query the turntable.
+    Turntable(turntable::TurntableArgs),
+    /// Switch light channels on and off, or query them.
+    Light(light::LightArgs),
+    /// Measurements behind the tables in docs/benchmarks-*.md.
+    Bench(bench::BenchArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -38,5 +50,9 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Firmware { command } => firmware::run(command),
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
+        Command::Rig(a) => rig::run(a),
+        Command::Turntable(a) => turntable::run(a),
+        Command::Light(a) => light::run(a),
+        Command::Bench(a) => bench::run(a),
     }
 }
