@@ -1,10 +1,15 @@
 //! The C reference firmware in QEMU (`qemu-system-avr -M mega2560`), driven over its serial
-//! pseudo-terminal: handshake, home, a scan with the light, NAK replies, a retried move, the
-//! host watchdog. The QEMU build (`make qemu`) finds "home" after 5 degrees of travel (SIM_HOME=1,
+//! pseudo-terminal. Handshake, home, a scan with the light and the heartbeat go through the
+//! project's serial driver (`devices::rig`), as on a bench. NAK codes, a retried move and the
+//! watchdog's exact effects are checked at the byte level (`RawLink`), because a driver never
+//! sends a malformed request or re-uses an id on purpose. The QEMU build (`make qemu`) finds "home" after 5 degrees of travel (SIM_HOME=1,
 //! there is no switch) and uses 800 steps per turn (0.45 degree steps); at rest on a target it
 //! reports the target as the angle.
 
 use crate::firmware_qemu::{Qemu, RawLink, RawStatus, parse_status};
+use brdf_rig::devices::link::LinkConfig;
+use brdf_rig::devices::rig::{RigEvent, RigSettings, open_with};
+use brdf_rig::devices::{Light, Turntable};
 use std::time::{Duration, Instant};
 
 const HELLO: u8 = 0x01;
@@ -133,6 +138,116 @@ fn assert_at(angle: i32, target: i32, what: &str) {
     );
 }
 
+/// The serial driver's settings for the QEMU build (its limits are the firmware's own).
+fn driver_settings(qemu: &Qemu, watchdog_ms: u16, heartbeat: bool) -> RigSettings {
+    RigSettings {
+        link: LinkConfig {
+            path: qemu.pty().to_path_buf(),
+            baud: 115_200,
+            timeout: Duration::from_millis(500),
+            retries: 4,
+            reconnect_timeout: Duration::from_secs(2),
+        },
+        watchdog_ms,
+        max_speed: 180_000,
+        max_accel: 720_000,
+        min_angle: -3_600_000,
+        max_angle: 3_600_000,
+        max_levels: vec![1.0; 3],
+        poll: Duration::from_millis(20),
+        warmup_timeout: Duration::from_secs(5),
+        heartbeat,
+    }
+}
+
+#[test]
+fn firmware_through_the_driver_handshake_home_scan_and_light() {
+    let qemu = Qemu::start();
+    let mut rig = open_with(driver_settings(&qemu, 2000, true), None)
+        .unwrap_or_else(|e| panic!("the driver could not connect to the firmware: {e}"));
+    let h = rig.hello.clone();
+    assert_eq!((h.major, h.minor), (1, 0));
+    assert_eq!(h.name, "brdf-mega-qemu");
+    assert_eq!(h.channels, 3);
+    assert_eq!((h.min_angle, h.max_angle), (-3_600_000, 3_600_000));
+    assert!(h.boot >= 1);
+    assert_eq!(rig.light.channel_count(), 3);
+
+    // Before HOME the firmware answers NOT_HOMED, which the driver reports as a refusal.
+    let err = rig.turntable.move_to(10.0).expect_err("a move before home");
+    assert!(err.to_string().contains("not homed"), "{err}");
+
+    rig.turntable.home().expect("home");
+    let s = rig.turntable.status().expect("status");
+    assert!(s.homed && !s.moving && s.angle_deg == 0.0, "{s:?}");
+
+    // A full turn in eight stops, one exclusive light channel lit at each.
+    for stop in 1..=8u32 {
+        let angle = 45.0 * stop as f64;
+        rig.turntable.move_to(angle).expect("scan move");
+        let s = rig.turntable.status().expect("status");
+        assert_eq!((s.angle_deg, s.target_deg), (angle, angle), "{s:?}");
+        let channel = (stop % 3) as usize;
+        rig.light.on(channel, 0.6, true).expect("light on");
+        let lights = rig.light.status().expect("light status");
+        for (c, l) in lights.iter().enumerate() {
+            let want = if c == channel {
+                39_321.0 / 65_535.0
+            } else {
+                0.0
+            };
+            assert!((l.level - want).abs() < 1e-9, "stop {stop}: {lights:?}");
+        }
+    }
+    // A relative move the steps cannot hit exactly (0.45 degree steps) still arrives.
+    rig.turntable.move_by(-10.0).expect("relative move");
+    assert_eq!(rig.turntable.status().expect("status").angle_deg, 350.0);
+    rig.light.on(0, 0.25, false).expect("second channel");
+    let lights = rig.light.status().expect("light status");
+    assert!(lights[0].level > 0.0 && lights[2].level > 0.0, "{lights:?}");
+    // No warm-up sensor (capability bit 4 clear): `stable` follows LIGHT_SETTLE_MS after on.
+    assert_eq!(rig.hello.caps & 0x10, 0);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while !rig.light.status().expect("light status")[0].stable {
+        assert!(Instant::now() < deadline, "channel 0 never reported stable");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    rig.light.off(Some(2)).expect("one channel off");
+    rig.light.off(None).expect("all off");
+    assert!(
+        rig.light
+            .status()
+            .expect("light status")
+            .iter()
+            .all(|l| l.level == 0.0)
+    );
+    rig.turntable.move_to(0.0).expect("back to zero");
+    assert!(
+        rig.events().is_empty(),
+        "no reset, no watchdog trip: {:?}",
+        rig.events()
+    );
+}
+
+#[test]
+fn firmware_through_the_driver_heartbeat_keeps_the_light_on() {
+    // The firmware's watchdog at 300 ms, the host idle for much longer (a long exposure): the
+    // driver's heartbeat thread must keep the light on.
+    let qemu = Qemu::start();
+    let mut rig = open_with(driver_settings(&qemu, 300, true), None)
+        .unwrap_or_else(|e| panic!("the driver could not connect to the firmware: {e}"));
+    rig.light.on(1, 1.0, true).expect("light on");
+    std::thread::sleep(Duration::from_millis(2500));
+    let lights = rig.light.status().expect("light status");
+    assert_eq!(lights[1].level, 1.0, "{lights:?}");
+    rig.turntable.status().expect("status");
+    assert!(
+        !rig.events().contains(&RigEvent::WatchdogTripped),
+        "{:?}",
+        rig.events()
+    );
+}
+
 #[test]
 fn firmware_handshake_reports_name_limits_and_boot_counter() {
     let mut rig = Rig::boot();
@@ -168,44 +283,6 @@ fn firmware_handshake_reports_name_limits_and_boot_counter() {
     rig.ack(HEARTBEAT, &[]);
     // A second HELLO with id 0 is executed again, not answered from memory.
     assert_eq!(rig.link.request(HELLO, 0, &[]).kind, HELLO_REPLY);
-}
-
-#[test]
-fn firmware_homes_and_scans_a_turn_with_the_light() {
-    let mut rig = Rig::boot();
-    rig.home();
-    for step in 1..=8i32 {
-        let target = step * 45_000;
-        rig.ack(MOVE_ABS, &target.to_le_bytes());
-        let s = rig.wait_at_rest("scan move");
-        assert_at(s.angle, target, "scan");
-        assert_eq!(s.target, target);
-        assert!(s.homed && s.enabled, "{s:?}");
-        let channel = (step % 3) as u8;
-        rig.ack(LIGHT_ON, &light_on(channel, 40_000, true));
-        let lights = rig.light_status();
-        assert_eq!(lights.len(), 3);
-        for (c, (level, _)) in lights.iter().enumerate() {
-            let want = if c == channel as usize { 40_000 } else { 0 };
-            assert_eq!(*level, want, "exclusive light at step {step}: {lights:?}");
-        }
-    }
-    // Not exclusive: a second channel joins; then all off.
-    rig.ack(LIGHT_ON, &light_on(1, 1000, false));
-    let lights = rig.light_status();
-    assert_eq!((lights[2].0, lights[1].0), (40_000, 1000), "{lights:?}");
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while !rig.light_status()[1].1 {
-        assert!(Instant::now() < deadline, "channel 1 never reported stable");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    rig.ack(LIGHT_OFF, &[0xFF]);
-    assert!(rig.light_status().iter().all(|&(l, st)| l == 0 && !st));
-    // Relative move back to zero over the full turn.
-    rig.ack(MOVE_REL, &(-360_000i32).to_le_bytes());
-    let s = rig.wait_at_rest("back to zero");
-    assert_at(s.angle, 0, "back to zero");
-    assert_eq!(s.faults, 0, "{s:?}");
 }
 
 #[test]

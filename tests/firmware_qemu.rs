@@ -8,6 +8,7 @@
 
 #![allow(dead_code)]
 
+use brdf_rig::protocol::{self, Decoder};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -158,11 +159,11 @@ impl Drop for Qemu {
 }
 
 /// Frames at the byte level, for what a driver deliberately cannot do (re-send a request with
-/// the same id, send malformed bodies). The COBS and CRC here are a second implementation, so
-/// they check the firmware independently of the crate's codec.
+/// the same id, send bodies of the wrong length or unknown kinds). Framing is the crate's codec
+/// (`protocol::frame`); the bytes inside are written by hand.
 pub struct RawLink {
     port: Box<dyn serialport::SerialPort>,
-    buf: Vec<u8>,
+    decoder: Decoder,
 }
 
 /// A decoded reply: kind, id, body.
@@ -173,56 +174,12 @@ pub struct RawFrame {
     pub body: Vec<u8>,
 }
 
-const CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
-
-pub fn cobs_encode(data: &[u8]) -> Vec<u8> {
-    let mut out = vec![0u8];
-    let mut code_at = 0;
-    for &b in data {
-        if b == 0 {
-            out[code_at] = (out.len() - code_at) as u8;
-            code_at = out.len();
-            out.push(0);
-        } else {
-            out.push(b);
-            if out.len() - code_at == 0xFF {
-                out[code_at] = 0xFF;
-                code_at = out.len();
-                out.push(0);
-            }
-        }
-    }
-    out[code_at] = (out.len() - code_at) as u8;
-    out
-}
-
-pub fn cobs_decode(data: &[u8]) -> Option<Vec<u8>> {
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < data.len() {
-        let code = data[i] as usize;
-        if code == 0 || i + code > data.len() {
-            return None;
-        }
-        out.extend_from_slice(&data[i + 1..i + code]);
-        i += code;
-        if code != 0xFF && i < data.len() {
-            out.push(0);
-        }
-    }
-    Some(out)
-}
-
-/// Wire bytes of a request.
+/// Wire bytes of a request with any kind and body.
 pub fn frame(kind: u8, id: u16, body: &[u8]) -> Vec<u8> {
-    let mut raw = vec![kind];
-    raw.extend_from_slice(&id.to_le_bytes());
-    raw.extend_from_slice(body);
-    let crc = CRC.checksum(&raw);
-    raw.extend_from_slice(&crc.to_le_bytes());
-    let mut wire = cobs_encode(&raw);
-    wire.push(0);
-    wire
+    let mut payload = vec![kind];
+    payload.extend_from_slice(&id.to_le_bytes());
+    payload.extend_from_slice(body);
+    protocol::frame::encode_payload(&payload)
 }
 
 impl RawLink {
@@ -233,7 +190,7 @@ impl RawLink {
             .unwrap_or_else(|e| panic!("cannot open {}: {e}", pty.display()));
         RawLink {
             port,
-            buf: Vec::new(),
+            decoder: Decoder::new(),
         }
     }
 
@@ -247,26 +204,20 @@ impl RawLink {
         self.write(&frame(kind, id, body));
     }
 
-    /// The next valid frame, or None after `timeout` of wall time.
+    /// The next valid frame, or None after `timeout` of wall time. Frames the decoder drops
+    /// (which the firmware never sends) are skipped.
     pub fn recv(&mut self, timeout: Duration) -> Option<RawFrame> {
         let deadline = std::time::Instant::now() + timeout;
         loop {
-            if let Some(end) = self.buf.iter().position(|&b| b == 0) {
-                let enc: Vec<u8> = self.buf.drain(..=end).collect();
-                let Some(raw) = cobs_decode(&enc[..end]) else {
-                    continue;
-                };
-                if raw.len() < 5 {
-                    continue;
-                }
-                let n = raw.len() - 2;
-                if CRC.checksum(&raw[..n]) != u16::from_le_bytes([raw[n], raw[n + 1]]) {
-                    continue;
-                }
+            while let Some(frame) = self.decoder.next_frame() {
+                let Ok(packet) = frame else { continue };
+                let payload = packet
+                    .to_payload()
+                    .unwrap_or_else(|e| panic!("cannot re-encode {packet:?}: {e}"));
                 return Some(RawFrame {
-                    kind: raw[0],
-                    id: u16::from_le_bytes([raw[1], raw[2]]),
-                    body: raw[3..n].to_vec(),
+                    kind: payload[0],
+                    id: packet.id,
+                    body: payload[3..].to_vec(),
                 });
             }
             if std::time::Instant::now() >= deadline {
@@ -274,7 +225,7 @@ impl RawLink {
             }
             let mut chunk = [0u8; 256];
             match self.port.read(&mut chunk) {
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Ok(n) => self.decoder.push(&chunk[..n]),
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                 Err(e) => panic!("read from the firmware failed: {e}"),
             }

@@ -41,6 +41,9 @@ static uint8_t last_reply[PROTO_PAYLOAD_MAX];
 
 static volatile uint32_t ms;
 
+/* The turntable's motion as seen at the start of the request being answered (handle_frame). */
+static uint8_t moving;
+
 ISR(TIMER3_COMPA_vect) { ms++; }
 
 static uint32_t millis(void)
@@ -116,7 +119,7 @@ static void do_status(struct proto_msg *rep, uint32_t now)
     rep->kind = K_STATUS_REPLY;
     s->angle = stepper_angle_mdeg();
     s->target = stepper_target_mdeg();
-    s->flags = (uint8_t)((stepper_moving() ? STATUS_MOVING : 0) | (homed ? STATUS_HOMED : 0) |
+    s->flags = (uint8_t)((moving ? STATUS_MOVING : 0) | (homed ? STATUS_HOMED : 0) |
                          (stepper_enabled() ? STATUS_ENABLED : 0));
     s->faults = faults;
     faults = 0;
@@ -161,7 +164,7 @@ static void execute(const struct proto_msg *req, struct proto_msg *rep, uint32_t
         }
         break;
     case K_HOME:
-        if (stepper_moving()) {
+        if (moving) {
             nak(rep, E_BUSY, 0);
         } else {
             homed = 0;
@@ -175,7 +178,7 @@ static void execute(const struct proto_msg *req, struct proto_msg *rep, uint32_t
         int64_t target = req->kind == K_MOVE_ABS
                              ? (int64_t)req->u.angle
                              : (int64_t)stepper_target_mdeg() + (int64_t)req->u.delta;
-        if (stepper_moving()) {
+        if (moving) {
             nak(rep, E_BUSY, 0);
         } else if (!homed) {
             nak(rep, E_NOT_HOMED, 0);
@@ -233,6 +236,23 @@ static void send(const uint8_t *payload, uint8_t len)
     uart_write(wire, (uint8_t)n);
 }
 
+/* Takes the outcome of a finished home search into `homed` and the faults. Called before every
+ * request too: the search can end between two passes of the main loop, and a STATUS must never
+ * show "at rest" together with the `homed` of before the search ended. */
+static void poll_home(void)
+{
+    switch (stepper_take_home_result()) {
+    case HOME_FOUND:
+        homed = 1;
+        break;
+    case HOME_FAILED:
+        faults |= FAULT_HOME_FAILED;
+        break;
+    case HOME_NONE:
+        break;
+    }
+}
+
 /* One frame that passed COBS, length and CRC checks. */
 static void handle_frame(const uint8_t *payload, size_t len, uint32_t now)
 {
@@ -243,6 +263,10 @@ static void handle_frame(const uint8_t *payload, size_t len, uint32_t now)
 
     last_rx_ms = now;
     watchdog_armed = 1;
+    /* Motion state first, then the home outcome: a search that ends in between is then seen
+     * as "moving" (still true a moment ago), never as "at rest and not homed". */
+    moving = stepper_moving();
+    poll_home();
 
     if (req.id != 0 && last_len != 0 && req.id == last_id) {
         send(last_reply, last_len); /* a retry: answer again, never execute twice */
@@ -299,16 +323,7 @@ int main(void)
             rx.overflowed = 0;
             faults |= FAULT_RX_OVERFLOW;
         }
-        switch (stepper_take_home_result()) {
-        case HOME_FOUND:
-            homed = 1;
-            break;
-        case HOME_FAILED:
-            faults |= FAULT_HOME_FAILED;
-            break;
-        case HOME_NONE:
-            break;
-        }
+        poll_home();
         if (watchdog_armed && now - last_rx_ms >= watchdog_ms) {
             light_all_off();
             stepper_stop();

@@ -6,8 +6,8 @@ mod merl;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
-mod firmware;
 mod bench;
+mod firmware;
 mod light;
 mod ports;
 mod rig;
