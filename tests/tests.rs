@@ -5,14 +5,14 @@
 #![allow(clippy::unwrap_used)]
 
 mod brdf;
-mod firmware;
-mod firmware_flash;
-mod firmware_qemu;
 mod calib_cli;
 mod calib_hdr;
 mod calib_sphere;
 mod calib_synth;
 mod calib_white;
+mod firmware;
+mod firmware_flash;
+mod firmware_qemu;
 mod geometry;
 mod reconstruct;
 mod render;
