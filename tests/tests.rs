@@ -4,11 +4,17 @@
 // Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
 #![allow(clippy::unwrap_used)]
 
+mod brdf;
 mod calib_cli;
 mod calib_hdr;
 mod calib_sphere;
 mod calib_synth;
 mod calib_white;
 mod geometry;
+mod reconstruct;
+mod render;
+mod report;
+mod rig_cli;
+mod rig_sim;
 mod rig_vectors;
 mod util;

@@ -2,11 +2,18 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 pub mod calibrate;
+mod merl;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod bench;
+mod light;
 mod ports;
+mod reconstruct;
+mod report;
+mod rig;
+mod turntable;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -23,6 +30,22 @@ pub struct Cli {
 pub enum Command {
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
+    /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
+    Reconstruct(reconstruct::Args),
+    /// Write a self-contained HTML report of a session or reconstruction folder.
+    Report(report::ReportArgs),
+    /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
+    Rig(rig::RigCommandArgs),
+    /// Home, move or query the turntable.
+    Turntable(turntable::TurntableArgs),
+    /// Switch light channels on and off, or query them.
+    Light(light::LightArgs),
+    /// Measurements behind the tables in docs/benchmarks-*.md.
+    Bench(bench::BenchArgs),
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
 }
@@ -30,6 +53,14 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Ports => ports::run(),
+        Command::Merl(args) => merl::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Report(args) => report::run(args),
+        Command::Rig(a) => rig::run(a),
+        Command::Turntable(a) => turntable::run(a),
+        Command::Light(a) => light::run(a),
+        Command::Bench(a) => bench::run(a),
+        Command::Merl(args) => merl::run(args),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }

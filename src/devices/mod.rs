@@ -5,7 +5,10 @@
 //! Units: angles in degrees at this boundary (operators and profiles think in degrees; the wire
 //! protocol uses millidegrees), light levels in [0, 1], exposure in seconds.
 
+pub mod bench;
 pub mod error;
+pub mod link;
+pub mod rig;
 
 pub use error::DeviceError;
 

@@ -6,3 +6,7 @@
 
 pub mod firmware;
 pub mod motion;
+pub mod runner;
+
+pub use firmware::{FirmwareConfig, MoveKind, MoveRecord, SimSnapshot};
+pub use runner::{FaultControl, LinkFaults, SimConfig, SimHandle, SimRig};
