@@ -44,8 +44,6 @@ pub enum Command {
     Light(light::LightArgs),
     /// Measurements behind the tables in docs/benchmarks-*.md.
     Bench(bench::BenchArgs),
-    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
-    Merl(merl::MerlArgs),
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
 }
@@ -60,7 +58,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
-        Command::Merl(args) => merl::run(args),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }
