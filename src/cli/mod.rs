@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod firmware;
 mod light;
 mod ports;
 mod reconstruct;
@@ -28,6 +29,11 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Reference firmware for the rig's Arduino Mega 2560.
+    Firmware {
+        #[command(subcommand)]
+        command: firmware::FirmwareCommand,
+    },
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
@@ -50,6 +56,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Firmware { command } => firmware::run(command),
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
