@@ -43,6 +43,7 @@ pub fn decode_exr(bytes: &[u8]) -> std::result::Result<LinearImage, String> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
 

@@ -538,6 +538,7 @@ impl CapturePlan {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
     use std::collections::HashSet;

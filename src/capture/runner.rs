@@ -356,6 +356,7 @@ fn take_shots(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     //! Logic tests with in-memory fakes (not the simulated rig, which runs the real serial
     //! stack: see tests/capture*.rs).
@@ -486,6 +487,12 @@ mod tests {
         }
     }
 
+    type RunOutcome = (
+        Result<RunSummary, CaptureError>,
+        Shared,
+        Vec<(Option<Stage>, Stage)>,
+    );
+
     struct Recorder(Vec<(Option<Stage>, Stage)>);
     impl Operator for Recorder {
         fn set_stage(&mut self, from: Option<Stage>, to: Stage) -> Result<(), CaptureError> {
@@ -499,11 +506,7 @@ mod tests {
         resume: bool,
         fail_at: Option<usize>,
         cancel_at: Option<usize>,
-    ) -> (
-        Result<RunSummary, CaptureError>,
-        Shared,
-        Vec<(Option<Stage>, Stage)>,
-    ) {
+    ) -> RunOutcome {
         let (plan, text) = small_plan();
         let mut session = if resume {
             Session::resume(dir).unwrap()
@@ -606,7 +609,7 @@ mod tests {
         let (r, _, stages) = run(&dir, true, None, None);
         assert!(r.unwrap().complete);
         // the resumed run starts from the single-light stage
-        assert_eq!(stages[0].1.room_light, false);
+        assert!(!stages[0].1.room_light);
         let (records, _) = read_journal(&dir.join("journal.jsonl")).unwrap();
         let ids: Vec<_> = records.iter().map(|r| r.id.clone()).collect();
         let planned: Vec<_> = plan.shots().iter().map(|s| s.id.clone()).collect();

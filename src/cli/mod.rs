@@ -1,6 +1,9 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+mod cameras;
+mod session;
+
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
@@ -16,8 +19,16 @@ pub struct Cli {
 }
 
 #[derive(Subcommand, Debug)]
-pub enum Command {}
+pub enum Command {
+    /// List the cameras each backend finds (sim, gphoto2, webcam, v4l2).
+    Cameras(cameras::CamerasArgs),
+    /// Inspect a session folder.
+    Session(session::SessionArgs),
+}
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
-    match cli.command {}
+    match cli.command {
+        Command::Cameras(a) => cameras::run(a),
+        Command::Session(a) => session::run(a),
+    }
 }
