@@ -9,6 +9,7 @@ pub mod calib;
 pub mod capture;
 pub mod devices;
 pub mod geometry;
+pub mod imageio;
 pub mod protocol;
 pub mod render;
 pub mod report;

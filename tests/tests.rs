@@ -1,4 +1,9 @@
 //! Integration tests compile to one binary (one link on a 2-core machine). Each module drives
 //! the library or the real binary the way a user would.
 
+// Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
+#![allow(clippy::unwrap_used)]
+
+mod geometry;
+mod rig_vectors;
 mod util;

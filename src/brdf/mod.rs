@@ -13,3 +13,16 @@ pub trait Brdf: Send + Sync {
     /// f_r(wi, wo) in 1/sr, RGB. Directions below the surface give zero.
     fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3];
 }
+
+pub mod basis;
+pub mod basis_cache;
+pub mod coords;
+pub mod merl;
+pub mod nbrdf;
+
+/// A BRDF known at MERL bins (a table, a network, a reconstruction): what the basis is built
+/// from and what the error metrics compare.
+pub trait BinValues: Sync {
+    /// f_r in 1/sr, RGB, at each flat MERL bin index (bins with no data give zero).
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]>;
+}

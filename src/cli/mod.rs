@@ -7,6 +7,8 @@ mod session;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod ports;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "brdf-rig",
@@ -24,11 +26,14 @@ pub enum Command {
     Cameras(cameras::CamerasArgs),
     /// Inspect a session folder.
     Session(session::SessionArgs),
+    /// List serial ports (to find the rig for a profile's `[serial] port`).
+    Ports,
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Cameras(a) => cameras::run(a),
         Command::Session(a) => session::run(a),
+        Command::Ports => ports::run(),
     }
 }

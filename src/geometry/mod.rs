@@ -2,3 +2,5 @@
 //! Pure computation except the importers, which read files and name them in their errors.
 
 pub mod camera;
+pub mod mesh;
+pub mod mesh_io;

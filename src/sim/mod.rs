@@ -1,1 +1,8 @@
-//! sim
+//! Simulated hardware, so every layer above the devices runs without a rig: the simulated
+//! firmware (a pure state machine in `firmware`, served on a pseudo-terminal by `runner`) and,
+//! beside it, the simulated camera. Simulated devices see each other through shared state
+//! (`runner::SimHandle`): the camera renders the platter angle and lit channels the firmware
+//! reports.
+
+pub mod firmware;
+pub mod motion;

@@ -1,0 +1,297 @@
+//! A validated triangle mesh: positions, triangle faces and per-vertex normals.
+//!
+//! Conventions: faces are counter-clockwise seen from outside, so the face normal
+//! `(p1 - p0) x (p2 - p0)` points outwards. Vertex normals are the angle-weighted mean of the
+//! incident face normals (Thürmer and Wüthrich 1998): unlike area weighting, the result does not
+//! change when a face is split, so it is stable under SfM/MVS re-triangulation. A vertex no face
+//! uses keeps a zero normal. Units are whatever the source file uses (SfM: arbitrary scale).
+//!
+//! Validation is the one place file content becomes trusted geometry: NaN/inf coordinates and
+//! out-of-range indices are errors naming the source and the element; degenerate faces (repeated
+//! indices or zero area) are dropped and counted in [`MeshReport`], never silently.
+//! Pure: no file I/O here (see `mesh_io`); must not depend on rendering or BRDF code.
+
+use nalgebra::{Point3, Vector3};
+use thiserror::Error;
+
+/// Why a mesh was rejected. `origin` names the file (or `<memory>`) the data came from.
+#[derive(Debug, Error, PartialEq)]
+pub enum MeshError {
+    #[error("{origin}: vertex {vertex} has a non-finite coordinate {coords:?}")]
+    NonFiniteVertex {
+        origin: String,
+        vertex: usize,
+        coords: [f64; 3],
+    },
+    #[error(
+        "{origin}: face {face} uses vertex index {index}, but there are only {vertex_count} vertices"
+    )]
+    IndexOutOfRange {
+        origin: String,
+        face: usize,
+        index: i64,
+        vertex_count: usize,
+    },
+    #[error("{origin}: no usable triangle ({dropped} degenerate faces dropped)")]
+    NoFaces { origin: String, dropped: usize },
+}
+
+/// What validation changed, for the caller to report (the library never prints).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MeshReport {
+    /// Faces with a repeated index or zero area, removed from the mesh.
+    pub degenerate_faces_dropped: usize,
+    /// Vertices no face uses (kept, so vertex ids stay those of the file).
+    pub unreferenced_vertices: usize,
+}
+
+/// A triangle mesh whose content has been validated (finite, indices in range, no degenerate
+/// faces). Fields are private so that invariant holds; build it with [`Mesh::new`].
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    positions: Vec<Point3<f64>>,
+    faces: Vec<[u32; 3]>,
+    vertex_normals: Vec<Vector3<f64>>,
+    face_normals: Vec<Vector3<f64>>,
+}
+
+impl Mesh {
+    /// Validates positions and faces (indices as read, possibly negative or too large) and
+    /// computes normals. `source` names where the data came from, for error messages.
+    pub fn new(
+        positions: Vec<Point3<f64>>,
+        faces: Vec<[i64; 3]>,
+        source: &str,
+    ) -> Result<(Mesh, MeshReport), MeshError> {
+        for (i, p) in positions.iter().enumerate() {
+            if !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+                return Err(MeshError::NonFiniteVertex {
+                    origin: source.to_string(),
+                    vertex: i,
+                    coords: [p.x, p.y, p.z],
+                });
+            }
+        }
+        let n = positions.len();
+        let mut kept = Vec::with_capacity(faces.len());
+        let mut dropped = 0;
+        for (fi, f) in faces.iter().enumerate() {
+            for &idx in f {
+                if idx < 0 || idx as u64 >= n as u64 || idx > u32::MAX as i64 {
+                    return Err(MeshError::IndexOutOfRange {
+                        origin: source.to_string(),
+                        face: fi,
+                        index: idx,
+                        vertex_count: n,
+                    });
+                }
+            }
+            let tri = [f[0] as u32, f[1] as u32, f[2] as u32];
+            if is_degenerate(&positions, tri) {
+                dropped += 1;
+            } else {
+                kept.push(tri);
+            }
+        }
+        if kept.is_empty() {
+            return Err(MeshError::NoFaces {
+                origin: source.to_string(),
+                dropped,
+            });
+        }
+        let mut used = vec![false; n];
+        for f in &kept {
+            for &i in f {
+                used[i as usize] = true;
+            }
+        }
+        let report = MeshReport {
+            degenerate_faces_dropped: dropped,
+            unreferenced_vertices: used.iter().filter(|u| !**u).count(),
+        };
+        let mut mesh = Mesh {
+            positions,
+            faces: kept,
+            vertex_normals: Vec::new(),
+            face_normals: Vec::new(),
+        };
+        mesh.recompute_normals();
+        Ok((mesh, report))
+    }
+
+    pub fn positions(&self) -> &[Point3<f64>] {
+        &self.positions
+    }
+
+    pub fn faces(&self) -> &[[u32; 3]] {
+        &self.faces
+    }
+
+    /// Unit angle-weighted vertex normals (zero for unreferenced vertices).
+    pub fn vertex_normals(&self) -> &[Vector3<f64>] {
+        &self.vertex_normals
+    }
+
+    /// Unit geometric face normals, outward for counter-clockwise faces.
+    pub fn face_normals(&self) -> &[Vector3<f64>] {
+        &self.face_normals
+    }
+
+    /// The three corner positions of face `f`.
+    pub fn triangle(&self, f: usize) -> [Point3<f64>; 3] {
+        let [a, b, c] = self.faces[f];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// Axis-aligned bounds `(min, max)`.
+    pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        let mut lo = Point3::from([f64::INFINITY; 3]);
+        let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
+        for p in &self.positions {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        (lo, hi)
+    }
+
+    /// Length of the bounding-box diagonal: the scale used for ray offsets and tolerances.
+    pub fn diagonal(&self) -> f64 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).norm()
+    }
+
+    /// Replaces the positions (same count and topology), e.g. after smoothing, and recomputes
+    /// normals. Returns `false` and leaves the mesh unchanged when the count differs or a
+    /// position is not finite.
+    pub fn set_positions(&mut self, positions: Vec<Point3<f64>>) -> bool {
+        if positions.len() != self.positions.len()
+            || positions
+                .iter()
+                .any(|p| !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite()))
+        {
+            return false;
+        }
+        self.positions = positions;
+        self.recompute_normals();
+        true
+    }
+
+    fn recompute_normals(&mut self) {
+        let mut vn = vec![Vector3::zeros(); self.positions.len()];
+        let mut fnorm = Vec::with_capacity(self.faces.len());
+        for f in &self.faces {
+            let p = [
+                self.positions[f[0] as usize],
+                self.positions[f[1] as usize],
+                self.positions[f[2] as usize],
+            ];
+            let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
+            let len = n.norm();
+            let n = if len > 0.0 { n / len } else { Vector3::zeros() };
+            fnorm.push(n);
+            for k in 0..3 {
+                let e1 = p[(k + 1) % 3] - p[k];
+                let e2 = p[(k + 2) % 3] - p[k];
+                let denom = e1.norm() * e2.norm();
+                if denom > 0.0 {
+                    let angle = (e1.dot(&e2) / denom).clamp(-1.0, 1.0).acos();
+                    vn[f[k] as usize] += n * angle;
+                }
+            }
+        }
+        for n in &mut vn {
+            let len = n.norm();
+            if len > 0.0 {
+                *n /= len;
+            }
+        }
+        self.vertex_normals = vn;
+        self.face_normals = fnorm;
+    }
+}
+
+/// A face is degenerate when two corners share an index or its area vanishes relative to its
+/// longest edge (collinear corners).
+fn is_degenerate(positions: &[Point3<f64>], f: [u32; 3]) -> bool {
+    if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+        return true;
+    }
+    let a = positions[f[0] as usize];
+    let b = positions[f[1] as usize];
+    let c = positions[f[2] as usize];
+    let e1 = b - a;
+    let e2 = c - a;
+    let longest2 = e1
+        .norm_squared()
+        .max(e2.norm_squared())
+        .max((c - b).norm_squared());
+    let area2 = e1.cross(&e2).norm();
+    // twice the area against the squared longest edge: ~1e-12 means corners collinear to
+    // double precision, not merely a thin triangle
+    longest2 == 0.0 || area2 <= 1e-12 * longest2
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    fn tetra() -> (Vec<Point3<f64>>, Vec<[i64; 3]>) {
+        let p = vec![
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+            Point3::new(0.0, 0.0, 1.0),
+        ];
+        let f = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        (p, f)
+    }
+
+    #[test]
+    fn tetrahedron_normals_point_outwards() {
+        let (p, f) = tetra();
+        let (m, r) = Mesh::new(p, f, "<memory>").unwrap();
+        assert_eq!(r, MeshReport::default());
+        let c = Point3::new(0.25, 0.25, 0.25);
+        for (i, n) in m.vertex_normals().iter().enumerate() {
+            assert!((n.norm() - 1.0).abs() < 1e-12);
+            assert!(n.dot(&(m.positions()[i] - c)) > 0.0);
+        }
+        // the corner at the origin sees three right angles: normal along -(1,1,1)
+        let n0 = m.vertex_normals()[0];
+        assert!((n0 + Vector3::new(1.0, 1.0, 1.0).normalize()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn bad_content_is_named_and_degenerate_faces_counted() {
+        let (mut p, mut f) = tetra();
+        f.push([0, 0, 1]);
+        p.push(Point3::new(2.0, 0.0, 0.0)); // collinear with 0 and 1
+        f.push([0, 1, 4]);
+        let (m, r) = Mesh::new(p.clone(), f.clone(), "x.ply").unwrap();
+        assert_eq!(r.degenerate_faces_dropped, 2);
+        assert_eq!(r.unreferenced_vertices, 1);
+        assert_eq!(m.faces().len(), 4);
+
+        f.push([0, 1, 7]);
+        let e = Mesh::new(p.clone(), f, "x.ply").unwrap_err();
+        assert!(matches!(
+            e,
+            MeshError::IndexOutOfRange {
+                face: 6,
+                index: 7,
+                ..
+            }
+        ));
+        assert!(e.to_string().contains("x.ply"));
+
+        p[2].y = f64::NAN;
+        let e = Mesh::new(p, tetra().1, "y.obj").unwrap_err();
+        assert!(matches!(e, MeshError::NonFiniteVertex { vertex: 2, .. }));
+        assert!(e.to_string().starts_with("y.obj"));
+    }
+}

@@ -1,0 +1,263 @@
+//! Mesh import (PLY ascii/binary via ply-rs, OBJ via tobj) and PLY export (ascii or binary).
+//!
+//! Conventions: PLY vertices are the `x, y, z` properties of element `vertex` (float or double),
+//! faces the list `vertex_indices` (or `vertex_index`) of element `face`; polygons with more
+//! than three corners are fan-triangulated (also in OBJ, by tobj). Other elements and
+//! properties (colours, normals in the file) are ignored: normals are recomputed from the
+//! geometry so every source gives the same shading. Every error names the file; content errors
+//! also name the element (see [`MeshError`]). Writers are atomic (temp file, fsync, rename).
+//! Depends only on `mesh` (and `crate::imageio`'s atomic-write helper).
+
+use super::mesh::{Mesh, MeshError, MeshReport};
+use crate::imageio::write_atomic;
+use nalgebra::Point3;
+use ply_rs::parser::Parser;
+use ply_rs::ply::{Property, PropertyAccess};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum MeshIoError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: malformed PLY: {message}")]
+    Ply { path: PathBuf, message: String },
+    #[error("{path}: malformed OBJ: {source}")]
+    Obj {
+        path: PathBuf,
+        source: tobj::LoadError,
+    },
+    #[error("{path}: unknown mesh extension (expected .ply or .obj)")]
+    UnknownFormat { path: PathBuf },
+    #[error(transparent)]
+    Content(#[from] MeshError),
+}
+
+/// PLY payload encoding for [`write_ply`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlyEncoding {
+    Ascii,
+    BinaryLittleEndian,
+}
+
+/// Loads a `.ply` or `.obj` mesh (by extension, case-insensitive) and validates it.
+pub fn load_mesh(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("ply") => load_ply(path),
+        Some("obj") => load_obj(path),
+        _ => Err(MeshIoError::UnknownFormat {
+            path: path.to_path_buf(),
+        }),
+    }
+}
+
+/// One PLY element as we keep it: coordinates of a vertex or the index list of a face.
+/// Implementing `PropertyAccess` ourselves avoids a hash map per element (the bunny has 100k).
+#[derive(Default)]
+struct PlyElem {
+    xyz: [Option<f64>; 3],
+    indices: Option<Vec<i64>>,
+    bad_list: bool,
+}
+
+impl PropertyAccess for PlyElem {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn set_property(&mut self, name: String, p: Property) {
+        let axis = match name.as_str() {
+            "x" => Some(0),
+            "y" => Some(1),
+            "z" => Some(2),
+            _ => None,
+        };
+        if let Some(a) = axis {
+            self.xyz[a] = match p {
+                Property::Float(v) => Some(v as f64),
+                Property::Double(v) => Some(v),
+                _ => None,
+            };
+            return;
+        }
+        if name == "vertex_indices" || name == "vertex_index" {
+            let list: Option<Vec<i64>> = match p {
+                Property::ListChar(v) => Some(v.into_iter().map(i64::from).collect()),
+                Property::ListUChar(v) => Some(v.into_iter().map(i64::from).collect()),
+                Property::ListShort(v) => Some(v.into_iter().map(i64::from).collect()),
+                Property::ListUShort(v) => Some(v.into_iter().map(i64::from).collect()),
+                Property::ListInt(v) => Some(v.into_iter().map(i64::from).collect()),
+                Property::ListUInt(v) => Some(v.into_iter().map(i64::from).collect()),
+                _ => None,
+            };
+            self.bad_list = list.is_none();
+            self.indices = list;
+        }
+    }
+}
+
+/// Loads a PLY mesh (ascii, binary little or big endian).
+pub fn load_ply(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
+    let file = std::fs::File::open(path).map_err(|source| MeshIoError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut reader = std::io::BufReader::new(file);
+    let ply = Parser::<PlyElem>::new()
+        .read_ply(&mut reader)
+        .map_err(|e| ply_err(path, e.to_string()))?;
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| ply_err(path, "no `vertex` element".into()))?;
+    let faces = ply
+        .payload
+        .get("face")
+        .ok_or_else(|| ply_err(path, "no `face` element".into()))?;
+    let mut positions = Vec::with_capacity(vertices.len());
+    for (i, v) in vertices.iter().enumerate() {
+        match v.xyz {
+            [Some(x), Some(y), Some(z)] => positions.push(Point3::new(x, y, z)),
+            _ => {
+                return Err(ply_err(
+                    path,
+                    format!("vertex {i}: needs float or double properties x, y, z"),
+                ));
+            }
+        }
+    }
+    let mut tris = Vec::with_capacity(faces.len());
+    for (i, f) in faces.iter().enumerate() {
+        let idx = match (&f.indices, f.bad_list) {
+            (Some(idx), false) => idx,
+            _ => {
+                return Err(ply_err(
+                    path,
+                    format!("face {i}: needs an integer list `vertex_indices`"),
+                ));
+            }
+        };
+        if idx.len() < 3 {
+            return Err(ply_err(
+                path,
+                format!("face {i}: has {} corners", idx.len()),
+            ));
+        }
+        for k in 1..idx.len() - 1 {
+            tris.push([idx[0], idx[k], idx[k + 1]]);
+        }
+    }
+    Ok(Mesh::new(positions, tris, &path.display().to_string())?)
+}
+
+fn ply_err(path: &Path, message: String) -> MeshIoError {
+    MeshIoError::Ply {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// Loads an OBJ mesh: all objects merged, polygons triangulated, texture and normal indices
+/// ignored (no vertex is duplicated, so curvature sees the true connectivity). tobj keeps only
+/// the vertices faces use, renumbered in file order: vertex ids may differ from the file's.
+pub fn load_obj(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, _materials) = tobj::load_obj(path, &opts).map_err(|source| match source {
+        tobj::LoadError::OpenFileFailed | tobj::LoadError::ReadError => MeshIoError::Read {
+            path: path.to_path_buf(),
+            source: std::io::Error::other(source.to_string()),
+        },
+        source => MeshIoError::Obj {
+            path: path.to_path_buf(),
+            source,
+        },
+    })?;
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for m in &models {
+        let base = positions.len() as i64;
+        for p in m.mesh.positions.chunks_exact(3) {
+            positions.push(Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+        }
+        for t in m.mesh.indices.chunks_exact(3) {
+            faces.push([base + t[0] as i64, base + t[1] as i64, base + t[2] as i64]);
+        }
+    }
+    Ok(Mesh::new(positions, faces, &path.display().to_string())?)
+}
+
+/// Writes `mesh` as PLY: float32 `x y z nx ny nz` per vertex, `uchar`-counted `int` face lists.
+///
+/// Hand-written rather than ply-rs's writer: ply-rs 0.1.3 writes the element count instead of
+/// the list length in binary lists, producing files nobody (itself included) can read back.
+pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<(), MeshIoError> {
+    let mut out = Vec::with_capacity(32 * mesh.positions().len() + 16 * mesh.faces().len() + 256);
+    let format = match encoding {
+        PlyEncoding::Ascii => "ascii",
+        PlyEncoding::BinaryLittleEndian => "binary_little_endian",
+    };
+    let header = format!(
+        "ply\nformat {format} 1.0\ncomment written by brdf-rig\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mesh.positions().len(),
+        mesh.faces().len()
+    );
+    out.extend_from_slice(header.as_bytes());
+    let verts = mesh.positions().iter().zip(mesh.vertex_normals());
+    match encoding {
+        PlyEncoding::Ascii => {
+            use std::fmt::Write as _;
+            let mut text = String::new();
+            for (p, n) in verts {
+                // `{}` on f32 prints the shortest string that reads back to the same float
+                let _ = writeln!(
+                    text,
+                    "{} {} {} {} {} {}",
+                    p.x as f32, p.y as f32, p.z as f32, n.x as f32, n.y as f32, n.z as f32
+                );
+            }
+            for f in mesh.faces() {
+                let _ = writeln!(text, "3 {} {} {}", f[0], f[1], f[2]);
+            }
+            out.extend_from_slice(text.as_bytes());
+        }
+        PlyEncoding::BinaryLittleEndian => {
+            for (p, n) in verts {
+                for v in [p.x, p.y, p.z, n.x, n.y, n.z] {
+                    out.extend_from_slice(&(v as f32).to_le_bytes());
+                }
+            }
+            for f in mesh.faces() {
+                out.push(3);
+                for &i in f {
+                    // vertex counts above i32::MAX cannot come from `Mesh` (u32 indices from
+                    // files that PLY int lists could describe); saturate rather than wrap
+                    out.extend_from_slice(&i32::try_from(i).unwrap_or(i32::MAX).to_le_bytes());
+                }
+            }
+        }
+    }
+    write_atomic(path, &out).map_err(|source| MeshIoError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}

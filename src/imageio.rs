@@ -1,0 +1,415 @@
+//! Reading and writing linear images, and atomic file writes.
+//!
+//! Formats:
+//! - EXR (exr crate): RGB, written as f32 or f16, read from any sample type (alpha ignored).
+//! - 16-bit PNG and 16-bit TIFF (image crate), declared **linear**: a stored value `q` means
+//!   radiance `q / 65535 * scale`. 8-bit files are refused on read: they are almost always
+//!   gamma-encoded, and guessing would corrupt the reflectance. 32-bit float TIFF is read as is.
+//! - 8-bit PNG previews for humans: multiplied by `2^exposure_stops`, clipped, sRGB-encoded.
+//!   Never read these back as data.
+//!
+//! Every writer is atomic: bytes go to a temp file in the destination's directory, which is
+//! fsynced and renamed over the target, so a crash leaves the old file or the new one, never half
+//! of one. Every error names the file. Depends on `render::image::LinearImage` only.
+
+use crate::render::image::LinearImage;
+use std::io::{BufWriter, Seek, Write};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum ImageIoError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot decode: {message}")]
+    Decode { path: PathBuf, message: String },
+    #[error("{path}: {message}")]
+    Unsupported { path: PathBuf, message: String },
+}
+
+/// EXR sample type on write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExrPrecision {
+    F32,
+    F16,
+}
+
+/// Writes `bytes` to `path` atomically (temp file in the same directory, fsync, rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// Atomic write where `fill` streams into the (seekable) temp file.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut tmp = tempfile::NamedTempFile::new_in(&dir)?;
+    fill(tmp.as_file_mut())?;
+    tmp.as_file_mut().flush()?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    // make the rename itself durable; not every platform can open a directory, so best effort
+    if let Ok(d) = std::fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+fn ext_of(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+}
+
+/// Reads a linear image by extension: `.exr`, or `.png`/`.tif`/`.tiff` as 16-bit linear with
+/// `scale` (see the module header).
+pub fn read_linear(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError> {
+    match ext_of(path).as_deref() {
+        Some("exr") => read_exr(path),
+        Some("png" | "tif" | "tiff") => read_linear16(path, scale),
+        _ => Err(ImageIoError::Unsupported {
+            path: path.to_path_buf(),
+            message: "unknown image extension (expected .exr, .png, .tif, .tiff)".into(),
+        }),
+    }
+}
+
+/// Reads the first RGB(A) layer of an EXR file as f32.
+pub fn read_exr(path: &Path) -> Result<LinearImage, ImageIoError> {
+    use exr::prelude::*;
+    // Existence first, so a missing file is a read error rather than a decode error.
+    std::fs::metadata(path).map_err(|source| ImageIoError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res, _| {
+            (
+                res.width(),
+                res.height(),
+                vec![0.0f32; res.width() * res.height() * 3],
+            )
+        },
+        |(w, _, data): &mut (usize, usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let i = (pos.y() * *w + pos.x()) * 3;
+            data[i] = r;
+            data[i + 1] = g;
+            data[i + 2] = b;
+        },
+    )
+    .map_err(|e| ImageIoError::Decode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let (w, h, data) = img.layer_data.channel_data.pixels;
+    LinearImage::from_rgb(w, h, data).ok_or_else(|| ImageIoError::Decode {
+        path: path.to_path_buf(),
+        message: "pixel count does not match the size".into(),
+    })
+}
+
+/// Writes an RGB EXR (no alpha), atomically.
+pub fn write_exr(
+    path: &Path,
+    img: &LinearImage,
+    precision: ExrPrecision,
+) -> Result<(), ImageIoError> {
+    use exr::prelude::*;
+    let w = img.width();
+    let h = img.height();
+    let werr = |message: String| ImageIoError::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(message),
+    };
+    let mut encoded: Vec<u8> = Vec::new();
+    {
+        let mut cursor = std::io::Cursor::new(&mut encoded);
+        let res = match precision {
+            ExrPrecision::F32 => {
+                let ch = SpecificChannels::rgb(|Vec2(x, y)| {
+                    let [r, g, b] = img.get(x, y);
+                    (r, g, b)
+                });
+                Image::from_channels((w, h), ch)
+                    .write()
+                    .to_buffered(&mut cursor)
+            }
+            ExrPrecision::F16 => {
+                let ch = SpecificChannels::rgb(|Vec2(x, y)| {
+                    let [r, g, b] = img.get(x, y);
+                    (f16::from_f32(r), f16::from_f32(g), f16::from_f32(b))
+                });
+                Image::from_channels((w, h), ch)
+                    .write()
+                    .to_buffered(&mut cursor)
+            }
+        };
+        res.map_err(|e| werr(e.to_string()))?;
+        let _ = cursor.stream_position();
+    }
+    write_atomic(path, &encoded).map_err(|source| ImageIoError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a 16-bit PNG or TIFF (RGB, RGBA or grey) as linear: `q / 65535 * scale`; 32-bit float
+/// TIFF as stored times `scale`. 8-bit files are refused (see the module header).
+pub fn read_linear16(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError> {
+    use image::DynamicImage as D;
+    let reader = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|source| ImageIoError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let dynimg = reader.decode().map_err(|e| ImageIoError::Decode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
+    let k = scale / 65535.0;
+    let data: Vec<f32> = match &dynimg {
+        D::ImageRgb16(b) => b.as_raw().iter().map(|&q| q as f32 * k).collect(),
+        D::ImageRgba16(b) => b
+            .pixels()
+            .flat_map(|p| [p.0[0], p.0[1], p.0[2]])
+            .map(|q| q as f32 * k)
+            .collect(),
+        D::ImageLuma16(b) => b
+            .as_raw()
+            .iter()
+            .flat_map(|&q| [q; 3])
+            .map(|q| q as f32 * k)
+            .collect(),
+        D::ImageRgb32F(b) => b.as_raw().iter().map(|&v| v * scale).collect(),
+        D::ImageRgba32F(b) => b
+            .pixels()
+            .flat_map(|p| [p.0[0], p.0[1], p.0[2]])
+            .map(|v| v * scale)
+            .collect(),
+        other => {
+            return Err(ImageIoError::Unsupported {
+                path: path.to_path_buf(),
+                message: format!(
+                    "pixel type {:?} is not a linear format: use 16-bit PNG/TIFF or EXR",
+                    other.color()
+                ),
+            });
+        }
+    };
+    LinearImage::from_rgb(w, h, data).ok_or_else(|| ImageIoError::Decode {
+        path: path.to_path_buf(),
+        message: "pixel count does not match the size".into(),
+    })
+}
+
+/// Quantises to 16 bits: `q = round(v / scale * 65535)`, clipped to [0, 65535]. Returns the
+/// samples and how many were clipped (above `scale`, below zero or NaN).
+pub fn quantise16(img: &LinearImage, scale: f32) -> (Vec<u16>, usize) {
+    let mut clipped = 0;
+    let q = img
+        .data()
+        .iter()
+        .map(|&v| {
+            let x = v / scale * 65535.0;
+            if x.is_nan() || !(0.0..=65535.0).contains(&x) {
+                clipped += 1;
+            }
+            if x.is_nan() {
+                0
+            } else {
+                x.round().clamp(0.0, 65535.0) as u16
+            }
+        })
+        .collect();
+    (q, clipped)
+}
+
+fn write_with_image_crate(
+    path: &Path,
+    img: &LinearImage,
+    scale: f32,
+    format: image::ImageFormat,
+) -> Result<usize, ImageIoError> {
+    let (q, clipped) = quantise16(img, scale);
+    let buf = image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(
+        img.width() as u32,
+        img.height() as u32,
+        q,
+    )
+    .ok_or_else(|| ImageIoError::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other("image size overflows"),
+    })?;
+    write_atomic_with(path, |f| {
+        let mut w = BufWriter::new(f);
+        buf.write_to(&mut w, format)
+            .map_err(std::io::Error::other)?;
+        w.flush()
+    })
+    .map_err(|source| ImageIoError::Write {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(clipped)
+}
+
+/// Writes a 16-bit linear RGB PNG (`q = v / scale * 65535`); returns the clipped sample count.
+pub fn write_png16(path: &Path, img: &LinearImage, scale: f32) -> Result<usize, ImageIoError> {
+    write_with_image_crate(path, img, scale, image::ImageFormat::Png)
+}
+
+/// Writes a 16-bit linear RGB TIFF (`q = v / scale * 65535`); returns the clipped sample count.
+pub fn write_tiff16(path: &Path, img: &LinearImage, scale: f32) -> Result<usize, ImageIoError> {
+    write_with_image_crate(path, img, scale, image::ImageFormat::Tiff)
+}
+
+/// The sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
+pub fn srgb_encode(v: f32) -> f32 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// 8-bit sRGB bytes of `img * 2^exposure_stops` (RGB interleaved), for previews.
+pub fn preview_srgb8(img: &LinearImage, exposure_stops: f32) -> Vec<u8> {
+    let gain = exposure_stops.exp2();
+    img.data()
+        .iter()
+        .map(|&v| (srgb_encode(v * gain) * 255.0).round() as u8)
+        .collect()
+}
+
+/// Writes an 8-bit sRGB PNG preview (for humans; not data).
+pub fn write_preview_png(
+    path: &Path,
+    img: &LinearImage,
+    exposure_stops: f32,
+) -> Result<(), ImageIoError> {
+    let bytes = preview_srgb8(img, exposure_stops);
+    let buf = image::RgbImage::from_raw(img.width() as u32, img.height() as u32, bytes)
+        .ok_or_else(|| ImageIoError::Write {
+            path: path.to_path_buf(),
+            source: std::io::Error::other("image size overflows"),
+        })?;
+    write_atomic_with(path, |f| {
+        let mut w = BufWriter::new(f);
+        buf.write_to(&mut w, image::ImageFormat::Png)
+            .map_err(std::io::Error::other)?;
+        w.flush()
+    })
+    .map_err(|source| ImageIoError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    fn ramp(w: usize, h: usize, max: f32) -> LinearImage {
+        let data = (0..w * h * 3)
+            .map(|i| max * i as f32 / (w * h * 3) as f32)
+            .collect();
+        LinearImage::from_rgb(w, h, data).unwrap()
+    }
+
+    #[test]
+    fn exr_round_trips_f32_exactly_and_f16_to_half_precision() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = ramp(7, 5, 40.0);
+        let p = dir.path().join("a.exr");
+        write_exr(&p, &img, ExrPrecision::F32).unwrap();
+        assert_eq!(read_linear(&p, 1.0).unwrap(), img);
+        write_exr(&p, &img, ExrPrecision::F16).unwrap();
+        let back = read_exr(&p).unwrap();
+        for (a, b) in back.data().iter().zip(img.data()) {
+            assert!((a - b).abs() <= b.abs() * 1e-3 + 1e-6, "{a} {b}");
+        }
+        // the overwrite left no temp file behind
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn sixteen_bit_png_and_tiff_round_trip_within_half_a_step() {
+        let dir = tempfile::tempdir().unwrap();
+        let scale = 8.0;
+        let img = ramp(9, 4, scale);
+        for name in ["a.png", "a.tif"] {
+            let p = dir.path().join(name);
+            let clipped = if name.ends_with("png") {
+                write_png16(&p, &img, scale).unwrap()
+            } else {
+                write_tiff16(&p, &img, scale).unwrap()
+            };
+            assert_eq!(clipped, 0);
+            let back = read_linear(&p, scale).unwrap();
+            assert_eq!((back.width(), back.height()), (9, 4));
+            for (a, b) in back.data().iter().zip(img.data()) {
+                assert!((a - b).abs() <= 0.5 * scale / 65535.0 + 1e-6);
+            }
+        }
+        // values above the scale clip and are counted
+        let mut hot = img.clone();
+        hot.set(0, 0, [9.0, -1.0, 1.0]);
+        assert_eq!(
+            write_png16(&dir.path().join("h.png"), &hot, scale).unwrap(),
+            2
+        );
+    }
+
+    #[test]
+    fn eight_bit_files_are_refused_as_data_and_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("preview.png");
+        let img = ramp(4, 4, 1.0);
+        write_preview_png(&p, &img, 0.0).unwrap();
+        let e = read_linear(&p, 1.0).unwrap_err();
+        assert!(matches!(e, ImageIoError::Unsupported { .. }));
+        assert!(e.to_string().contains("preview.png"));
+        let e = read_linear(&dir.path().join("none.exr"), 1.0).unwrap_err();
+        assert!(matches!(e, ImageIoError::Read { .. }) && e.to_string().contains("none.exr"));
+        let junk = dir.path().join("junk.exr");
+        std::fs::write(&junk, b"not an exr").unwrap();
+        assert!(matches!(
+            read_linear(&junk, 1.0).unwrap_err(),
+            ImageIoError::Decode { .. }
+        ));
+        let e =
+            write_exr(&dir.path().join("no/such/dir.exr"), &img, ExrPrecision::F32).unwrap_err();
+        assert!(matches!(e, ImageIoError::Write { .. }));
+    }
+
+    #[test]
+    fn srgb_preview_matches_the_standard_curve() {
+        // IEC 61966-2-1 reference points: 0.18 linear -> 0.4614 encoded; linear toe below 0.0031308
+        assert!((srgb_encode(0.18) - 0.4614).abs() < 1e-3);
+        assert!((srgb_encode(0.002) - 0.02584).abs() < 1e-6);
+        assert!((srgb_encode(2.0) - 1.0).abs() < 1e-6);
+        let img = LinearImage::from_rgb(1, 1, vec![0.045, 0.09, 0.0]).unwrap();
+        // one stop up doubles the linear value before encoding
+        let b = preview_srgb8(&img, 1.0);
+        assert_eq!(b[0], (srgb_encode(0.09) * 255.0).round() as u8);
+        assert_eq!(b[1], (srgb_encode(0.18) * 255.0).round() as u8);
+    }
+}
