@@ -2,9 +2,10 @@
 //! the ordered list of shots a session takes.
 //!
 //! Conventions: angles in degrees in the file (operators think in degrees), exposures in seconds,
-//! settle times in milliseconds, distances in metres. The lab frame has the turntable centre at
-//! the origin, z up, and the camera at azimuth 0 (on the +x axis); a light's azimuth is measured
-//! about z from the camera's, its elevation up from the turntable plane.
+//! settle times in milliseconds, distances in metres. The lab frame (the rig profile's) has the
+//! turntable centre at the origin, z up, and the camera at azimuth 0 (towards +x); a light's
+//! azimuth is measured about z from the camera's, its elevation up from the turntable plane.
+//! Light directions come from the rig profile, not the plan: the plan says which channels.
 //!
 //! Order of the shots (fixed, so a resumed session takes the same shots): every ambient view
 //! (room light on, turntable stepping once round), then the single-light shots of the chosen views
@@ -35,7 +36,6 @@ pub struct CapturePlan {
     pub calibration: CalibrationPlan,
     #[serde(default)]
     pub settle: SettlePlan,
-    pub lab: LabGeometry,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -124,24 +124,19 @@ impl Default for SettlePlan {
     }
 }
 
-/// Nominal rig geometry (see the module header for the frame).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// Nominal rig geometry in the lab frame (see the module header): from the rig profile's light
+/// channels and the camera placement.
+#[derive(Clone, Debug, PartialEq)]
 pub struct LabGeometry {
     pub camera_distance_m: f64,
     pub camera_elevation_deg: f64,
     pub vertical_fov_deg: f64,
-    pub lights: Vec<LightPosition>,
+    /// `(azimuth_deg, elevation_deg)` of each light channel, by channel number.
+    pub lights: Vec<(f64, f64)>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LightPosition {
-    pub azimuth_deg: f64,
-    pub elevation_deg: f64,
-}
-
-fn unit_from_angles(azimuth_deg: f64, elevation_deg: f64) -> Vector3<f64> {
+/// Unit vector for an azimuth about z from +x and an elevation above the xy plane.
+pub fn unit_from_angles(azimuth_deg: f64, elevation_deg: f64) -> Vector3<f64> {
     let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
     Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
 }
@@ -156,7 +151,7 @@ impl LabGeometry {
     pub fn light_dir_lab(&self, channel: usize) -> Option<Vector3<f64>> {
         self.lights
             .get(channel)
-            .map(|l| unit_from_angles(l.azimuth_deg, l.elevation_deg))
+            .map(|&(az, el)| unit_from_angles(az, el))
     }
 
     /// theta_d of a far light and camera at the turntable centre: half the angle between the
@@ -338,12 +333,6 @@ impl CapturePlan {
             ));
         }
         for (i, &ch) in sl.channels.iter().enumerate() {
-            if ch >= self.lab.lights.len() {
-                return Err(format!(
-                    "single_light.channels[{i}] = {ch}: lab.lights describes only {} light positions",
-                    self.lab.lights.len()
-                ));
-            }
             if sl.channels[..i].contains(&ch) {
                 return Err(format!(
                     "single_light.channels[{i}] = {ch}: channel listed twice"
@@ -364,26 +353,6 @@ impl CapturePlan {
                 "calibration.exposures_secs",
                 &self.calibration.exposures_secs,
             )?;
-        }
-        let lab = &self.lab;
-        if !(lab.camera_distance_m > 0.0 && lab.camera_distance_m.is_finite()) {
-            return Err("lab.camera_distance_m: must be positive".into());
-        }
-        if !(lab.vertical_fov_deg > 1.0 && lab.vertical_fov_deg < 170.0) {
-            return Err(format!(
-                "lab.vertical_fov_deg = {}: must be in (1, 170)",
-                lab.vertical_fov_deg
-            ));
-        }
-        if !(-89.0..=89.0).contains(&lab.camera_elevation_deg) {
-            return Err("lab.camera_elevation_deg: must be in [-89, 89]".into());
-        }
-        for (i, l) in lab.lights.iter().enumerate() {
-            if !(l.azimuth_deg.is_finite() && (-90.0..=90.0).contains(&l.elevation_deg)) {
-                return Err(format!(
-                    "lab.lights[{i}]: azimuth must be finite and elevation in [-90, 90]"
-                ));
-            }
         }
         Ok(())
     }
@@ -495,7 +464,7 @@ impl CapturePlan {
     }
 
     /// A human summary: shot counts, the theta_d each channel gives, and the covered range.
-    pub fn summary(&self) -> String {
+    pub fn summary(&self, lab: &LabGeometry) -> String {
         let shots = self.shots();
         let count = |k: ShotKind| shots.iter().filter(|s| s.kind == k).count();
         let mut s = String::new();
@@ -515,11 +484,10 @@ impl CapturePlan {
         );
         let mut range: Option<(f64, f64)> = None;
         for &ch in &self.single_light.channels {
-            if let Some(td) = self.lab.theta_d_deg(ch) {
+            if let (Some(td), Some(&(az, el))) = (lab.theta_d_deg(ch), lab.lights.get(ch)) {
                 let _ = writeln!(
                     s,
-                    "  channel {ch}: light at azimuth {:.1} deg, elevation {:.1} deg -> theta_d = {td:.1} deg",
-                    self.lab.lights[ch].azimuth_deg, self.lab.lights[ch].elevation_deg
+                    "  channel {ch}: light at azimuth {az:.1} deg, elevation {el:.1} deg -> theta_d = {td:.1} deg"
                 );
                 range = Some(match range {
                     None => (td, td),
@@ -561,7 +529,7 @@ mod tests {
             .collect();
         assert_eq!(light.len(), 11 * 3 * 3);
         assert_eq!(light[0].file, "light/v000_ch0_e0.exr");
-        assert!(plan.summary().contains("theta_d covered"));
+        assert!(plan.summary(&test_lab()).contains("theta_d covered"));
     }
 
     #[test]
@@ -571,27 +539,32 @@ mod tests {
         assert!(plan.shots().len() < 80);
     }
 
+    fn test_lab() -> LabGeometry {
+        LabGeometry {
+            camera_distance_m: 0.6,
+            camera_elevation_deg: 0.0,
+            vertical_fov_deg: 30.0,
+            lights: vec![(20.0, 0.0), (60.0, 0.0), (110.0, 0.0)],
+        }
+    }
+
     #[test]
     fn theta_d_matches_a_closed_form() {
-        let mut plan = default_plan();
-        // camera and light both in the turntable plane, 90 degrees apart -> theta_d = 45
-        plan.lab.camera_elevation_deg = 0.0;
-        plan.lab.lights[0] = LightPosition {
-            azimuth_deg: 90.0,
-            elevation_deg: 0.0,
-        };
-        assert!((plan.lab.theta_d_deg(0).unwrap() - 45.0).abs() < 1e-9);
-        // light straight up, camera at 0 elevation: also 45
-        plan.lab.lights[0].elevation_deg = 90.0;
-        assert!((plan.lab.theta_d_deg(0).unwrap() - 45.0).abs() < 1e-9);
+        let mut lab = test_lab();
+        // camera and light both in the turntable plane: theta_d is half the azimuth
+        assert!((lab.theta_d_deg(1).unwrap() - 30.0).abs() < 1e-9);
+        // light straight up, camera at 0 elevation: 45
+        lab.lights[0] = (0.0, 90.0);
+        assert!((lab.theta_d_deg(0).unwrap() - 45.0).abs() < 1e-9);
+        assert!(lab.theta_d_deg(7).is_none());
     }
 
     #[test]
     fn errors_name_the_field_and_line() {
-        let bad = DEFAULT_PLAN_TOML.replace("channels = [0, 1, 2]", "channels = [0, 7]");
+        let bad = DEFAULT_PLAN_TOML.replace("channels = [0, 1, 2]", "channels = [0, 0]");
         let err = parse_plan(&bad, "x.toml").unwrap_err().to_string();
         assert!(
-            err.contains("x.toml") && err.contains("single_light.channels[1] = 7"),
+            err.contains("x.toml") && err.contains("single_light.channels[1] = 0"),
             "{err}"
         );
         let bad = DEFAULT_PLAN_TOML.replace("views = 55", "views = \"many\"");

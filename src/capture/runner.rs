@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use super::error::CaptureError;
 use super::exr::encode_exr;
-use super::plan::{PlannedShot, Stage, Target};
+use super::plan::{LabGeometry, PlannedShot, Stage, Target};
 use super::session::{Session, ShotRecord, now_utc};
 use crate::devices::{Camera, DeviceError, Light, ShotSettings, Turntable};
 
@@ -104,6 +104,8 @@ pub struct RunOptions {
     pub kill_hook: Option<(usize, KillPhase)>,
     /// Write `manifest.json` at least every this many shots (also at every stage change).
     pub snapshot_every: usize,
+    /// Nominal rig geometry, to record each shot's light direction.
+    pub lab: Option<LabGeometry>,
 }
 
 impl Default for RunOptions {
@@ -113,6 +115,7 @@ impl Default for RunOptions {
             home: true,
             kill_hook: None,
             snapshot_every: 16,
+            lab: None,
         }
     }
 }
@@ -227,7 +230,6 @@ fn take_shots(
         return Ok(());
     }
     let settle = session.plan().settle.clone();
-    let lab = session.plan().lab.clone();
     let first = &remaining[0];
     let t = Instant::now();
     d.light.off(None).map_err(|e| dev(first, e))?;
@@ -325,7 +327,7 @@ fn take_shots(
             },
             light_dir_lab: shot
                 .channel
-                .and_then(|ch| lab.light_dir_lab(ch))
+                .and_then(|ch| options.lab.as_ref()?.light_dir_lab(ch))
                 .map(|v| [v.x, v.y, v.z]),
             exposure_secs: meta.exposure_secs,
             gain: meta.gain,
