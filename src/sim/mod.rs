@@ -4,5 +4,7 @@
 //! (`runner::SimHandle`): the camera renders the platter angle and lit channels the firmware
 //! reports.
 
+pub mod camera;
 pub mod firmware;
 pub mod motion;
+pub mod scene;
