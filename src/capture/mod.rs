@@ -4,6 +4,7 @@
 //! Depends on the device traits only (`crate::devices`), never on a concrete driver, so the
 //! simulated rig and a real one run the same code. The CLI chooses the devices.
 
+pub mod camera_config;
 pub mod error;
 pub mod exr;
 pub mod plan;
