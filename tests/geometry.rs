@@ -183,3 +183,556 @@ fn malformed_meshes_are_errors_naming_file_and_element() {
         MeshIoError::UnknownFormat { .. }
     ));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Analytic meshes shared with the render tests
+
+use brdf_rig::geometry::bvh::Bvh;
+use brdf_rig::geometry::camera::{Intrinsics, Pose};
+use brdf_rig::geometry::mesh::Mesh;
+use brdf_rig::geometry::raster::rasterise;
+use brdf_rig::geometry::shadow::shadow_mask;
+use nalgebra::{Point3, Vector3};
+
+/// An axis-aligned square `[x0, x1] x [y0, y1]` at height `z`, facing +z, as an n x n grid.
+pub fn grid(
+    x0: f64,
+    x1: f64,
+    y0: f64,
+    y1: f64,
+    z: f64,
+    n: usize,
+) -> (Vec<Point3<f64>>, Vec<[i64; 3]>) {
+    let mut p = Vec::new();
+    let mut f = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+            p.push(Point3::new(x0 + s * (x1 - x0), y0 + t * (y1 - y0), z));
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as i64;
+    for j in 0..n {
+        for i in 0..n {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    (p, f)
+}
+
+/// A UV sphere of radius `r` about the origin, outward faces: `rings` latitude bands.
+pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> Mesh {
+    let mut p = vec![Point3::new(0.0, 0.0, r)];
+    for i in 1..rings {
+        let th = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            p.push(Point3::new(
+                r * th.sin() * ph.cos(),
+                r * th.sin() * ph.sin(),
+                r * th.cos(),
+            ));
+        }
+    }
+    p.push(Point3::new(0.0, 0.0, -r));
+    let south = (p.len() - 1) as i64;
+    let id = |i: usize, j: usize| (1 + (i - 1) * segments + j % segments) as i64;
+    let mut f = Vec::new();
+    for j in 0..segments {
+        f.push([0, id(1, j), id(1, j + 1)]);
+        f.push([south, id(rings - 1, j + 1), id(rings - 1, j)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..segments {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Mesh::new(p, f, "<uv sphere>").unwrap().0
+}
+
+#[test]
+fn rasterised_square_covers_exactly_its_projection_at_its_depth() {
+    // square [-0.5, 0.5]^2 at z = 0, camera 4 units up the z axis looking down
+    let (p, f) = grid(-0.5, 0.5, -0.5, 0.5, 0.0, 4);
+    let (mesh, _) = Mesh::new(p, f, "<grid>").unwrap();
+    let bvh = Bvh::build(&mesh);
+    let k = Intrinsics::pinhole(96, 72, 80.0, 80.0, 48.0, 36.0);
+    let pose = Pose::look_at(Point3::new(0.0, 0.0, 4.0), Point3::origin(), Vector3::y());
+    let g = rasterise(&mesh, &bvh, &k, &pose, None);
+    // the square's half width in pixels: fx * 0.5 / 4 = 10
+    let mut checked = 0;
+    for y in 0..72 {
+        for x in 0..96 {
+            let (dx, dy) = ((x as f64 + 0.5 - 48.0).abs(), (y as f64 + 0.5 - 36.0).abs());
+            let inside = dx < 10.0 && dy < 10.0;
+            let frag = g.get(x, y);
+            assert_eq!(frag.is_some(), inside, "pixel {x},{y}");
+            if let Some(fr) = frag {
+                checked += 1;
+                assert!((fr.depth - 4.0).abs() < 1e-12);
+                assert!(fr.position.z.abs() < 1e-12);
+                assert!((fr.normal - Vector3::z()).norm() < 1e-12);
+                assert!((fr.bary.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            }
+        }
+    }
+    assert_eq!(checked, 400);
+    assert_eq!(g.covered(), 400);
+}
+
+#[test]
+fn bunny_fragments_reproject_to_their_pixel_centres_even_with_distortion() {
+    let (bunny, _) = load_mesh(&meshes().join("stanford-bunny.obj")).unwrap();
+    let bvh = Bvh::build(&bunny);
+    let (lo, hi) = bunny.bounds();
+    let c = Point3::from((lo.coords + hi.coords) / 2.0);
+    let eye = c + Vector3::new(0.3, 0.1, 0.6) * (bunny.diagonal() * 2.0);
+    let pose = Pose::look_at(eye, c, Vector3::y());
+    let mut k = Intrinsics::pinhole(96, 72, 110.0, 110.0, 47.0, 37.0);
+    k.k1 = -0.08;
+    k.p2 = 0.002;
+    let g = rasterise(&bunny, &bvh, &k, &pose, None);
+    assert!(g.covered() > 500, "bunny covers {} pixels", g.covered());
+    for y in 0..72 {
+        for x in 0..96 {
+            if let Some(fr) = g.get(x, y) {
+                let pc = pose.camera_from_world(&fr.position);
+                let (px, py) = k.project(&pc).unwrap();
+                assert!((px - x as f64 - 0.5).abs() < 1e-6 && (py - y as f64 - 0.5).abs() < 1e-6);
+                assert!((pc.z - fr.depth).abs() < 1e-9);
+                // the hit lies on its face (barycentric blend of the corners)
+                let t = bunny.triangle(fr.face as usize);
+                let q: Vector3<f64> = (0..3).map(|i| t[i].coords * fr.bary[i]).sum();
+                assert!((q - fr.position.coords).norm() < 1e-9);
+            }
+        }
+    }
+}
+
+#[test]
+fn an_occluder_casts_its_footprint_as_shadow() {
+    // floor [-2, 2]^2 at z = 0, occluder [-0.5, 0.5]^2 at z = 1, light straight above
+    let (mut p, mut f) = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 8);
+    let (p2, f2) = grid(-0.5, 0.5, -0.5, 0.5, 1.0, 2);
+    let base = p.len() as i64;
+    p.extend(p2);
+    f.extend(f2.into_iter().map(|t| t.map(|i| i + base)));
+    let (mesh, _) = Mesh::new(p, f, "<floor>").unwrap();
+    let bvh = Bvh::build(&mesh);
+    // oblique camera so the floor under the occluder is partly visible
+    let eye = Point3::new(3.0, 0.5, 3.0);
+    let pose = Pose::look_at(eye, Point3::origin(), Vector3::z());
+    let k = Intrinsics::pinhole(96, 72, 60.0, 60.0, 48.0, 36.0);
+    let g = rasterise(&mesh, &bvh, &k, &pose, None);
+    let up = Vector3::z();
+    let mask = shadow_mask(&mesh, &bvh, &g, &eye, &up);
+    let (mut lit, mut dark) = (0, 0);
+    for (frag, m) in g.fragments().iter().zip(&mask) {
+        let Some(fr) = frag else { continue };
+        let m = m.unwrap();
+        let q = fr.position;
+        if q.z > 0.5 {
+            assert!(m, "occluder top is lit");
+            continue;
+        }
+        let margin = (q.x.abs().max(q.y.abs()) - 0.5).abs();
+        if margin < 0.02 {
+            continue; // pixel centres too close to the footprint's edge to call
+        }
+        let under = q.x.abs() < 0.5 && q.y.abs() < 0.5;
+        assert_eq!(m, !under, "floor point {q:?}");
+        if m { lit += 1 } else { dark += 1 }
+    }
+    assert!(lit > 100 && dark > 20, "lit {lit} dark {dark}");
+    // a light below the floor: every floor pixel is turned away from it
+    let mask = shadow_mask(&mesh, &bvh, &g, &eye, &-up);
+    assert!(mask.iter().flatten().all(|m| !m));
+}
+
+/// Timing, not correctness: run in release with
+/// `cargo test --release --test tests -- --ignored --nocapture timing_bunny`.
+#[test]
+#[ignore]
+fn timing_bunny_640x480_raster_and_shadow() {
+    let (bunny, _) = load_mesh(&meshes().join("stanford-bunny.obj")).unwrap();
+    let t = std::time::Instant::now();
+    let bvh = Bvh::build(&bunny);
+    let t_build = t.elapsed();
+    let (lo, hi) = bunny.bounds();
+    let c = Point3::from((lo.coords + hi.coords) / 2.0);
+    let eye = c + Vector3::new(0.0, 0.0, 1.0) * (bunny.diagonal() * 1.2);
+    let pose = Pose::look_at(eye, c, Vector3::y());
+    let k = Intrinsics::pinhole(640, 480, 600.0, 600.0, 320.0, 240.0);
+    let runs = 5;
+    let t = std::time::Instant::now();
+    let mut g = rasterise(&bunny, &bvh, &k, &pose, None);
+    for _ in 1..runs {
+        g = rasterise(&bunny, &bvh, &k, &pose, None);
+    }
+    let t_raster = t.elapsed() / runs;
+    let t = std::time::Instant::now();
+    let l = Vector3::new(0.3, 0.8, 0.5).normalize();
+    for _ in 0..runs {
+        std::hint::black_box(shadow_mask(&bunny, &bvh, &g, &eye, &l));
+    }
+    let t_shadow = t.elapsed() / runs;
+    println!(
+        "bunny {} tris, {} covered px of 640x480: bvh build {:?}, rasterise {:?}, shadow mask {:?} ({} threads)",
+        bunny.faces().len(),
+        g.covered(),
+        t_build,
+        t_raster,
+        t_shadow,
+        rayon::current_num_threads()
+    );
+}
+
+use brdf_rig::geometry::curvature::principal_curvatures;
+
+/// An open cylinder of radius `r` along z, `rings` x `segments` quads over length `len`.
+pub fn cylinder(r: f64, len: f64, rings: usize, segments: usize) -> Mesh {
+    let mut p = Vec::new();
+    for i in 0..=rings {
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            p.push(Point3::new(
+                r * ph.cos(),
+                r * ph.sin(),
+                len * (i as f64 / rings as f64 - 0.5),
+            ));
+        }
+    }
+    let id = |i: usize, j: usize| (i * segments + j % segments) as i64;
+    let mut f = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            f.push([id(i, j), id(i, j + 1), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i + 1, j)]);
+        }
+    }
+    Mesh::new(p, f, "<cylinder>").unwrap().0
+}
+
+#[test]
+fn curvature_of_a_sphere_is_one_over_r_everywhere() {
+    // tolerance 2%: the estimator's error on a regular tessellation of this density
+    let r = 2.0;
+    let s = uv_sphere(r, 40, 80);
+    let c = principal_curvatures(&s);
+    for i in 0..s.positions().len() {
+        assert!(
+            (c.mean[i] * r - 1.0).abs() < 0.02,
+            "vertex {i}: H = {}",
+            c.mean[i]
+        );
+        assert!((c.k_max[i] * r - 1.0).abs() < 0.02 && (c.k_min[i] * r - 1.0).abs() < 0.02);
+    }
+}
+
+#[test]
+fn curvature_of_a_cylinder_is_one_over_2r_with_the_axis_as_minimum_direction() {
+    // tolerance 2% on H and k_max, 0.02/r on k_min = 0; the open ends are left out (one-sided)
+    let r = 0.5;
+    let rings = 20;
+    let cyl = cylinder(r, 4.0, rings, 64);
+    let c = principal_curvatures(&cyl);
+    let mut n = 0;
+    for (i, p) in cyl.positions().iter().enumerate() {
+        if p.z.abs() > 1.7 {
+            continue;
+        }
+        n += 1;
+        assert!(
+            (c.mean[i] * 2.0 * r - 1.0).abs() < 0.02,
+            "vertex {i}: H = {}",
+            c.mean[i]
+        );
+        assert!((c.k_max[i] * r - 1.0).abs() < 0.02);
+        assert!(c.k_min[i].abs() * r < 0.02);
+        assert!(
+            c.dir_min[i].z.abs() > 0.99,
+            "min direction {:?}",
+            c.dir_min[i]
+        );
+    }
+    assert!(n > 64 * 10);
+    // reversing the winding flips the normals and the sign
+    let faces: Vec<[i64; 3]> = cyl
+        .faces()
+        .iter()
+        .map(|f| [f[0] as i64, f[2] as i64, f[1] as i64])
+        .collect();
+    let (flipped, _) = Mesh::new(cyl.positions().to_vec(), faces, "<flipped>").unwrap();
+    let cf = principal_curvatures(&flipped);
+    let mid = cyl
+        .positions()
+        .iter()
+        .position(|p| p.z.abs() < 0.01)
+        .unwrap();
+    assert!((cf.mean[mid] + c.mean[mid]).abs() < 1e-9);
+}
+
+// ---------------------------------------------------------------------------------------------
+// COLMAP models
+
+use brdf_rig::geometry::colmap::{
+    CameraModel, ColmapCamera, ColmapError, ColmapImage, ColmapModel, read_model, write_text,
+};
+use nalgebra::UnitQuaternion;
+
+fn sample_model() -> ColmapModel {
+    let mut m = ColmapModel::default();
+    let mut k = Intrinsics::pinhole(640, 480, 500.25, 500.25, 320.5, 239.75);
+    for (id, model) in [
+        (1, CameraModel::SimplePinhole),
+        (2, CameraModel::Pinhole),
+        (3, CameraModel::SimpleRadial),
+        (4, CameraModel::Radial),
+        (5, CameraModel::Opencv),
+    ] {
+        match model {
+            CameraModel::Pinhole => k.fy = 501.125,
+            CameraModel::SimpleRadial => {
+                k.fy = k.fx;
+                k.k1 = -0.0123;
+            }
+            CameraModel::Radial => k.k2 = 0.0045,
+            CameraModel::Opencv => {
+                k.fy = 498.0;
+                k.p1 = 1e-4;
+                k.p2 = -2e-4;
+            }
+            CameraModel::SimplePinhole => {}
+        }
+        assert_eq!(CameraModel::simplest_for(&k), model);
+        m.cameras.insert(
+            id,
+            ColmapCamera {
+                id,
+                model,
+                intrinsics: k,
+            },
+        );
+    }
+    for i in 0..7u32 {
+        let a = i as f64 * 0.7;
+        let rotation = UnitQuaternion::from_euler_angles(0.1 * a, a, -0.3 * a);
+        m.images.push(ColmapImage {
+            id: 10 + i,
+            camera_id: 1 + i % 5,
+            name: format!("light/view_{i:03}.exr"),
+            pose: Pose {
+                rotation,
+                translation: Vector3::new(a.sin(), 0.25 * a, 3.0 + a.cos()),
+            },
+        });
+    }
+    m
+}
+
+fn assert_models_equal(a: &ColmapModel, b: &ColmapModel) {
+    assert_eq!(a.cameras, b.cameras);
+    assert_eq!(a.images.len(), b.images.len());
+    for (x, y) in a.images.iter().zip(&b.images) {
+        assert_eq!((x.id, x.camera_id, &x.name), (y.id, y.camera_id, &y.name));
+        assert!(x.pose.rotation.angle_to(&y.pose.rotation) < 1e-12);
+        assert_eq!(x.pose.translation, y.pose.translation);
+    }
+}
+
+#[test]
+fn colmap_text_round_trip_keeps_every_model_and_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = sample_model();
+    write_text(dir.path(), &m).unwrap();
+    assert!(dir.path().join("points3D.txt").is_file());
+    let back = read_model(dir.path()).unwrap();
+    assert_models_equal(&m, &back);
+    let (k, pose) = back.view("light/view_003.exr").unwrap();
+    assert_eq!(k, &m.cameras[&4].intrinsics);
+    assert_eq!(pose.translation, m.images[3].pose.translation);
+    assert!(back.view("nope.exr").is_none());
+}
+
+#[test]
+fn colmap_simple_radial_projects_as_colmap_defines_it() {
+    // COLMAP SIMPLE_RADIAL: u = x/z, v = y/z, d = 1 + k (u^2 + v^2), pixel = f d (u, v) + c
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("cameras.txt"),
+        "# c\n7 SIMPLE_RADIAL 100 80 90 50.5 40.25 -0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("images.txt"),
+        "# i\n1 1 0 0 0 0.5 -0.25 2 7 a.png\n1.0 2.0 -1\n",
+    )
+    .unwrap();
+    let m = read_model(dir.path()).unwrap();
+    let (k, pose) = m.view("a.png").unwrap();
+    let pw = Point3::new(0.3, 0.2, 1.0);
+    let pc = Vector3::new(0.3 + 0.5, 0.2 - 0.25, 1.0 + 2.0);
+    assert!((pose.camera_from_world(&pw) - pc).norm() < 1e-15);
+    let (u, v) = (pc.x / pc.z, pc.y / pc.z);
+    let d = 1.0 - 0.2 * (u * u + v * v);
+    let (px, py) = k.project(&pc).unwrap();
+    assert!(
+        (px - (90.0 * d * u + 50.5)).abs() < 1e-12 && (py - (90.0 * d * v + 40.25)).abs() < 1e-12
+    );
+}
+
+/// Writes the binary model the way COLMAP's `WriteCamerasBinary`/`WriteImagesBinary` do.
+fn write_colmap_binary(dir: &std::path::Path, m: &ColmapModel) {
+    let mut c = Vec::new();
+    c.extend_from_slice(&(m.cameras.len() as u64).to_le_bytes());
+    for cam in m.cameras.values() {
+        let k = &cam.intrinsics;
+        c.extend_from_slice(&cam.id.to_le_bytes());
+        c.extend_from_slice(&cam.model.id().to_le_bytes());
+        c.extend_from_slice(&(k.width as u64).to_le_bytes());
+        c.extend_from_slice(&(k.height as u64).to_le_bytes());
+        let p: Vec<f64> = match cam.model {
+            CameraModel::SimplePinhole => vec![k.fx, k.cx, k.cy],
+            CameraModel::Pinhole => vec![k.fx, k.fy, k.cx, k.cy],
+            CameraModel::SimpleRadial => vec![k.fx, k.cx, k.cy, k.k1],
+            CameraModel::Radial => vec![k.fx, k.cx, k.cy, k.k1, k.k2],
+            CameraModel::Opencv => vec![k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2],
+        };
+        for v in p {
+            c.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("cameras.bin"), c).unwrap();
+    let mut b = Vec::new();
+    b.extend_from_slice(&(m.images.len() as u64).to_le_bytes());
+    for img in &m.images {
+        b.extend_from_slice(&img.id.to_le_bytes());
+        let q = img.pose.rotation.quaternion();
+        let t = img.pose.translation;
+        for v in [q.w, q.i, q.j, q.k, t.x, t.y, t.z] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&img.camera_id.to_le_bytes());
+        b.extend_from_slice(img.name.as_bytes());
+        b.push(0);
+        // two 2D points, one without a 3D point (id -1 as u64::MAX)
+        b.extend_from_slice(&2u64.to_le_bytes());
+        for (x, y, id) in [(1.5f64, 2.5f64, 4u64), (3.0, 4.0, u64::MAX)] {
+            b.extend_from_slice(&x.to_le_bytes());
+            b.extend_from_slice(&y.to_le_bytes());
+            b.extend_from_slice(&id.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("images.bin"), b).unwrap();
+}
+
+#[test]
+fn colmap_binary_model_reads_and_truncation_names_the_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = sample_model();
+    write_colmap_binary(dir.path(), &m);
+    let back = read_model(dir.path()).unwrap();
+    assert_models_equal(&m, &back);
+    // truncate images.bin in the middle of the third image
+    let p = dir.path().join("images.bin");
+    let bytes = std::fs::read(&p).unwrap();
+    let per_image = 4 + 56 + 4 + "light/view_000.exr".len() + 1 + 8 + 48;
+    std::fs::write(&p, &bytes[..8 + 2 * per_image + 30]).unwrap();
+    let e = read_model(dir.path()).unwrap_err();
+    match &e {
+        ColmapError::Binary { path, offset, .. } => {
+            assert!(path.ends_with("images.bin"));
+            assert_eq!(*offset, 8 + 2 * per_image + 28); // start of the unfinished f64
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("images.bin"));
+    // unsupported model id 5 (OPENCV_FISHEYE)
+    let p = dir.path().join("cameras.bin");
+    let mut bytes = std::fs::read(&p).unwrap();
+    bytes[12..16].copy_from_slice(&5i32.to_le_bytes());
+    std::fs::write(&p, bytes).unwrap();
+    let e = read_model(dir.path()).unwrap_err();
+    assert!(
+        matches!(&e, ColmapError::Binary { offset: 8, .. }) && e.to_string().contains("model id 5"),
+        "{e}"
+    );
+}
+
+#[test]
+fn colmap_malformed_text_names_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cams = "# header\n#\n1 PINHOLE 640 480 500 500 320 240\n";
+    let imgs_ok = "# header\n1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 1 1 b.png\n\n";
+    let cases: [(&str, &str, &str, &str); 6] = [
+        (
+            "1 PINHOLE 640 480 500 500 320\n",
+            imgs_ok,
+            "cameras.txt:1",
+            "takes 4 parameters",
+        ),
+        (
+            "# x\n1 OPENCV_FISHEYE 640 480 1 1 1 1 0 0 0 0\n",
+            imgs_ok,
+            "cameras.txt:2",
+            "unsupported camera model",
+        ),
+        (
+            "1 PINHOLE 640 abc 500 500 320 240\n",
+            imgs_ok,
+            "cameras.txt:1",
+            "HEIGHT",
+        ),
+        (
+            cams,
+            "# h\n1 1 0 0 0 0 0 zero 1 a.png\n\n",
+            "images.txt:2",
+            "TZ",
+        ),
+        (
+            cams,
+            "1 1 0 0 0 0 0 0 1 a.png\n\n2 1 0 0 0 0 0 0 9 b.png\n\n",
+            "images.txt:3",
+            "unknown camera 9",
+        ),
+        (
+            cams,
+            "1 0 0 0 0 0 0 0 1 a.png\n\n",
+            "images.txt:1",
+            "zero quaternion",
+        ),
+    ];
+    for (c, i, place, what) in cases {
+        std::fs::write(d.join("cameras.txt"), c).unwrap();
+        std::fs::write(d.join("images.txt"), i).unwrap();
+        let e = read_model(d).unwrap_err().to_string();
+        assert!(
+            e.contains(place) && e.contains(what),
+            "expected {place} / {what}: {e}"
+        );
+    }
+    std::fs::write(d.join("cameras.txt"), cams).unwrap();
+    std::fs::write(d.join("images.txt"), imgs_ok).unwrap();
+    assert_eq!(read_model(d).unwrap().images.len(), 2);
+    let empty = tempfile::tempdir().unwrap();
+    assert!(matches!(
+        read_model(empty.path()).unwrap_err(),
+        ColmapError::NoModel { .. }
+    ));
+    // export refuses what COLMAP could not read back
+    let mut m = sample_model();
+    m.images[0].name = "has space.png".into();
+    assert!(matches!(
+        write_text(d, &m).unwrap_err(),
+        ColmapError::Export { .. }
+    ));
+    let mut m = sample_model();
+    m.cameras.get_mut(&1).unwrap().intrinsics.k1 = 0.1; // SIMPLE_PINHOLE cannot hold k1
+    assert!(matches!(
+        write_text(d, &m).unwrap_err(),
+        ColmapError::Export { camera: 1, .. }
+    ));
+}

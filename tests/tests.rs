@@ -4,6 +4,8 @@
 // Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
 #![allow(clippy::unwrap_used)]
 
+mod brdf;
 mod geometry;
+mod render;
 mod rig_vectors;
 mod util;

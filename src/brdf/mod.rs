@@ -14,11 +14,15 @@ pub trait Brdf: Send + Sync {
     fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3];
 }
 
+pub mod analytic;
 pub mod basis;
 pub mod basis_cache;
 pub mod coords;
 pub mod merl;
+pub mod metrics;
 pub mod nbrdf;
+pub mod ridge;
+pub mod sampling;
 
 /// A BRDF known at MERL bins (a table, a network, a reconstruction): what the basis is built
 /// from and what the error metrics compare.

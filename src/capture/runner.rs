@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use super::error::CaptureError;
 use super::exr::encode_exr;
-use super::plan::{LabGeometry, PlannedShot, Stage, Target};
+use super::plan::{LabGeometry, PlannedShot, ShotKind, Stage, Target};
 use super::session::{Session, ShotRecord, now_utc};
 use crate::devices::{Camera, DeviceError, Light, ShotSettings, Turntable};
 
@@ -106,6 +106,8 @@ pub struct RunOptions {
     pub snapshot_every: usize,
     /// Nominal rig geometry, to record each shot's light direction.
     pub lab: Option<LabGeometry>,
+    /// The turntable's travel `(min_deg, max_deg)`: with it, moves take the shorter way round.
+    pub angle_range: Option<(f64, f64)>,
 }
 
 impl Default for RunOptions {
@@ -116,6 +118,7 @@ impl Default for RunOptions {
             kill_hook: None,
             snapshot_every: 16,
             lab: None,
+            angle_range: None,
         }
     }
 }
@@ -205,6 +208,42 @@ pub fn run_session(
     Ok(summary)
 }
 
+/// The turntable angle of a shot. The white reference stands facing the camera at angle 0; for
+/// each channel it is turned to face the bisector of camera and light (half the channel's
+/// azimuth), so a light from the side still lights it and `cos(theta_i) = cos(theta_o)`.
+/// `None` for the sphere, which is shot wherever the table stands.
+pub fn shot_angle(shot: &PlannedShot, lab: Option<&LabGeometry>) -> Option<f64> {
+    match (shot.kind, shot.channel, lab) {
+        (ShotKind::Sphere, _, _) => None,
+        (ShotKind::White, Some(ch), Some(lab)) => Some(
+            lab.lights
+                .get(ch)
+                .map(|&(az, _)| (0.5 * az).rem_euclid(360.0))
+                .unwrap_or(shot.angle_deg),
+        ),
+        _ => Some(shot.angle_deg),
+    }
+}
+
+/// The position equivalent to `target` (modulo 360) nearest to `from`, within `range`
+/// (the turntable's limits); `target` itself when there is no range or no current position.
+pub fn nearest_equivalent(target: f64, from: Option<f64>, range: Option<(f64, f64)>) -> f64 {
+    let (Some(from), Some((lo, hi))) = (from, range) else {
+        return target;
+    };
+    let mut best: Option<f64> = None;
+    for k in -3..=3 {
+        let c = target + 360.0 * f64::from(k);
+        if c < lo - 1e-9 || c > hi + 1e-9 {
+            continue;
+        }
+        if best.is_none_or(|b| (c - from).abs() < (b - from).abs()) {
+            best = Some(c);
+        }
+    }
+    best.unwrap_or(target)
+}
+
 fn check_cancel(session: &Session, options: &RunOptions) -> Result<(), CaptureError> {
     if options.cancel.load(Ordering::SeqCst) {
         return Err(CaptureError::Interrupted {
@@ -239,6 +278,7 @@ fn take_shots(
     }
     summary.device_time += t.elapsed();
     let mut stage: Option<Stage> = None;
+    // Commanded position (may be outside [0, 360) when the shortest way goes round).
     let mut angle: Option<f64> = None;
     let mut measured_angle = 0.0;
     let mut lit: Option<Option<usize>> = None;
@@ -265,16 +305,24 @@ fn take_shots(
             check_cancel(session, options)?;
         }
         let t = Instant::now();
-        if angle != Some(shot.angle_deg) {
-            d.turntable
-                .move_to(shot.angle_deg)
-                .map_err(|e| dev(shot, e))?;
+        let target = shot_angle(shot, options.lab.as_ref());
+        let needs_move = match (target, angle) {
+            // the sphere looks the same from every side: shoot it wherever the table is
+            (None, Some(_)) => false,
+            (None, None) => true,
+            (Some(t), Some(a)) => (a - t).rem_euclid(360.0).min((t - a).rem_euclid(360.0)) > 1e-6,
+            (Some(_), None) => true,
+        };
+        if needs_move {
+            let goal = nearest_equivalent(target.unwrap_or(0.0), angle, options.angle_range);
+            d.turntable.move_to(goal).map_err(|e| dev(shot, e))?;
             let ts = Instant::now();
             std::thread::sleep(Duration::from_millis(settle.turntable_millis));
             summary.settle_time += ts.elapsed();
             measured_angle = d.turntable.status().map_err(|e| dev(shot, e))?.angle_deg;
-            angle = Some(shot.angle_deg);
+            angle = Some(goal);
         }
+        let recorded_angle = angle.unwrap_or(0.0).rem_euclid(360.0);
         if lit != Some(shot.channel) {
             match shot.channel {
                 Some(ch) => d.light.on(ch, shot.level, true).map_err(|e| dev(shot, e))?,
@@ -317,7 +365,7 @@ fn take_shots(
             index: shot.index,
             kind: shot.kind,
             view: shot.view,
-            angle_deg: shot.angle_deg,
+            angle_deg: recorded_angle,
             measured_angle_deg: measured_angle,
             channel: shot.channel,
             level: if shot.channel.is_some() {
@@ -556,7 +604,10 @@ mod tests {
             assert_eq!(crate::capture::session::sha256_hex(&bytes), rec.sha256);
             let img = crate::capture::exr::decode_exr(&bytes).unwrap();
             let [a, ch, e] = img.get(0, 0);
-            assert_eq!(a as f64, shot.angle_deg as f32 as f64);
+            assert_eq!(a as f64, rec.angle_deg as f32 as f64);
+            if shot.kind != ShotKind::Sphere {
+                assert_eq!(rec.angle_deg, shot.angle_deg);
+            }
             assert_eq!(ch, shot.channel.map(|c| c as f32).unwrap_or(-1.0));
             assert_eq!(e, shot.exposure_secs as f32);
         }
@@ -616,6 +667,20 @@ mod tests {
         let ids: Vec<_> = records.iter().map(|r| r.id.clone()).collect();
         let planned: Vec<_> = plan.shots().iter().map(|s| s.id.clone()).collect();
         assert_eq!(ids, planned);
+    }
+
+    #[test]
+    fn moves_take_the_short_way_within_the_limits() {
+        let r = Some((-360.0, 360.0));
+        assert_eq!(nearest_equivalent(0.0, Some(330.0), r), 360.0);
+        assert_eq!(nearest_equivalent(10.0, Some(240.0), r), 10.0);
+        assert_eq!(nearest_equivalent(330.0, Some(0.0), r), -30.0);
+        assert_eq!(
+            nearest_equivalent(330.0, Some(0.0), Some((0.0, 360.0))),
+            330.0
+        );
+        assert_eq!(nearest_equivalent(330.0, None, r), 330.0);
+        assert_eq!(nearest_equivalent(330.0, Some(0.0), None), 330.0);
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 mod cameras;
+mod merl;
 mod session;
 
 use clap::{Parser, Subcommand};
@@ -28,6 +29,8 @@ pub enum Command {
     Session(session::SessionArgs),
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -35,5 +38,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Cameras(a) => cameras::run(a),
         Command::Session(a) => session::run(a),
         Command::Ports => ports::run(),
+        Command::Merl(args) => merl::run(args),
     }
 }

@@ -48,6 +48,9 @@ pub struct RenderRequest {
     /// Uniform room-light radiance (0 when the room light is off).
     pub ambient_radiance: f64,
     pub lights: Vec<LitLight>,
+    /// Front normal of the white reference in the object frame: it stands on the turntable
+    /// facing the camera at angle 0 and turns with the table.
+    pub board_normal_object: Vector3<f64>,
 }
 
 /// Renders radiance (W sr^-1 m^-2, RGB) for a request.
@@ -188,6 +191,7 @@ impl SimCamera {
                 0.0
             },
             lights,
+            board_normal_object: self.lab.camera_dir_lab(),
         }
     }
 }

@@ -7,4 +7,6 @@
 pub mod camera;
 pub mod firmware;
 pub mod motion;
+pub mod render;
 pub mod scene;
+pub mod truth;

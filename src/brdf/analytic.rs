@@ -1,0 +1,410 @@
+//! Analytic baselines: Lambert, and Lambert + isotropic GGX with Schlick Fresnel, each with a
+//! least-squares fit to observed reflectances: what users would otherwise fit to their pixels,
+//! and what the data-driven reconstruction must beat.
+//!
+//! Model, per channel `c` (f_r in 1/sr, no cosine):
+//! `f_c = kd_c / pi + ks_c D(h) G(wi, wo) F(wi.h) / (4 cos_i cos_o)`, with
+//! `D = a^2 / (pi (cos^2 theta_h (a^2 - 1) + 1)^2)` (GGX, `a` = roughness alpha),
+//! `G = G1(wi) G1(wo)`, `G1(v) = 2 cos / (cos + sqrt(a^2 + (1 - a^2) cos^2))` (separable Smith),
+//! `F = F0 + (1 - F0)(1 - wi.h)^5` (Schlick, one F0 for all channels; the colour of the
+//! highlight is in `ks`).
+//!
+//! Fits minimise the sum of squared differences in f_r over all observations and channels,
+//! optionally weighted per observation (e.g. by the cosine map, to fit what images see).
+//! Lambert: `kd_c = pi mean(r_c)`, closed form. Lambert + GGX: `kd` and `ks` are linear and
+//! solved in closed form (non-negative) for each `(alpha, F0)`; those two are found by a grid
+//! search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
+//! Pure: no files.
+
+use super::Brdf;
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+
+/// One observation: f_r (1/sr, RGB) for the pair `(wi, wo)` (unit vectors, local frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReflectanceSample {
+    pub wi: Vector3<f64>,
+    pub wo: Vector3<f64>,
+    pub rgb: [f64; 3],
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FitError {
+    #[error("no observations above the horizon to fit")]
+    Empty,
+    #[error("an observation is not finite")]
+    NonFinite,
+}
+
+/// A Lambertian BRDF, `albedo / pi`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lambert {
+    pub albedo: [f64; 3],
+}
+
+impl Brdf for Lambert {
+    fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        self.albedo.map(|a| a / PI)
+    }
+}
+
+/// Lambert + GGX (see the module header).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LambertGgx {
+    pub kd: [f64; 3],
+    pub ks: [f64; 3],
+    /// GGX roughness alpha (> 0).
+    pub alpha: f64,
+    /// Schlick reflectance at normal incidence, in [0, 1].
+    pub f0: f64,
+}
+
+/// The GGX normal distribution at `cos theta_h`.
+pub fn ggx_d(cos_h: f64, alpha: f64) -> f64 {
+    let a2 = alpha * alpha;
+    let t = cos_h * cos_h * (a2 - 1.0) + 1.0;
+    a2 / (PI * t * t)
+}
+
+fn smith_g1(cos: f64, alpha: f64) -> f64 {
+    let a2 = alpha * alpha;
+    2.0 * cos / (cos + (a2 + (1.0 - a2) * cos * cos).sqrt())
+}
+
+/// The specular lobe without its colour: `D G F / (4 cos_i cos_o)`; zero below the horizon.
+pub fn ggx_lobe(wi: &Vector3<f64>, wo: &Vector3<f64>, alpha: f64, f0: f64) -> f64 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    let h = (wi + wo).normalize();
+    let d = ggx_d(h.z, alpha);
+    let g = smith_g1(wi.z, alpha) * smith_g1(wo.z, alpha);
+    let f = f0 + (1.0 - f0) * (1.0 - wi.dot(&h).clamp(0.0, 1.0)).powi(5);
+    d * g * f / (4.0 * wi.z * wo.z)
+}
+
+impl Brdf for LambertGgx {
+    fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let s = ggx_lobe(wi, wo, self.alpha, self.f0);
+        std::array::from_fn(|c| self.kd[c] / PI + self.ks[c] * s)
+    }
+}
+
+fn usable(samples: &[ReflectanceSample]) -> Result<Vec<&ReflectanceSample>, FitError> {
+    let mut out = Vec::with_capacity(samples.len());
+    for s in samples {
+        let finite = s.rgb.iter().all(|v| v.is_finite())
+            && s.wi.iter().all(|v| v.is_finite())
+            && s.wo.iter().all(|v| v.is_finite());
+        if !finite {
+            return Err(FitError::NonFinite);
+        }
+        if s.wi.z > 0.0 && s.wo.z > 0.0 {
+            out.push(s);
+        }
+    }
+    if out.is_empty() {
+        return Err(FitError::Empty);
+    }
+    Ok(out)
+}
+
+/// The cosine-map weight `clip(cos theta_i cos theta_o, 0.01, 1)` of an observation: weighting
+/// residuals by it fits what images see (radiance), so grazing bins, where f_r is large but
+/// little light arrives, do not dominate the fit.
+pub fn cosine_map_weight(s: &ReflectanceSample) -> f64 {
+    (s.wi.z * s.wo.z).clamp(super::basis::COS_MAP_MIN, 1.0)
+}
+
+impl Lambert {
+    /// Least squares: `albedo_c = pi mean(r_c)` over the observations above the horizon.
+    pub fn fit(samples: &[ReflectanceSample]) -> Result<Self, FitError> {
+        Self::fit_weighted(samples, |_| 1.0)
+    }
+
+    /// Weighted least squares, minimising `sum (w (f - r))^2`:
+    /// `albedo_c = pi sum(w^2 r_c) / sum(w^2)`.
+    pub fn fit_weighted(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
+        let s = usable(samples)?;
+        let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
+        let total: f64 = w2.iter().sum();
+        if total.is_nan() || total <= 0.0 {
+            return Err(FitError::Empty);
+        }
+        let albedo = std::array::from_fn(|c| {
+            PI * s.iter().zip(&w2).map(|(x, w)| w * x.rgb[c]).sum::<f64>() / total
+        });
+        Ok(Self { albedo })
+    }
+}
+
+/// Non-negative weighted least squares for `r = kd/pi + ks lobe` on one channel, minimising
+/// `sum w2 (kd/pi + ks lobe - r)^2`; returns `(kd, ks, that sum)`.
+fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64]) -> (f64, f64, f64) {
+    let (mut sw, mut sl, mut sll, mut sr, mut slr) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((l, y), w) in lobe.iter().zip(r).zip(w2) {
+        sw += w;
+        sl += w * l;
+        sll += w * l * l;
+        sr += w * y;
+        slr += w * l * y;
+    }
+    let ssr = |a: f64, ks: f64| -> f64 {
+        lobe.iter()
+            .zip(r)
+            .zip(w2)
+            .map(|((l, y), w)| w * (a + ks * l - y).powi(2))
+            .sum()
+    };
+    // Normal equations in (a = kd/pi, ks): [sw sl; sl sll] [a ks] = [sr slr]; candidates on
+    // the boundary of the non-negative quadrant when the free solution leaves it.
+    let det = sw * sll - sl * sl;
+    let mut best = (0.0, 0.0, ssr(0.0, 0.0));
+    let mut consider = |a: f64, ks: f64| {
+        if a >= 0.0 && ks >= 0.0 {
+            let e = ssr(a, ks);
+            if e < best.2 {
+                best = (a, ks, e);
+            }
+        }
+    };
+    if det.abs() > 1e-300 {
+        consider((sll * sr - sl * slr) / det, (sw * slr - sl * sr) / det);
+    }
+    if sw > 0.0 {
+        consider(sr / sw, 0.0);
+    }
+    if sll > 0.0 {
+        consider(0.0, slr / sll);
+    }
+    (best.0 * PI, best.1, best.2)
+}
+
+const ALPHA_MIN: f64 = 0.002;
+const ALPHA_MAX: f64 = 1.0;
+
+impl LambertGgx {
+    /// Least-squares fit (see the module header).
+    pub fn fit(samples: &[ReflectanceSample]) -> Result<Self, FitError> {
+        Self::fit_weighted(samples, |_| 1.0)
+    }
+
+    /// Weighted least squares, minimising `sum (w (f - r))^2` over observations and channels
+    /// (e.g. with [`cosine_map_weight`]).
+    pub fn fit_weighted(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
+        let s = usable(samples)?;
+        let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
+        if !w2.iter().all(|w| w.is_finite()) || w2.iter().sum::<f64>() <= 0.0 {
+            return Err(FitError::Empty);
+        }
+        let channels: [Vec<f64>; 3] = std::array::from_fn(|c| s.iter().map(|x| x.rgb[c]).collect());
+        let clamp = |p: [f64; 2]| -> (f64, f64) {
+            (p[0].exp().clamp(ALPHA_MIN, ALPHA_MAX), p[1].clamp(0.0, 1.0))
+        };
+        let solve = |p: [f64; 2]| -> ([f64; 3], [f64; 3], f64) {
+            let (alpha, f0) = clamp(p);
+            let lobe: Vec<f64> = s
+                .iter()
+                .map(|x| ggx_lobe(&x.wi, &x.wo, alpha, f0))
+                .collect();
+            let mut kd = [0.0; 3];
+            let mut ks = [0.0; 3];
+            let mut total = 0.0;
+            for c in 0..3 {
+                let (d, k, e) = solve_linear(&lobe, &channels[c], &w2);
+                kd[c] = d;
+                ks[c] = k;
+                total += e;
+            }
+            (kd, ks, total)
+        };
+        let cost = |p: [f64; 2]| solve(p).2;
+
+        // Grid search over log alpha and F0, then Nelder-Mead from the best point.
+        let mut start = ([0.1f64.ln(), 0.04], f64::INFINITY);
+        for i in 0..16 {
+            let la = ALPHA_MIN.ln() + (ALPHA_MAX.ln() - ALPHA_MIN.ln()) * i as f64 / 15.0;
+            for f0 in [0.02, 0.05, 0.15, 0.4, 0.8] {
+                let c = cost([la, f0]);
+                if c < start.1 {
+                    start = ([la, f0], c);
+                }
+            }
+        }
+        let best = nelder_mead(cost, start.0, [0.2, 0.05], 300);
+        let (alpha, f0) = clamp(best);
+        let (kd, ks, _) = solve(best);
+        Ok(Self { kd, ks, alpha, f0 })
+    }
+}
+
+/// Minimises `f` over two variables from `x0` with initial steps `step`.
+fn nelder_mead(
+    f: impl Fn([f64; 2]) -> f64,
+    x0: [f64; 2],
+    step: [f64; 2],
+    iters: usize,
+) -> [f64; 2] {
+    let mut simplex = [x0, [x0[0] + step[0], x0[1]], [x0[0], x0[1] + step[1]]];
+    let mut values = simplex.map(&f);
+    let lerp =
+        |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+    for _ in 0..iters {
+        let mut idx = [0usize, 1, 2];
+        idx.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
+        let [b, m, w] = idx;
+        if (values[w] - values[b]).abs() <= 1e-14 * values[b].abs().max(1e-300) {
+            break;
+        }
+        let centroid = lerp(simplex[b], simplex[m], 0.5);
+        let reflect = lerp(centroid, simplex[w], -1.0);
+        let fr = f(reflect);
+        if fr < values[b] {
+            let expand = lerp(centroid, simplex[w], -2.0);
+            let fe = f(expand);
+            if fe < fr {
+                (simplex[w], values[w]) = (expand, fe);
+            } else {
+                (simplex[w], values[w]) = (reflect, fr);
+            }
+        } else if fr < values[m] {
+            (simplex[w], values[w]) = (reflect, fr);
+        } else {
+            let contract = lerp(centroid, simplex[w], 0.5);
+            let fc = f(contract);
+            if fc < values[w] {
+                (simplex[w], values[w]) = (contract, fc);
+            } else {
+                for i in [m, w] {
+                    simplex[i] = lerp(simplex[b], simplex[i], 0.5);
+                    values[i] = f(simplex[i]);
+                }
+            }
+        }
+    }
+    let mut best = 0;
+    for i in 1..3 {
+        if values[i] < values[best] {
+            best = i;
+        }
+    }
+    simplex[best]
+}
+
+#[cfg(test)]
+#[allow(clippy::needless_range_loop)]
+mod tests {
+    use super::*;
+    use crate::brdf::coords::HalfDiff;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn samples(truth: &dyn Brdf, n: usize, seed: u64) -> Vec<ReflectanceSample> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut out = Vec::new();
+        while out.len() < n {
+            // Half of them near the specular direction, where the lobe is.
+            let theta_h = if out.len() % 2 == 0 {
+                rng.gen_range(0.0..0.3)
+            } else {
+                rng.gen_range(0.0..1.4)
+            };
+            let hd = HalfDiff {
+                theta_h,
+                phi_h: rng.gen_range(0.0..2.0 * PI),
+                theta_d: rng.gen_range(0.0..1.3),
+                phi_d: rng.gen_range(0.0..2.0 * PI),
+            };
+            let (wi, wo) = hd.to_directions();
+            if wi.z > 0.05 && wo.z > 0.05 {
+                out.push(ReflectanceSample {
+                    wi,
+                    wo,
+                    rgb: truth.eval_local(&wi, &wo),
+                });
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn ggx_distribution_is_normalised() {
+        // Closed form: the projected area of the microfacets is one, int D cos theta_h dw = 1.
+        for alpha in [0.05, 0.2, 0.7] {
+            let n = 200_000;
+            let mut sum = 0.0;
+            for i in 0..n {
+                // With u = cos^2 theta_h: int D cos dw = pi int_0^1 D(sqrt u) du (midpoint rule).
+                let u = (i as f64 + 0.5) / n as f64;
+                sum += PI * ggx_d(u.sqrt(), alpha) / n as f64;
+            }
+            assert!((sum - 1.0).abs() < 1e-3, "alpha {alpha}: {sum}");
+        }
+    }
+
+    #[test]
+    fn lambert_fit_is_exact_on_lambertian_data() {
+        let truth = Lambert {
+            albedo: [0.2, 0.5, 0.8],
+        };
+        let fit = Lambert::fit(&samples(&truth, 50, 1)).expect("fit");
+        for c in 0..3 {
+            assert!((fit.albedo[c] - truth.albedo[c]).abs() < 1e-12);
+        }
+        assert_eq!(Lambert::fit(&[]), Err(FitError::Empty));
+        // Weights do not move an exact fit.
+        let w = Lambert::fit_weighted(&samples(&truth, 50, 3), cosine_map_weight).expect("fit");
+        assert!((0..3).all(|c| (w.albedo[c] - truth.albedo[c]).abs() < 1e-12));
+    }
+
+    #[test]
+    fn lambert_ggx_fit_recovers_its_parameters() {
+        let truth = LambertGgx {
+            kd: [0.3, 0.2, 0.1],
+            ks: [1.0, 0.8, 0.6],
+            alpha: 0.15,
+            f0: 0.05,
+        };
+        let data = samples(&truth, 400, 2);
+        let fit = LambertGgx::fit(&data).expect("fit");
+        assert!(
+            (fit.alpha - truth.alpha).abs() < 0.01 * truth.alpha,
+            "{fit:?}"
+        );
+        for c in 0..3 {
+            assert!(
+                (fit.kd[c] - truth.kd[c]).abs() < 0.01 * truth.kd[c],
+                "{fit:?}"
+            );
+            assert!(
+                (fit.ks[c] - truth.ks[c]).abs() < 0.05 * truth.ks[c],
+                "{fit:?}"
+            );
+        }
+        // Weighted, on the same exact data: the same answer.
+        let wfit = LambertGgx::fit_weighted(&data, cosine_map_weight).expect("fit");
+        assert!(
+            (wfit.alpha - truth.alpha).abs() < 0.01 * truth.alpha,
+            "{wfit:?}"
+        );
+        // Whatever F0 it settles on, the fitted model reproduces the data.
+        for s in &data {
+            let got = fit.eval_local(&s.wi, &s.wo);
+            for c in 0..3 {
+                assert!((got[c] - s.rgb[c]).abs() < 0.02 * s.rgb[c] + 1e-4);
+            }
+        }
+    }
+}

@@ -1,0 +1,128 @@
+//! Error metrics between a true and a reconstructed BRDF (METHOD.md section 7; definitions in
+//! `docs/error-metrics.md`).
+//!
+//! Over a set of MERL bins `D` (bins whose centre directions are both above the horizon; others
+//! are skipped), summing over the bins and the three channels:
+//! - `relative = ||t - r|| / ||t||` (the paper's error);
+//! - `cosine_weighted = ||c (t - r)|| / ||c t||`, `c` the basis cosine map
+//!   `clip(cos theta_i cos theta_o, 0.01, 1)`: errors weighted as they appear in images, so the
+//!   grazing bins, where f_r is large but little light arrives, do not dominate;
+//! - `near_specular`: `relative` restricted to `theta_h` (bin centre) below
+//!   [`NEAR_SPECULAR_THETA_H_DEG`] = 10 degrees.
+//!
+//! Values are f_r in 1/sr. Pure: no files.
+
+use super::BinValues;
+use super::basis::cos_map;
+use super::coords::MerlBin;
+
+/// The `theta_h` bound of the near-specular domain, degrees.
+pub const NEAR_SPECULAR_THETA_H_DEG: f64 = 10.0;
+
+/// The three errors, and how many bins each was computed over.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorReport {
+    pub relative: f64,
+    pub cosine_weighted: f64,
+    pub near_specular: f64,
+    pub bins: usize,
+    pub near_specular_bins: usize,
+}
+
+#[derive(Default)]
+struct Acc {
+    num: f64,
+    den: f64,
+}
+
+impl Acc {
+    fn add(&mut self, w: f64, t: &[f64; 3], r: &[f64; 3]) {
+        for ch in 0..3 {
+            self.num += (w * (t[ch] - r[ch])).powi(2);
+            self.den += (w * t[ch]).powi(2);
+        }
+    }
+    fn ratio(&self) -> f64 {
+        if self.den > 0.0 {
+            (self.num / self.den).sqrt()
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// Errors of `rec` against `truth`, both given at `bins` (same order).
+pub fn compare_values(bins: &[usize], truth: &[[f64; 3]], rec: &[[f64; 3]]) -> ErrorReport {
+    let limit = NEAR_SPECULAR_THETA_H_DEG.to_radians();
+    let (mut rel, mut cos, mut spec) = (Acc::default(), Acc::default(), Acc::default());
+    let (mut n, mut n_spec) = (0, 0);
+    for ((&bin, t), r) in bins.iter().zip(truth).zip(rec) {
+        let Some(b) = MerlBin::from_index(bin) else {
+            continue;
+        };
+        if !b.is_above_horizon() {
+            continue;
+        }
+        n += 1;
+        rel.add(1.0, t, r);
+        cos.add(cos_map(bin), t, r);
+        if b.centre().theta_h < limit {
+            n_spec += 1;
+            spec.add(1.0, t, r);
+        }
+    }
+    ErrorReport {
+        relative: rel.ratio(),
+        cosine_weighted: cos.ratio(),
+        near_specular: spec.ratio(),
+        bins: n,
+        near_specular_bins: n_spec,
+    }
+}
+
+/// Errors of `rec` against `truth` over `bins`.
+pub fn compare(bins: &[usize], truth: &dyn BinValues, rec: &dyn BinValues) -> ErrorReport {
+    compare_values(bins, &truth.values_at(bins), &rec.values_at(bins))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::coords::MERL_BINS;
+
+    #[test]
+    fn closed_form_errors() {
+        let bins: Vec<usize> = (0..MERL_BINS).step_by(101).collect();
+        let truth: Vec<[f64; 3]> = bins
+            .iter()
+            .map(|&b| [1.0 + (b % 7) as f64, 2.0, 0.5])
+            .collect();
+        // r = t (1 + e) everywhere: every relative error is exactly |e|, whatever the weights.
+        let rec: Vec<[f64; 3]> = truth.iter().map(|t| t.map(|x| 1.1 * x)).collect();
+        let e = compare_values(&bins, &truth, &rec);
+        assert!((e.relative - 0.1).abs() < 1e-12);
+        assert!((e.cosine_weighted - 0.1).abs() < 1e-12);
+        assert!((e.near_specular - 0.1).abs() < 1e-12);
+        assert!(e.bins > 0 && e.near_specular_bins > 0 && e.near_specular_bins < e.bins);
+        assert_eq!(compare_values(&bins, &truth, &truth).relative, 0.0);
+        // An error only in one grazing bin (tiny cosine map) counts less when weighted.
+        let grazing = bins
+            .iter()
+            .position(|&b| {
+                let m = MerlBin::from_index(b).expect("bin");
+                m.is_above_horizon() && cos_map(b) <= 0.011
+            })
+            .expect("a grazing bin");
+        let mut rec = truth.clone();
+        rec[grazing][0] += 50.0;
+        let e = compare_values(&bins, &truth, &rec);
+        assert!(e.cosine_weighted < e.relative / 10.0);
+        // Below-horizon bins are skipped.
+        let below = (0..MERL_BINS)
+            .find(|&b| !MerlBin::from_index(b).expect("bin").is_above_horizon())
+            .expect("a bin below");
+        let e = compare_values(&[below], &[[1.0; 3]], &[[5.0; 3]]);
+        assert_eq!(e.bins, 0);
+        assert!(e.relative.is_nan());
+    }
+}

@@ -1,0 +1,297 @@
+//! Ridge reconstruction of a whole BRDF from a few observations (METHOD.md section 5).
+//!
+//! Per channel: `b_i = map(row_i, rho_i)` (the basis mapping, mean already subtracted),
+//! `A = Q[rows, 0:n]` with `n = min(|S|, k)`, `x = (A^T A + eta I)^-1 A^T b` (eta = 40 as Nielsen
+//! et al.), then every basis row is `Q[row, 0:n] x`, unmapped (which divides by the cosine map)
+//! and clamped at zero. The result lives on the basis grid; [`Reconstruction::to_merl_table`]
+//! spreads it to full resolution (each bin takes its block's row; blocks whose centre is below the
+//! horizon get no data).
+//!
+//! Observations carry f_r in 1/sr (RGB, no cosine) at a basis row; several observations may
+//! share a row. Pure: no files.
+
+use super::BinValues;
+use super::basis::{Basis, BasisGrid};
+use super::coords::MERL_BINS;
+use super::merl::MerlTable;
+use nalgebra::{DMatrix, DVector};
+
+/// Nielsen et al.'s ridge weight.
+pub const DEFAULT_ETA: f64 = 40.0;
+
+/// One measured value: f_r (1/sr, RGB) at a basis row.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation {
+    pub row: usize,
+    pub rgb: [f64; 3],
+}
+
+impl Observation {
+    /// An observation of f_r for the directions `(wi, wo)` (local frame), placed at the basis
+    /// row of its MERL bin; `None` below the horizon or where the basis has no row.
+    pub fn from_directions(
+        basis: &Basis,
+        wi: &nalgebra::Vector3<f64>,
+        wo: &nalgebra::Vector3<f64>,
+        rgb: [f64; 3],
+    ) -> Option<Self> {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return None;
+        }
+        let row = basis.grid().row_of_bin(super::coords::merl_index(wi, wo))?;
+        Some(Self { row, rgb })
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct RidgeSettings {
+    /// Components at most (`k`); `min(|S|, k)` are used.
+    pub n_components: usize,
+    pub eta: f64,
+}
+
+impl Default for RidgeSettings {
+    fn default() -> Self {
+        Self {
+            n_components: 20,
+            eta: DEFAULT_ETA,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RidgeError {
+    #[error("no observations to reconstruct from")]
+    Empty,
+    #[error("observation row {row} is outside the basis ({rows} rows)")]
+    BadRow { row: usize, rows: usize },
+    #[error("observation at row {row} is not finite")]
+    NonFinite { row: usize },
+    #[error("the ridge system is singular (eta must be positive)")]
+    Singular,
+}
+
+/// A reconstructed BRDF on the basis grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reconstruction {
+    grid: BasisGrid,
+    /// f_r at each basis row.
+    values: Vec<[f64; 3]>,
+    /// Per-channel coefficients on the first `n` components.
+    coefficients: [Vec<f64>; 3],
+}
+
+/// Reconstructs per channel by ridge regression on the first `min(|S|, k)` components.
+pub fn reconstruct(
+    basis: &Basis,
+    observations: &[Observation],
+    settings: &RidgeSettings,
+) -> Result<Reconstruction, RidgeError> {
+    if observations.is_empty() {
+        return Err(RidgeError::Empty);
+    }
+    let rows = basis.n_rows();
+    for o in observations {
+        if o.row >= rows {
+            return Err(RidgeError::BadRow { row: o.row, rows });
+        }
+        if !o.rgb.iter().all(|v| v.is_finite()) {
+            return Err(RidgeError::NonFinite { row: o.row });
+        }
+    }
+    let n = observations
+        .len()
+        .min(settings.n_components)
+        .min(basis.n_components());
+    let a = DMatrix::from_fn(observations.len(), n, |i, j| {
+        basis.q(observations[i].row, j)
+    });
+    let mut normal = a.tr_mul(&a);
+    for j in 0..n {
+        normal[(j, j)] += settings.eta;
+    }
+    let chol = normal.cholesky().ok_or(RidgeError::Singular)?;
+    let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| {
+        let b = DVector::from_fn(observations.len(), |i, _| {
+            basis.map(observations[i].row, observations[i].rgb[ch])
+        });
+        chol.solve(&a.tr_mul(&b)).iter().copied().collect()
+    });
+    Ok(Reconstruction {
+        grid: basis.grid().clone(),
+        values: basis.synthesize(&coefficients),
+        coefficients,
+    })
+}
+
+impl Reconstruction {
+    /// f_r at each basis row (row order of the basis grid).
+    pub fn values(&self) -> &[[f64; 3]] {
+        &self.values
+    }
+
+    /// Per-channel coefficients on the first components.
+    pub fn coefficients(&self) -> &[Vec<f64>; 3] {
+        &self.coefficients
+    }
+
+    pub fn grid(&self) -> &BasisGrid {
+        &self.grid
+    }
+
+    /// f_r at a full-resolution MERL bin: the value of its block's row.
+    pub fn value_at_bin(&self, bin: usize) -> Option<[f64; 3]> {
+        self.grid.row_of_bin(bin).map(|r| self.values[r])
+    }
+
+    /// A full MERL table (nearest basis row per bin; no data where the block is below the
+    /// horizon).
+    pub fn to_merl_table(&self) -> MerlTable {
+        MerlTable::from_fn(|bin| self.value_at_bin(bin.index()))
+    }
+}
+
+impl BinValues for Reconstruction {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        bins.iter()
+            .map(|&b| {
+                if b < MERL_BINS {
+                    self.value_at_bin(b).unwrap_or([0.0; 3])
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+// Per-channel loops compare several arrays at the same index.
+#[allow(clippy::needless_range_loop)]
+mod tests {
+    use super::*;
+    use crate::brdf::basis::{BasisSettings, GridStride};
+    use crate::brdf::nbrdf::{self, Nbrdf};
+
+    fn nets(names: &[&str]) -> Vec<(String, Nbrdf)> {
+        let dir = nbrdf::default_dir();
+        names
+            .iter()
+            .map(|n| {
+                let net = Nbrdf::load(&dir.join(format!("{n}.f32"))).expect("load");
+                (n.to_string(), net)
+            })
+            .collect()
+    }
+
+    fn basis(nets: &[(String, Nbrdf)], k: usize) -> Basis {
+        let refs: Vec<(&str, &dyn BinValues)> = nets
+            .iter()
+            .map(|(n, m)| (n.as_str(), m as &dyn BinValues))
+            .collect();
+        let s = BasisSettings {
+            stride: GridStride {
+                theta_h: 3,
+                theta_d: 6,
+                phi_d: 12,
+            },
+            n_components: k,
+            exclude: vec![],
+        };
+        Basis::build(&s, &refs).expect("build")
+    }
+
+    #[test]
+    fn ridge_matches_its_closed_form_with_all_rows_and_small_eta() {
+        // With every row observed, A^T A = diag(sigma^2): ridge is the projection shrunk by
+        // sigma^2 / (sigma^2 + eta), a closed form independent of the solver.
+        let n = nets(&[
+            "blue-acrylic",
+            "gold-paint",
+            "pink-fabric",
+            "teflon",
+            "chrome",
+        ]);
+        let b = basis(&n, 8);
+        let truth = n[1].1.values_at(b.grid().bins());
+        let obs: Vec<Observation> = truth
+            .iter()
+            .enumerate()
+            .map(|(row, &rgb)| Observation { row, rgb })
+            .collect();
+        let settings = RidgeSettings {
+            n_components: 8,
+            eta: 40.0,
+        };
+        let rec = reconstruct(&b, &obs, &settings).expect("ridge");
+        let proj = b.project(&truth, 8);
+        for ch in 0..3 {
+            for j in 0..8 {
+                let s2 = b.singular_values()[j].powi(2);
+                let want = proj[ch][j] * s2 / (s2 + 40.0);
+                let got = rec.coefficients()[ch][j];
+                assert!(
+                    (got - want).abs() <= 1e-4 * (want.abs() + 1e-3),
+                    "{ch} {j}: {got} vs {want}"
+                );
+            }
+        }
+        // A material of the basis (5 materials, 15 columns, rank <= 14) with 14 components
+        // and a tiny eta is reproduced almost exactly from all rows.
+        let b = basis(&n, 14);
+        let settings = RidgeSettings {
+            n_components: 14,
+            eta: 1e-9,
+        };
+        let rec = reconstruct(&b, &obs, &settings).expect("ridge");
+        for (t, r) in truth.iter().zip(rec.values()) {
+            for ch in 0..3 {
+                assert!((t[ch] - r[ch]).abs() <= 1e-3 * t[ch] + 1e-5, "{t:?} {r:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn full_table_takes_each_blocks_row() {
+        let n = nets(&["blue-acrylic", "gold-paint", "pink-fabric"]);
+        let b = basis(&n, 4);
+        let truth = n[0].1.values_at(b.grid().bins());
+        let obs: Vec<Observation> = (0..b.n_rows())
+            .step_by(50)
+            .map(|row| Observation {
+                row,
+                rgb: truth[row],
+            })
+            .collect();
+        let rec = reconstruct(&b, &obs, &RidgeSettings::default()).expect("ridge");
+        let table = rec.to_merl_table();
+        for (row, &bin) in b.grid().bins().iter().enumerate().step_by(17) {
+            let got = table.get(bin).expect("data");
+            for ch in 0..3 {
+                assert!((got[ch] - rec.values()[row][ch]).abs() <= 1e-12 * got[ch].max(1.0));
+            }
+        }
+        assert!(matches!(
+            reconstruct(&b, &[], &RidgeSettings::default()),
+            Err(RidgeError::Empty)
+        ));
+        // Directions land on the row of their bin.
+        let bin = b.grid().bins()[123];
+        let (wi, wo) = crate::brdf::coords::MerlBin::from_index(bin)
+            .expect("bin")
+            .centre()
+            .to_directions();
+        let o = Observation::from_directions(&b, &wi, &wo, [1.0; 3]).expect("row");
+        assert_eq!(o.row, 123);
+        let below = nalgebra::Vector3::new(0.0, 0.6, -0.8);
+        assert!(Observation::from_directions(&b, &below, &wo, [1.0; 3]).is_none());
+        let bad = [Observation {
+            row: b.n_rows(),
+            rgb: [0.0; 3],
+        }];
+        assert!(matches!(
+            reconstruct(&b, &bad, &RidgeSettings::default()),
+            Err(RidgeError::BadRow { .. })
+        ));
+    }
+}

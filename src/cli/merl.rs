@@ -1,0 +1,84 @@
+//! `brdf-rig merl ...`: look at BRDF files from the command line.
+//!
+//! `eval FILE THETA_IN PHI_IN THETA_OUT PHI_OUT` prints f_r (1/sr, R G B) for one pair of
+//! directions given in degrees (spherical angles in the local frame, normal = +z). FILE is a MERL
+//! `.binary` table, or a neural MERL fit (`.f32`, evaluated at the exact angles).
+//! `tabulate NBRDF OUT` writes the full MERL table of a neural fit (a smooth approximation of the
+//! MERL measurement, not measured data).
+
+use anyhow::{Context, bail};
+use brdf_rig::brdf::Brdf;
+use brdf_rig::brdf::merl::MerlTable;
+use brdf_rig::brdf::nbrdf::Nbrdf;
+use clap::{Args, Subcommand};
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Args, Debug)]
+pub struct MerlArgs {
+    #[command(subcommand)]
+    pub command: MerlCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum MerlCommand {
+    /// Print f_r (1/sr, R G B) of a MERL .binary or neural .f32 file for one direction pair.
+    #[command(allow_negative_numbers = true)]
+    Eval {
+        file: PathBuf,
+        /// Polar angle of the light direction, degrees from the normal.
+        theta_in: f64,
+        /// Azimuth of the light direction, degrees.
+        phi_in: f64,
+        /// Polar angle of the view direction, degrees from the normal.
+        theta_out: f64,
+        /// Azimuth of the view direction, degrees.
+        phi_out: f64,
+    },
+    /// Write the full MERL table of a neural fit (.f32) to a .binary file.
+    Tabulate { nbrdf: PathBuf, out: PathBuf },
+}
+
+fn direction(theta_deg: f64, phi_deg: f64, what: &str) -> anyhow::Result<Vector3<f64>> {
+    if !theta_deg.is_finite() || !phi_deg.is_finite() || !(0.0..=90.0).contains(&theta_deg) {
+        bail!(
+            "{what}: theta must be within 0..=90 degrees and angles finite, got {theta_deg}, {phi_deg}"
+        );
+    }
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    Ok(Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
+}
+
+fn load(file: &Path) -> anyhow::Result<Box<dyn Brdf>> {
+    if file.extension().is_some_and(|e| e == "f32") {
+        Ok(Box::new(Nbrdf::load(file)?))
+    } else {
+        Ok(Box::new(MerlTable::read(file)?))
+    }
+}
+
+pub fn run(args: MerlArgs) -> anyhow::Result<ExitCode> {
+    match args.command {
+        MerlCommand::Eval {
+            file,
+            theta_in,
+            phi_in,
+            theta_out,
+            phi_out,
+        } => {
+            let wi = direction(theta_in, phi_in, "light direction")?;
+            let wo = direction(theta_out, phi_out, "view direction")?;
+            let brdf = load(&file).with_context(|| format!("loading BRDF {}", file.display()))?;
+            let [r, g, b] = brdf.eval_local(&wi, &wo);
+            println!("{r:.9e} {g:.9e} {b:.9e}");
+        }
+        MerlCommand::Tabulate { nbrdf, out } => {
+            let net = Nbrdf::load(&nbrdf)?;
+            net.tabulate()
+                .write(&out)
+                .with_context(|| format!("tabulating {}", nbrdf.display()))?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,140 @@
+//! Rasterisation of a mesh from a camera: per pixel the visible face, barycentrics, depth, world
+//! position, interpolated normal and (optionally) interpolated mean curvature.
+//!
+//! Method: one ray per pixel centre through the BVH (ray casting), not scan conversion. The ray
+//! of pixel `(x, y)` is `Intrinsics::ray(x + 0.5, y + 0.5)`, which undistorts, so lens distortion
+//! is exact with no resampling; the same BVH then serves the shadow rays. Rows are shared out
+//! with rayon. One sample per pixel: edges are aliased, which is what reconstruction wants (a
+//! pixel belongs to one face or to none).
+//!
+//! Conventions: `depth` is the camera-space z of the hit (COLMAP's depth-map convention, not the
+//! ray length); positions and normals are in world coordinates; the normal is the barycentric
+//! blend of the vertex normals, renormalised (the face normal where the blend vanishes), and is
+//! not flipped towards the camera, so `n . v < 0` marks a pixel whose normal disagrees with
+//! visibility (common on SfM meshes near silhouettes). Pure; depends on `mesh`, `bvh`, `camera`.
+
+use super::bvh::{Bvh, Ray};
+use super::camera::{Intrinsics, Pose};
+use super::mesh::Mesh;
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+
+/// What one pixel sees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    pub face: u32,
+    /// Weights of the face's corners 0, 1, 2.
+    pub bary: [f64; 3],
+    /// Camera-space z of the hit.
+    pub depth: f64,
+    pub position: Point3<f64>,
+    /// Interpolated unit vertex normal (world).
+    pub normal: Vector3<f64>,
+    /// Interpolated per-vertex mean curvature, when the caller supplied one.
+    pub mean_curvature: Option<f64>,
+}
+
+/// Per-pixel fragments, row-major, `None` where the mesh does not cover the pixel.
+#[derive(Clone, Debug)]
+pub struct GBuffer {
+    width: usize,
+    height: usize,
+    frags: Vec<Option<Fragment>>,
+}
+
+impl GBuffer {
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The fragment at `(x, y)`; `None` outside the image or off the mesh.
+    pub fn get(&self, x: usize, y: usize) -> Option<&Fragment> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        self.frags[y * self.width + x].as_ref()
+    }
+
+    /// All pixels row-major.
+    pub fn fragments(&self) -> &[Option<Fragment>] {
+        &self.frags
+    }
+
+    /// Coverage mask, row-major: `true` where the mesh is seen.
+    pub fn coverage(&self) -> Vec<bool> {
+        self.frags.iter().map(Option::is_some).collect()
+    }
+
+    /// Number of covered pixels.
+    pub fn covered(&self) -> usize {
+        self.frags.iter().filter(|f| f.is_some()).count()
+    }
+}
+
+/// Renders the G-buffer of `mesh` (with its prebuilt `bvh`) seen by camera `k`, `pose`.
+/// `mean_curvature`, when given, has one value per mesh vertex (see `curvature`); a slice of the
+/// wrong length is ignored (fragments then carry `None`).
+pub fn rasterise(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    k: &Intrinsics,
+    pose: &Pose,
+    mean_curvature: Option<&[f64]>,
+) -> GBuffer {
+    let (w, h) = (k.width, k.height);
+    let curv = mean_curvature.filter(|c| c.len() == mesh.positions().len());
+    let centre = pose.centre();
+    let r_world_from_cam = pose.rotation.inverse();
+    let cam_z_world = r_world_from_cam * Vector3::z();
+    let mut frags = vec![None; w * h];
+    if w == 0 {
+        return GBuffer {
+            width: w,
+            height: h,
+            frags,
+        };
+    }
+    frags.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            let d_cam = k.ray(x as f64 + 0.5, y as f64 + 0.5);
+            let ray = Ray {
+                origin: centre,
+                dir: r_world_from_cam * d_cam,
+            };
+            let Some(hit) = bvh.intersect(&ray, 0.0, f64::INFINITY) else {
+                continue;
+            };
+            let f = hit.face as usize;
+            let face = mesh.faces()[f];
+            let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
+            let position = ray.origin + ray.dir * hit.t;
+            let vn = mesh.vertex_normals();
+            let n: Vector3<f64> = (0..3).map(|i| vn[face[i] as usize] * bary[i]).sum();
+            let len = n.norm();
+            let normal = if len > 1e-12 {
+                n / len
+            } else {
+                mesh.face_normals()[f]
+            };
+            let mean_curvature =
+                curv.map(|c| (0..3).map(|i| c[face[i] as usize] * bary[i]).sum::<f64>());
+            *out = Some(Fragment {
+                face: hit.face,
+                bary,
+                depth: (position - centre).dot(&cam_z_world),
+                position,
+                normal,
+                mean_curvature,
+            });
+        }
+    });
+    GBuffer {
+        width: w,
+        height: h,
+        frags,
+    }
+}

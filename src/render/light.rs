@@ -1,0 +1,43 @@
+//! Light sources for rendering: a far directional light (the rig's single light) and a uniform
+//! white environment (room light for the ambient multi-view images).
+//!
+//! Conventions: `to_light` is a unit world direction pointing from the surface towards the
+//! light; `irradiance` is RGB irradiance on a surface facing the light (W m^-2 per channel, or any
+//! consistent unit), so a surface with normal n receives `irradiance * max(0, n . to_light)`.
+//! Pure.
+
+use nalgebra::Vector3;
+
+/// A light at infinity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionalLight {
+    /// Unit direction towards the light, world coordinates.
+    pub to_light: Vector3<f64>,
+    /// RGB irradiance on a surface facing the light.
+    pub irradiance: [f64; 3],
+}
+
+impl DirectionalLight {
+    /// Normalises `to_light`; `None` when it is zero or not finite.
+    pub fn new(to_light: Vector3<f64>, irradiance: [f64; 3]) -> Option<Self> {
+        let n = to_light.norm();
+        (n > 0.0 && n.is_finite()).then(|| Self {
+            to_light: to_light / n,
+            irradiance,
+        })
+    }
+}
+
+/// A uniform environment of constant RGB radiance from every direction, integrated by
+/// cosine-weighted hemisphere sampling of the BRDF: `samples` stratified directions per pixel
+/// (rounded up to a square number), jittered per pixel from `seed`, so images are deterministic.
+/// With `occlusion`, each sample direction is tested against the mesh (ambient occlusion);
+/// without, the whole hemisphere counts. For a Lambertian BRDF the estimate is exact without
+/// occlusion (`albedo * radiance`) whatever the sample count.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UniformEnvironment {
+    pub radiance: [f64; 3],
+    pub samples: usize,
+    pub occlusion: bool,
+    pub seed: u64,
+}

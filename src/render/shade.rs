@@ -1,0 +1,174 @@
+//! Shading of a rasterised mesh with a BRDF: the image the simulated camera sees, and the
+//! renders reconstruction compares against the captured images.
+//!
+//! Per covered pixel, with `n` the interpolated vertex normal, `v` the unit direction to the
+//! camera centre and `l` the light's `to_light`:
+//! `L = f_r(l, v) * E * max(0, n . l)`, zero when the light is shadowed (BVH shadow ray, see
+//! `geometry::shadow`) or `n . v <= 0`; plus, optionally, a uniform environment (see
+//! [`UniformEnvironment`]): `L_env = (pi / N) * sum_k f_r(w_k, v) * L_uniform * V(w_k)` over
+//! cosine-distributed `w_k` about `n`. Uncovered pixels get the background value.
+//! Conventions: radiance in the irradiance's unit per steradian; the BRDF is evaluated in the
+//! frame of [`ShadingFrame`]. Pure: no file I/O (see `crate::imageio`).
+
+use super::frame::ShadingFrame;
+use super::image::LinearImage;
+use super::light::{DirectionalLight, UniformEnvironment};
+use crate::brdf::Brdf;
+use crate::geometry::bvh::{Bvh, Ray};
+use crate::geometry::camera::{Intrinsics, Pose};
+use crate::geometry::mesh::Mesh;
+use crate::geometry::raster::{GBuffer, rasterise};
+use crate::geometry::shadow::{default_offset, light_visible};
+use nalgebra::{Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+/// What lights a render and what fills the background.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeOptions {
+    pub light: Option<DirectionalLight>,
+    pub environment: Option<UniformEnvironment>,
+    /// Cast shadows from the directional light (self-shadowing by `n . l` always applies).
+    pub shadows: bool,
+    /// Radiance of pixels the mesh does not cover.
+    pub background: [f32; 3],
+}
+
+impl ShadeOptions {
+    /// One directional light with shadows, black background.
+    pub fn single_light(light: DirectionalLight) -> Self {
+        Self {
+            light: Some(light),
+            environment: None,
+            shadows: true,
+            background: [0.0; 3],
+        }
+    }
+}
+
+/// Rasterises and shades in one call (see [`shade`] to reuse a G-buffer).
+pub fn render_mesh(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    k: &Intrinsics,
+    pose: &Pose,
+    brdf: &dyn Brdf,
+    opts: &ShadeOptions,
+) -> LinearImage {
+    let g = rasterise(mesh, bvh, k, pose, None);
+    shade(mesh, bvh, &g, &pose.centre(), brdf, opts)
+}
+
+/// Shades a G-buffer seen from `camera_centre` (world). Cheap to call repeatedly with
+/// different BRDFs on the same G-buffer (trial selection).
+pub fn shade(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    gbuf: &GBuffer,
+    camera_centre: &Point3<f64>,
+    brdf: &dyn Brdf,
+    opts: &ShadeOptions,
+) -> LinearImage {
+    let (w, h) = (gbuf.width(), gbuf.height());
+    let mut img = LinearImage::new(w, h);
+    if w == 0 {
+        return img;
+    }
+    let offset = default_offset(mesh);
+    let env_dirs = opts.environment.map(|e| stratified_count(e.samples));
+    img.data_mut()
+        .par_chunks_mut(w * 3)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..w {
+                let px = &mut row[3 * x..3 * x + 3];
+                let Some(f) = gbuf.get(x, y) else {
+                    px.copy_from_slice(&opts.background);
+                    continue;
+                };
+                let v = (camera_centre - f.position).normalize();
+                let frame = ShadingFrame::new(f.normal);
+                let wo = frame.to_local(&v);
+                if wo.z <= 0.0 {
+                    px.copy_from_slice(&[0.0; 3]);
+                    continue;
+                }
+                let fnorm = mesh.face_normals()[f.face as usize];
+                let mut l_out = [0.0f64; 3];
+                if let Some(light) = &opts.light {
+                    let wi = frame.to_local(&light.to_light);
+                    let lit = wi.z > 0.0
+                        && (!opts.shadows
+                            || light_visible(
+                                bvh,
+                                &f.position,
+                                &fnorm,
+                                &light.to_light,
+                                &v,
+                                offset,
+                            ));
+                    if lit {
+                        let fr = brdf.eval_local(&wi, &wo);
+                        for c in 0..3 {
+                            l_out[c] += fr[c] * light.irradiance[c] * wi.z;
+                        }
+                    }
+                }
+                if let (Some(env), Some(n_side)) = (&opts.environment, env_dirs) {
+                    let pixel_seed =
+                        env.seed ^ ((y * w + x) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(pixel_seed);
+                    let (ju, jv): (f64, f64) = (rng.r#gen(), rng.r#gen());
+                    let n = n_side * n_side;
+                    let front = if fnorm.dot(&v) >= 0.0 { fnorm } else { -fnorm };
+                    let mut sum = [0.0f64; 3];
+                    for i in 0..n_side {
+                        for j in 0..n_side {
+                            // stratum (i, j), shifted by one per-pixel jitter (Cranley-Patterson)
+                            let u1 = ((i as f64 + ju) / n_side as f64).fract();
+                            let u2 = ((j as f64 + jv) / n_side as f64).fract();
+                            let wi = cosine_direction(u1, u2);
+                            if env.occlusion {
+                                let d = frame.to_world(&wi);
+                                let ray = Ray {
+                                    origin: f.position + front * offset,
+                                    dir: d,
+                                };
+                                if d.dot(&front) <= 0.0 || bvh.occluded(&ray, 0.0, f64::INFINITY) {
+                                    continue;
+                                }
+                            }
+                            let fr = brdf.eval_local(&wi, &wo);
+                            for c in 0..3 {
+                                sum[c] += fr[c];
+                            }
+                        }
+                    }
+                    for c in 0..3 {
+                        l_out[c] += std::f64::consts::PI / n as f64 * sum[c] * env.radiance[c];
+                    }
+                }
+                for c in 0..3 {
+                    px[c] = l_out[c] as f32;
+                }
+            }
+        });
+    img
+}
+
+/// Side of the square sample grid: `ceil(sqrt(samples))`, at least 1.
+fn stratified_count(samples: usize) -> usize {
+    let mut s = (samples as f64).sqrt().ceil() as usize;
+    while s * s < samples {
+        s += 1;
+    }
+    s.max(1)
+}
+
+/// Cosine-distributed direction about +z from two uniforms (Malley's method: uniform on the
+/// disk, lifted to the hemisphere).
+fn cosine_direction(u1: f64, u2: f64) -> Vector3<f64> {
+    let r = u1.sqrt();
+    let phi = std::f64::consts::TAU * u2;
+    Vector3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
