@@ -15,7 +15,7 @@ use brdf_rig::brdf::coords::MerlBin;
 use brdf_rig::brdf::metrics::compare_values;
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
 use brdf_rig::brdf::ridge::{Observation, RidgeSettings, reconstruct};
-use brdf_rig::brdf::sampling::{SamplingSettings, select_samples};
+use brdf_rig::brdf::sampling::{SamplingSettings, select_samples_with};
 use brdf_rig::brdf::{BinValues, Brdf};
 use std::time::Instant;
 
@@ -129,18 +129,33 @@ fn main() -> anyhow::Result<()> {
         println!(
             "optimal samples:   |S|  relative  cos-weighted  near-specular  (k = min(|S|, 20))"
         );
-        let plans: [(usize, Option<&Vec<usize>>); 5] = [
-            (10, None),
-            (20, None),
-            (40, None),
-            (20, Some(&one_theta_d)),
-            (40, Some(&one_theta_d)),
+        // The brightest bin among the candidates: the paper's always-used specular peak.
+        let brightest = |rows: &mut dyn Iterator<Item = usize>| {
+            rows.max_by(|&a, &b| {
+                let l = |r: usize| truth[r].iter().sum::<f64>();
+                l(a).total_cmp(&l(b))
+            })
+        };
+        let peak_all = brightest(&mut (0..basis.n_rows()));
+        let peak_one = brightest(&mut one_theta_d.iter().copied());
+        type Plan<'a> = (usize, Option<&'a Vec<usize>>, Option<usize>);
+        let plans: [Plan; 8] = [
+            (10, None, None),
+            (20, None, None),
+            (40, None, None),
+            (20, None, peak_all),
+            (20, Some(&one_theta_d), None),
+            (40, Some(&one_theta_d), None),
+            (20, Some(&one_theta_d), peak_one),
+            (40, Some(&one_theta_d), peak_one),
         ];
-        for (n, cands) in plans {
-            let s = select_samples(
+        for (n, cands, peak) in plans {
+            let fixed: Vec<usize> = peak.into_iter().collect();
+            let s = select_samples_with(
                 &basis,
                 n,
                 cands.map(|c| c.as_slice()),
+                &fixed,
                 &SamplingSettings::default(),
             )?;
             let obs: Vec<Observation> = s
@@ -157,10 +172,11 @@ fn main() -> anyhow::Result<()> {
                 e.relative,
                 e.cosine_weighted,
                 e.near_specular,
-                if cands.is_some() {
-                    "   (theta_d = 45 deg only)"
-                } else {
-                    ""
+                match (cands.is_some(), peak.is_some()) {
+                    (false, false) => "",
+                    (false, true) => "   (+ brightest bin fixed)",
+                    (true, false) => "   (theta_d = 45 deg only)",
+                    (true, true) => "   (theta_d = 45 deg only, + brightest bin fixed)",
                 }
             );
         }

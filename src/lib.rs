@@ -10,6 +10,7 @@ pub mod capture;
 pub mod devices;
 pub mod geometry;
 pub mod imageio;
+pub mod profile;
 pub mod protocol;
 pub mod render;
 pub mod report;

@@ -80,6 +80,17 @@ fn quads_are_triangulated_and_big_endian_binary_reads() {
     for n in m.vertex_normals() {
         assert!((n.z - 1.0).abs() < 1e-12);
     }
+    // integer coordinates (some scanners) and a `vertex_index` list with extra properties
+    let p = write(
+        dir.path(),
+        "int.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty int x\nproperty short y\n\
+         property uchar z\nproperty uchar red\nelement face 1\n\
+         property list uchar ushort vertex_index\nproperty int flags\nend_header\n\
+         0 0 0 255\n2 0 0 255\n0 3 1 255\n3 0 1 2 7\n",
+    );
+    let (m, _) = load_mesh(&p).unwrap();
+    assert_eq!(m.positions()[2], Point3::new(0.0, 3.0, 1.0));
 }
 
 fn write(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
@@ -190,7 +201,7 @@ fn malformed_meshes_are_errors_naming_file_and_element() {
 use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::geometry::mesh::Mesh;
-use brdf_rig::geometry::raster::rasterise;
+use brdf_rig::geometry::raster::{Rasteriser, rasterise};
 use brdf_rig::geometry::shadow::shadow_mask;
 use nalgebra::{Point3, Vector3};
 
@@ -280,6 +291,13 @@ fn rasterised_square_covers_exactly_its_projection_at_its_depth() {
     }
     assert_eq!(checked, 400);
     assert_eq!(g.covered(), 400);
+    // single sub-pixel queries agree with the G-buffer and land where they were asked
+    let r = Rasteriser::new(&mesh, &bvh, &k, &pose, None);
+    assert_eq!(r.fragment(50.5, 30.5).as_ref(), g.get(50, 30));
+    let f = r.fragment(52.3, 31.9).unwrap();
+    let (px, py) = k.project(&pose.camera_from_world(&f.position)).unwrap();
+    assert!((px - 52.3).abs() < 1e-9 && (py - 31.9).abs() < 1e-9);
+    assert!(r.fragment(10.0, 10.0).is_none());
 }
 
 #[test]
@@ -378,14 +396,24 @@ fn timing_bunny_640x480_raster_and_shadow() {
         std::hint::black_box(shadow_mask(&bunny, &bvh, &g, &eye, &l));
     }
     let t_shadow = t.elapsed() / runs;
+    let t = std::time::Instant::now();
+    let curv = principal_curvatures(&bunny);
+    let t_curv = t.elapsed();
+    let t = std::time::Instant::now();
+    let sfm = sfm_like(&bunny, &SfmLikeParams::default());
+    let t_sfm = t.elapsed();
+    std::hint::black_box((&curv, &sfm));
     println!(
-        "bunny {} tris, {} covered px of 640x480: bvh build {:?}, rasterise {:?}, shadow mask {:?} ({} threads)",
+        "bunny {} tris, {} covered px of 640x480, {} threads: bvh build {:?}, rasterise {:?}, \
+         shadow mask {:?}, curvature {:?}, sfm_like {:?}",
         bunny.faces().len(),
         g.covered(),
+        rayon::current_num_threads(),
         t_build,
         t_raster,
         t_shadow,
-        rayon::current_num_threads()
+        t_curv,
+        t_sfm
     );
 }
 
@@ -735,4 +763,136 @@ fn colmap_malformed_text_names_file_and_line() {
         write_text(d, &m).unwrap_err(),
         ColmapError::Export { camera: 1, .. }
     ));
+}
+
+// ---------------------------------------------------------------------------------------------
+// SfM-like meshes
+
+use brdf_rig::geometry::sfm_like::{SfmLikeParams, mean_edge_length, sfm_like};
+
+#[test]
+fn sfm_like_noise_is_seeded_along_normals_with_the_stated_sigma() {
+    let truth = uv_sphere(1.0, 60, 120);
+    let params = SfmLikeParams {
+        iterations: 0,
+        noise_rel: 0.1,
+        seed: 42,
+        ..Default::default()
+    };
+    let a = sfm_like(&truth, &params);
+    let b = sfm_like(&truth, &params);
+    assert_eq!(a.positions(), b.positions());
+    let c = sfm_like(&truth, &SfmLikeParams { seed: 43, ..params });
+    assert_ne!(a.positions(), c.positions());
+    let sigma = 0.1 * mean_edge_length(&truth);
+    let mut sum2 = 0.0;
+    for ((p, q), n) in a
+        .positions()
+        .iter()
+        .zip(truth.positions())
+        .zip(truth.vertex_normals())
+    {
+        let d = p - q;
+        // along the normal only
+        assert!((d - n * d.dot(n)).norm() < 1e-12);
+        sum2 += d.norm_squared();
+    }
+    let rms = (sum2 / truth.positions().len() as f64).sqrt();
+    // 7000 samples: the RMS of a Gaussian is within 5% of sigma with overwhelming probability
+    assert!((rms / sigma - 1.0).abs() < 0.05, "rms {rms} sigma {sigma}");
+}
+
+#[test]
+fn sfm_like_smoothing_keeps_a_sphere_and_bends_normals_where_curvature_is_high() {
+    // Taubin keeps a sphere's size (plain Laplacian smoothing would shrink it)
+    let s = uv_sphere(1.0, 30, 60);
+    let params = SfmLikeParams {
+        noise_rel: 0.0,
+        ..Default::default()
+    };
+    let smooth = sfm_like(&s, &params);
+    let mean_r: f64 = smooth
+        .positions()
+        .iter()
+        .map(|p| p.coords.norm())
+        .sum::<f64>()
+        / s.positions().len() as f64;
+    assert!((mean_r - 1.0).abs() < 0.01, "mean radius {mean_r}");
+    // on Spot, normal error after smoothing grows with |H| (METHOD.md assumption 1)
+    let (spot, _) = load_mesh(&meshes().join("spot_triangulated.obj")).unwrap();
+    let h = principal_curvatures(&spot).mean;
+    let smooth = sfm_like(
+        &spot,
+        &SfmLikeParams {
+            iterations: 20,
+            ..params
+        },
+    );
+    let err: Vec<f64> = spot
+        .vertex_normals()
+        .iter()
+        .zip(smooth.vertex_normals())
+        .map(|(a, b)| a.dot(b).clamp(-1.0, 1.0).acos())
+        .collect();
+    let mut idx: Vec<usize> = (0..h.len()).collect();
+    idx.sort_by(|&i, &j| h[i].abs().total_cmp(&h[j].abs()));
+    let q = idx.len() / 4;
+    let mean = |s: &[usize]| s.iter().map(|&i| err[i]).sum::<f64>() / s.len() as f64;
+    let (flat, curved) = (mean(&idx[..q]), mean(&idx[idx.len() - q..]));
+    assert!(
+        curved > 2.0 * flat,
+        "normal error: flattest quarter {flat}, most curved {curved}"
+    );
+}
+
+#[test]
+fn rasterised_fragments_carry_interpolated_mean_curvature() {
+    let r = 0.8;
+    let s = uv_sphere(r, 30, 60);
+    let bvh = Bvh::build(&s);
+    let h = principal_curvatures(&s).mean;
+    let k = Intrinsics::pinhole(48, 36, 50.0, 50.0, 24.0, 18.0);
+    let pose = Pose::look_at(Point3::new(0.0, -3.0, 1.0), Point3::origin(), Vector3::z());
+    let g = rasterise(&s, &bvh, &k, &pose, Some(&h));
+    assert!(g.covered() > 100);
+    for f in g.fragments().iter().flatten() {
+        assert!((f.mean_curvature.unwrap() * r - 1.0).abs() < 0.02);
+        // the interpolated normal of a fine sphere is close to the true radial direction
+        assert!(f.normal.dot(&f.position.coords.normalize()) > 0.999);
+    }
+    // a curvature slice for another mesh is ignored rather than misread
+    let g = rasterise(&s, &bvh, &k, &pose, Some(&h[1..]));
+    assert!(
+        g.fragments()
+            .iter()
+            .flatten()
+            .all(|f| f.mean_curvature.is_none())
+    );
+}
+
+#[test]
+fn a_convex_mesh_never_shadows_itself_beyond_its_terminator() {
+    // no shadow acne: on a sphere, every face turned towards the light is lit
+    let s = uv_sphere(0.7, 40, 80);
+    let bvh = Bvh::build(&s);
+    let k = Intrinsics::pinhole(96, 72, 70.0, 70.0, 48.0, 36.0);
+    let eye = Point3::new(0.4, -2.5, 0.8);
+    let pose = Pose::look_at(eye, Point3::origin(), Vector3::z());
+    let g = rasterise(&s, &bvh, &k, &pose, None);
+    for l in [
+        Vector3::new(0.3, -0.2, 0.9),
+        Vector3::new(-0.95, 0.1, 0.05),
+        Vector3::new(0.0, 1.0, 0.0),
+    ] {
+        let l = l.normalize();
+        let mask = shadow_mask(&s, &bvh, &g, &eye, &l);
+        let mut lit = 0;
+        for (f, m) in g.fragments().iter().zip(&mask) {
+            let Some(f) = f else { continue };
+            let facing = s.face_normals()[f.face as usize].dot(&l) > 0.0;
+            assert_eq!(m.unwrap(), facing, "face {} at {:?}", f.face, f.position);
+            lit += facing as usize;
+        }
+        assert!(lit > 0 || l.y > 0.9);
+    }
 }

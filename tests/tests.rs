@@ -5,7 +5,12 @@
 #![allow(clippy::unwrap_used)]
 
 mod brdf;
+mod capture_kill;
+mod capture_sim;
+mod capture_util;
 mod geometry;
 mod render;
+mod rig_cli;
+mod rig_sim;
 mod rig_vectors;
 mod util;

@@ -14,7 +14,8 @@
 //! Lambert: `kd_c = pi mean(r_c)`, closed form. Lambert + GGX: `kd` and `ks` are linear and
 //! solved in closed form (non-negative) for each `(alpha, F0)`; those two are found by a grid
 //! search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
-//! Pure: no files.
+//! Pure: no files; must not depend on the network, the basis (beyond its cosine-map floor, so
+//! the weighted fit and the cosine-weighted error agree) or any I/O.
 
 use super::Brdf;
 use nalgebra::Vector3;

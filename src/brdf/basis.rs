@@ -88,6 +88,8 @@ pub enum BasisError {
         got: usize,
         expected: usize,
     },
+    #[error("a basis needs at least one component")]
+    NoComponents,
     #[error("inconsistent basis parts: {0}")]
     Inconsistent(String),
 }
@@ -251,6 +253,9 @@ impl Basis {
         settings: &BasisSettings,
         materials: &[(&str, &dyn BinValues)],
     ) -> Result<Self, BasisError> {
+        if settings.n_components == 0 {
+            return Err(BasisError::NoComponents);
+        }
         for name in &settings.exclude {
             if !materials.iter().any(|(n, _)| n == name) {
                 return Err(BasisError::UnknownExcluded(name.clone()));
@@ -638,6 +643,12 @@ mod tests {
         let basis = Basis::build(&s, &refs(&t)).expect("build");
         assert!(!basis.materials().iter().any(|m| m == "toy3"));
         assert_eq!(basis.materials().len(), 5);
+        s.n_components = 0;
+        assert!(matches!(
+            Basis::build(&s, &refs(&t)),
+            Err(BasisError::NoComponents)
+        ));
+        s.n_components = 12;
         s.exclude = vec!["nope".into()];
         assert!(matches!(
             Basis::build(&s, &refs(&t)),

@@ -12,7 +12,8 @@
 //! settings give) is treated as corrupt: rebuilt with a warning on stderr, never trusted.
 //! Files are written to a temporary name and renamed, so a crash never leaves half a file.
 //!
-//! Default directory: `$BRDF_RIG_CACHE`, else `~/.cache/brdf-rig`.
+//! Default directory: `$BRDF_RIG_CACHE`, else `~/.cache/brdf-rig`. The pure modules (sampling,
+//! ridge, metrics) must not depend on this file: they take a `Basis`, wherever it came from.
 
 use super::BinValues;
 use super::basis::{Basis, BasisError, BasisGrid, BasisSettings, GridStride};

@@ -10,7 +10,8 @@
 //! - `near_specular`: `relative` restricted to `theta_h` (bin centre) below
 //!   [`NEAR_SPECULAR_THETA_H_DEG`] = 10 degrees.
 //!
-//! Values are f_r in 1/sr. Pure: no files.
+//! Values are f_r in 1/sr. Pure: no files; must not depend on how the BRDFs were made (basis,
+//! network, fits): it sees values at bins only.
 
 use super::BinValues;
 use super::basis::cos_map;

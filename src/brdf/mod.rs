@@ -1,6 +1,16 @@
 //! BRDFs: the MERL table and Rusinkiewicz coordinates, the neural MERL fits, the PCA basis,
 //! optimal sampling, reconstruction, trial selection and analytic models. Pure: no files here
-//! except in the loaders, which name the file in every error.
+//! except in the loaders, which name the file in every error, and `basis_cache` (an I/O edge).
+//!
+//! One concept per file:
+//! - `coords`: Rusinkiewicz angles, MERL bins and bin centres;
+//! - `merl`: the MERL table (read, write, nearest-bin lookup);
+//! - `nbrdf`: the neural fits of the 100 MERL materials (approximations, not measured data);
+//! - `basis` / `basis_cache`: the PCA prior (Nielsen et al. 2015) and its disk cache;
+//! - `sampling`: optimal sample bins by condition number;
+//! - `ridge`: reconstruction from observations;
+//! - `metrics`: relative, cosine-weighted and near-specular errors;
+//! - `analytic`: Lambert and Lambert + GGX baselines with least-squares fits.
 //!
 //! Convention for every BRDF in this crate: directions are unit vectors in the local shading
 //! frame (normal = +z), both pointing away from the surface (`wi` towards the light, `wo`

@@ -8,7 +8,7 @@
 //! horizon get no data).
 //!
 //! Observations carry f_r in 1/sr (RGB, no cosine) at a basis row; several observations may
-//! share a row. Pure: no files.
+//! share a row. Pure: no files; depends on the basis only (not on sampling, images or the rig).
 
 use super::BinValues;
 use super::basis::{Basis, BasisGrid};
@@ -151,6 +151,18 @@ impl Reconstruction {
     }
 }
 
+impl super::Brdf for Reconstruction {
+    /// The value of the basis row holding the bin of `(wi, wo)`; zero below the horizon and
+    /// where the grid has no row. Lets trial selection render with a candidate directly.
+    fn eval_local(&self, wi: &nalgebra::Vector3<f64>, wo: &nalgebra::Vector3<f64>) -> [f64; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        self.value_at_bin(super::coords::merl_index(wi, wo))
+            .unwrap_or([0.0; 3])
+    }
+}
+
 impl BinValues for Reconstruction {
     fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
         bins.iter()
@@ -283,6 +295,8 @@ mod tests {
             .to_directions();
         let o = Observation::from_directions(&b, &wi, &wo, [1.0; 3]).expect("row");
         assert_eq!(o.row, 123);
+        use crate::brdf::Brdf;
+        assert_eq!(rec.eval_local(&wi, &wo), rec.values()[123]);
         let below = nalgebra::Vector3::new(0.0, 0.6, -0.8);
         assert!(Observation::from_directions(&b, &below, &wo, [1.0; 3]).is_none());
         let bad = [Observation {

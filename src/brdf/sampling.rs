@@ -8,7 +8,8 @@
 //!
 //! Candidates default to every basis row; on the rig they are the rows observed by reliable
 //! pixels (the reconstruction picks among pixels), so every step, descent included, stays inside
-//! the given candidate set. Seeded and deterministic. Pure: no files, no I/O.
+//! the given candidate set. Seeded and deterministic. Pure: no files, no I/O; depends on the
+//! basis only (not on the reconstruction, the materials or the rig).
 
 use super::basis::Basis;
 use nalgebra::DMatrix;
@@ -74,6 +75,19 @@ pub fn select_samples(
     candidates: Option<&[usize]>,
     settings: &SamplingSettings,
 ) -> Result<Vec<usize>, SamplingError> {
+    select_samples_with(basis, n_samples, candidates, &[], settings)
+}
+
+/// As [`select_samples`], with rows that must be in `S` and never move (the paper's brightest
+/// pixel, METHOD.md section 4). They come first in the result, replacing the largest-norm start;
+/// they need not be among `candidates`. With more fixed rows than `n_samples`, all are returned.
+pub fn select_samples_with(
+    basis: &Basis,
+    n_samples: usize,
+    candidates: Option<&[usize]>,
+    fixed: &[usize],
+    settings: &SamplingSettings,
+) -> Result<Vec<usize>, SamplingError> {
     if n_samples == 0 {
         return Err(SamplingError::Empty);
     }
@@ -82,9 +96,16 @@ pub fn select_samples(
         Some(c) => c.to_vec(),
         None => (0..rows).collect(),
     };
-    if let Some(&row) = pool.iter().find(|&&r| r >= rows) {
+    let mut fixed_rows: Vec<usize> = Vec::new();
+    for &r in fixed {
+        if !fixed_rows.contains(&r) {
+            fixed_rows.push(r);
+        }
+    }
+    if let Some(&row) = pool.iter().chain(&fixed_rows).find(|&&r| r >= rows) {
         return Err(SamplingError::BadCandidate { row, rows });
     }
+    pool.extend(&fixed_rows);
     pool.sort_unstable();
     pool.dedup();
     if pool.len() < n_samples {
@@ -104,13 +125,18 @@ pub fn select_samples(
             .map(|&x| f64::from(x).powi(2))
             .sum()
     };
-    let first = pool
-        .iter()
-        .copied()
-        .max_by(|&a, &b| norm(a).total_cmp(&norm(b)))
-        .ok_or(SamplingError::Empty)?;
-    let mut s = vec![first];
-    let mut chosen: HashSet<usize> = HashSet::from([first]);
+    let mut s = if fixed_rows.is_empty() {
+        let first = pool
+            .iter()
+            .copied()
+            .max_by(|&a, &b| norm(a).total_cmp(&norm(b)))
+            .ok_or(SamplingError::Empty)?;
+        vec![first]
+    } else {
+        fixed_rows.clone()
+    };
+    let n_fixed = if fixed_rows.is_empty() { 0 } else { s.len() };
+    let mut chosen: HashSet<usize> = s.iter().copied().collect();
 
     while s.len() < n_samples {
         let n = (s.len() + 1).min(k);
@@ -148,7 +174,7 @@ pub fn select_samples(
         let mut current = condition_number(basis, &s, n);
         for _ in 0..settings.descent_passes {
             let mut improved = false;
-            let mut order: Vec<usize> = (0..s.len()).collect();
+            let mut order: Vec<usize> = (n_fixed..s.len()).collect();
             order.shuffle(&mut rng);
             for p in order {
                 let old = s[p];
@@ -275,5 +301,9 @@ mod tests {
             select_samples(&basis, 5, Some(&[1, 2, 2, 3]), &settings),
             Err(SamplingError::TooFewCandidates { available: 3, .. })
         ));
+        // Fixed rows stay, first and unmoved, even outside the candidates.
+        let s = select_samples_with(&basis, 8, Some(&cands), &[1], &settings).expect("select");
+        assert_eq!(s[0], 1);
+        assert!(s[1..].iter().all(|r| r % 3 == 0));
     }
 }

@@ -561,7 +561,7 @@ mod tests {
         let mut session = if resume {
             Session::resume(dir).unwrap()
         } else {
-            Session::create(dir, &plan, &text, header()).unwrap()
+            Session::create(dir, &plan, &text, header(), &[]).unwrap()
         };
         let log: Shared = Rc::default();
         let options = RunOptions {

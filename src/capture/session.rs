@@ -234,6 +234,24 @@ pub fn read_journal(path: &Path) -> Result<(Vec<ShotRecord>, u64), CaptureError>
     Ok((records, good_len))
 }
 
+/// Removes folders a killed `create` of `name` left in `parent` (their process is gone).
+fn remove_stale_staging(parent: &Path, name: &str) {
+    let prefix = format!(".{name}.creating-");
+    let Ok(entries) = fs::read_dir(parent) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file_name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let alive = Path::new("/proc").join(pid).exists() && pid != std::process::id().to_string();
+        if !alive {
+            let _ = fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
 /// Removes temporary files left by a killed atomic write.
 fn remove_stray_temporaries(dir: &Path) -> Result<(), CaptureError> {
     for sub in ["", "ambient", "light", "calib", "sim"] {
@@ -254,12 +272,15 @@ fn remove_stray_temporaries(dir: &Path) -> Result<(), CaptureError> {
 }
 
 impl Session {
-    /// Creates a new session in `dir` (which must not exist or be empty).
+    /// Creates a new session in `dir` (which must not exist or be empty), with `extra` files
+    /// (name, bytes) beside the plan. The folder is built under a temporary name and renamed
+    /// into place, so a kill during creation leaves either no session or a whole one.
     pub fn create(
         dir: &Path,
         plan: &CapturePlan,
         plan_text: &str,
         mut header: SessionHeader,
+        extra: &[(&str, &[u8])],
     ) -> Result<Self, CaptureError> {
         if dir.exists() {
             let non_empty = fs::read_dir(dir)
@@ -273,27 +294,48 @@ impl Session {
                 });
             }
         }
-        fs::create_dir_all(dir)
-            .map_err(|e| CaptureError::io("creating the session folder", dir, e))?;
-        let lock = lock_folder(dir)?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| CaptureError::Session {
+                path: dir.to_path_buf(),
+                reason: "not a folder name".into(),
+            })?;
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        fs::create_dir_all(&parent)
+            .map_err(|e| CaptureError::io("creating the parent folder", &parent, e))?;
+        remove_stale_staging(&parent, &name);
+        let staging = parent.join(format!(".{name}.creating-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&staging);
         for sub in ["ambient", "light", "calib"] {
-            let d = dir.join(sub);
+            let d = staging.join(sub);
             fs::create_dir_all(&d).map_err(|e| CaptureError::io("creating", &d, e))?;
         }
         let shots = plan.shots();
         header.format_version = FORMAT_VERSION;
         header.plan_name = plan.name.clone();
         header.planned_shots = shots.len();
-        write_atomic(&dir.join(PLAN_FILE), plan_text.as_bytes())?;
+        write_atomic(&staging.join(PLAN_FILE), plan_text.as_bytes())?;
+        for (file, bytes) in extra {
+            write_atomic(&staging.join(file), bytes)?;
+        }
         let header_json =
             serde_json::to_vec_pretty(&header).map_err(|e| CaptureError::Session {
                 path: dir.to_path_buf(),
                 reason: e.to_string(),
             })?;
-        write_atomic(&dir.join(SESSION_FILE), &header_json)?;
+        write_atomic(&staging.join(SESSION_FILE), &header_json)?;
+        write_atomic(&staging.join(JOURNAL_FILE), b"")?;
+        // rename(2) replaces an empty directory, so an empty --out folder is fine too.
+        fs::rename(&staging, dir)
+            .map_err(|e| CaptureError::io("moving the new session into place", dir, e))?;
+        sync_dir(&parent)?;
+        let lock = lock_folder(dir)?;
         let journal_path = dir.join(JOURNAL_FILE);
         let journal = OpenOptions::new()
-            .create(true)
             .append(true)
             .open(&journal_path)
             .map_err(|e| CaptureError::io("opening the journal", &journal_path, e))?;
@@ -518,7 +560,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("s");
         let plan = default_plan();
-        let mut s = Session::create(&dir, &plan, DEFAULT_TEXT, header()).unwrap();
+        let mut s = Session::create(&dir, &plan, DEFAULT_TEXT, header(), &[]).unwrap();
         let shots = s.planned().to_vec();
         let (_, sha) = s.write_image(&shots[0].file, b"abc").unwrap();
         s.append(record(&shots[0], &sha)).unwrap();
@@ -556,7 +598,7 @@ mod tests {
     fn create_refuses_a_non_empty_folder() {
         let tmp = tempfile::tempdir().unwrap();
         fs::write(tmp.path().join("x"), b"").unwrap();
-        let err = Session::create(tmp.path(), &default_plan(), DEFAULT_TEXT, header())
+        let err = Session::create(tmp.path(), &default_plan(), DEFAULT_TEXT, header(), &[])
             .err()
             .unwrap()
             .to_string();

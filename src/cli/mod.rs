@@ -2,13 +2,18 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 mod cameras;
+mod capture;
 mod merl;
 mod session;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+mod bench;
+mod light;
 mod ports;
+mod rig;
+mod turntable;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -23,21 +28,36 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Run a capture session (new with --out, or continue one with --resume).
+    Capture(capture::CaptureArgs),
     /// List the cameras each backend finds (sim, gphoto2, webcam, v4l2).
     Cameras(cameras::CamerasArgs),
     /// Inspect a session folder.
     Session(session::SessionArgs),
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
+    /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
+    Rig(rig::RigCommandArgs),
+    /// Home, move or query the turntable.
+    Turntable(turntable::TurntableArgs),
+    /// Switch light channels on and off, or query them.
+    Light(light::LightArgs),
+    /// Measurements behind the tables in docs/benchmarks-*.md.
+    Bench(bench::BenchArgs),
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Capture(a) => capture::run(a),
         Command::Cameras(a) => cameras::run(a),
         Command::Session(a) => session::run(a),
         Command::Ports => ports::run(),
+        Command::Rig(a) => rig::run(a),
+        Command::Turntable(a) => turntable::run(a),
+        Command::Light(a) => light::run(a),
+        Command::Bench(a) => bench::run(a),
         Command::Merl(args) => merl::run(args),
     }
 }

@@ -5,6 +5,7 @@
 //! Units: angles in degrees at this boundary (operators and profiles think in degrees; the wire
 //! protocol uses millidegrees), light levels in [0, 1], exposure in seconds.
 
+pub mod bench;
 pub mod camera_gphoto2;
 pub mod camera_raw;
 #[cfg(feature = "v4l2")]
@@ -13,6 +14,8 @@ pub mod camera_v4l2;
 pub mod camera_webcam;
 pub mod cameras;
 pub mod error;
+pub mod link;
+pub mod rig;
 
 pub use error::DeviceError;
 

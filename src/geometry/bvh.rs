@@ -168,14 +168,21 @@ impl Bvh {
         }
         let inv = Vector3::new(1.0 / ray.dir.x, 1.0 / ray.dir.y, 1.0 / ray.dir.z);
         let o = ray.origin.coords;
-        let mut stack = [0u32; 64];
+        let Some(t_root) = slab(&self.nodes[0], &o, &inv, t_min, *t_far) else {
+            return;
+        };
+        // each entry carries the distance at which the ray enters the node's box, tested when
+        // it was pushed; a node is skipped when a hit found since then is nearer
+        let mut stack = [(0u32, 0.0f64); 64];
+        stack[0] = (0, t_root);
         let mut sp = 1;
         while sp > 0 {
             sp -= 1;
-            let node = &self.nodes[stack[sp] as usize];
-            if slab(node, &o, &inv, t_min, *t_far).is_none() {
+            let (ni, t_enter) = stack[sp];
+            if t_enter > *t_far {
                 continue;
             }
+            let node = &self.nodes[ni as usize];
             if node.count > 0 {
                 let start = node.index as usize;
                 for tri in &self.tris[start..start + node.count as usize] {
@@ -187,16 +194,16 @@ impl Bvh {
                     }
                 }
             } else {
-                let left = stack[sp] + 1;
+                let left = ni + 1;
                 let right = node.index;
                 let tl = slab(&self.nodes[left as usize], &o, &inv, t_min, *t_far);
                 let tr = slab(&self.nodes[right as usize], &o, &inv, t_min, *t_far);
                 // push the farther child first so the nearer one is visited next
                 let order = match (tl, tr) {
-                    (Some(a), Some(b)) if a <= b => [Some(right), Some(left)],
-                    (Some(_), Some(_)) => [Some(left), Some(right)],
-                    (Some(_), None) => [None, Some(left)],
-                    (None, Some(_)) => [None, Some(right)],
+                    (Some(a), Some(b)) if a <= b => [Some((right, b)), Some((left, a))],
+                    (Some(a), Some(b)) => [Some((left, a)), Some((right, b))],
+                    (Some(a), None) => [None, Some((left, a))],
+                    (None, Some(b)) => [None, Some((right, b))],
                     (None, None) => [None, None],
                 };
                 for c in order.into_iter().flatten() {

@@ -5,7 +5,7 @@
 //! where pixel centres sit at half-integers (pixel (0,0) centre is (0.5, 0.5)), as COLMAP.
 //! Pure: no I/O.
 
-use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 
 /// Pinhole intrinsics in pixels, with optional radial distortion (k1, k2) and tangential (p1, p2),
 /// following COLMAP's OPENCV model; zero distortion is the PINHOLE model.
@@ -37,6 +37,22 @@ impl Intrinsics {
             k2: 0.0,
             p1: 0.0,
             p2: 0.0,
+        }
+    }
+
+    /// The same camera for an image resampled by `scale` (0.5: half width and height). With
+    /// pixel centres at half-integers and the origin at the image corner, image coordinates
+    /// scale exactly: focal lengths and principal point multiply by `scale`; distortion, which
+    /// acts on normalised coordinates, is unchanged. The size is rounded to whole pixels.
+    pub fn scaled(&self, scale: f64) -> Self {
+        Self {
+            width: (self.width as f64 * scale).round() as usize,
+            height: (self.height as f64 * scale).round() as usize,
+            fx: self.fx * scale,
+            fy: self.fy * scale,
+            cx: self.cx * scale,
+            cy: self.cy * scale,
+            ..*self
         }
     }
 
@@ -114,6 +130,20 @@ impl Pose {
         }
     }
 
+    /// The pose as an isometry `camera_from_world`, to compose with other transforms: for an
+    /// object turned by a turntable, `camera_from_object = camera_from_world * world_from_object`.
+    pub fn to_isometry(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(Translation3::from(self.translation), self.rotation)
+    }
+
+    /// The pose of an isometry read as `camera_from_world`.
+    pub fn from_isometry(camera_from_world: &Isometry3<f64>) -> Self {
+        Self {
+            rotation: camera_from_world.rotation,
+            translation: camera_from_world.translation.vector,
+        }
+    }
+
     pub fn camera_from_world(&self, p_world: &Point3<f64>) -> Vector3<f64> {
         self.rotation * p_world.coords + self.translation
     }
@@ -150,6 +180,29 @@ mod tests {
         // world up appears as image up (negative y)
         let up = pose.dir_to_camera(&Vector3::z());
         assert!(up.y < 0.0);
+    }
+
+    #[test]
+    fn isometry_composition_moves_the_object_not_the_camera() {
+        let pose = Pose::look_at(Point3::new(0.0, -3.0, 1.0), Point3::origin(), Vector3::z());
+        assert_eq!(Pose::from_isometry(&pose.to_isometry()), pose);
+        // turn the object 90 degrees about z: its point (1, 0, 0) now sits at world (0, 1, 0)
+        let world_from_object = Isometry3::rotation(Vector3::z() * std::f64::consts::FRAC_PI_2);
+        let cam_from_obj = Pose::from_isometry(&(pose.to_isometry() * world_from_object));
+        let a = cam_from_obj.camera_from_world(&Point3::new(1.0, 0.0, 0.0));
+        let b = pose.camera_from_world(&Point3::new(0.0, 1.0, 0.0));
+        assert!((a - b).norm() < 1e-12);
+    }
+
+    #[test]
+    fn scaled_camera_projects_to_scaled_image_coordinates() {
+        let mut k = Intrinsics::pinhole(640, 480, 500.0, 510.0, 321.0, 239.0);
+        k.k1 = -0.05;
+        let h = k.scaled(0.25);
+        assert_eq!((h.width, h.height), (160, 120));
+        let p = Vector3::new(0.3, -0.2, 2.0);
+        let (a, b) = (k.project(&p).unwrap(), h.project(&p).unwrap());
+        assert!((b.0 - a.0 * 0.25).abs() < 1e-12 && (b.1 - a.1 * 0.25).abs() < 1e-12);
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Mesh import (PLY ascii/binary via ply-rs, OBJ via tobj) and PLY export (ascii or binary).
 //!
-//! Conventions: PLY vertices are the `x, y, z` properties of element `vertex` (float or double),
+//! Conventions: PLY vertices are the `x, y, z` properties of element `vertex` (any numeric type),
 //! faces the list `vertex_indices` (or `vertex_index`) of element `face`; polygons with more
 //! than three corners are fan-triangulated (also in OBJ, by tobj). Other elements and
 //! properties (colours, normals in the file) are ignored: normals are recomputed from the
@@ -88,6 +88,13 @@ impl PropertyAccess for PlyElem {
             self.xyz[a] = match p {
                 Property::Float(v) => Some(v as f64),
                 Property::Double(v) => Some(v),
+                // some scanners store integer coordinates
+                Property::Char(v) => Some(v as f64),
+                Property::UChar(v) => Some(v as f64),
+                Property::Short(v) => Some(v as f64),
+                Property::UShort(v) => Some(v as f64),
+                Property::Int(v) => Some(v as f64),
+                Property::UInt(v) => Some(v as f64),
                 _ => None,
             };
             return;
@@ -133,7 +140,7 @@ pub fn load_ply(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
             _ => {
                 return Err(ply_err(
                     path,
-                    format!("vertex {i}: needs float or double properties x, y, z"),
+                    format!("vertex {i}: needs numeric properties x, y, z"),
                 ));
             }
         }

@@ -1,5 +1,9 @@
-//! Geometry: cameras, mesh and camera import (PLY, OBJ, COLMAP), rasteriser, curvature.
-//! Pure computation except the importers, which read files and name them in their errors.
+//! Geometry: cameras, meshes and their import/export (PLY, OBJ), COLMAP models, the BVH, the
+//! ray-cast rasteriser, shadows, curvature and SfM-like meshes.
+//! Pure computation except the importers/exporters (`mesh_io`, `colmap`), which read and write
+//! files and name them in their errors (writes go through `crate::imageio::write_atomic`). Must
+//! not depend on `render`, `brdf` or anything at the edges (devices, capture, sim): those depend
+//! on geometry, not the other way round.
 
 pub mod bvh;
 pub mod camera;
@@ -8,4 +12,5 @@ pub mod curvature;
 pub mod mesh;
 pub mod mesh_io;
 pub mod raster;
+pub mod sfm_like;
 pub mod shadow;

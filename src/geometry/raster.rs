@@ -75,9 +75,98 @@ impl GBuffer {
     }
 }
 
-/// Renders the G-buffer of `mesh` (with its prebuilt `bvh`) seen by camera `k`, `pose`.
-/// `mean_curvature`, when given, has one value per mesh vertex (see `curvature`); a slice of the
-/// wrong length is ignored (fragments then carry `None`).
+/// Casts camera rays against one mesh: build once per (mesh, camera), then ask for whole images
+/// ([`Rasteriser::gbuffer`]) or single pixels ([`Rasteriser::fragment`]), e.g. to sample a few
+/// pixels of a full-resolution photograph without holding a G-buffer for all of it (a
+/// `Fragment` is ~120 bytes, so a 24-megapixel G-buffer would need ~3 GB).
+#[derive(Clone, Copy)]
+pub struct Rasteriser<'a> {
+    mesh: &'a Mesh,
+    bvh: &'a Bvh,
+    k: &'a Intrinsics,
+    centre: Point3<f64>,
+    world_from_cam: nalgebra::UnitQuaternion<f64>,
+    cam_z_world: Vector3<f64>,
+    curvature: Option<&'a [f64]>,
+}
+
+impl<'a> Rasteriser<'a> {
+    /// `mean_curvature`, when given, has one value per mesh vertex (see `curvature`); a slice
+    /// of the wrong length is ignored (fragments then carry `None`).
+    pub fn new(
+        mesh: &'a Mesh,
+        bvh: &'a Bvh,
+        k: &'a Intrinsics,
+        pose: &Pose,
+        mean_curvature: Option<&'a [f64]>,
+    ) -> Self {
+        let world_from_cam = pose.rotation.inverse();
+        Self {
+            mesh,
+            bvh,
+            k,
+            centre: pose.centre(),
+            world_from_cam,
+            cam_z_world: world_from_cam * Vector3::z(),
+            curvature: mean_curvature.filter(|c| c.len() == mesh.positions().len()),
+        }
+    }
+
+    /// What the ray through image position `(px, py)` (pixel units; the centre of pixel
+    /// `(x, y)` is `(x + 0.5, y + 0.5)`) sees.
+    pub fn fragment(&self, px: f64, py: f64) -> Option<Fragment> {
+        let ray = Ray {
+            origin: self.centre,
+            dir: self.world_from_cam * self.k.ray(px, py),
+        };
+        let hit = self.bvh.intersect(&ray, 0.0, f64::INFINITY)?;
+        let mesh = self.mesh;
+        let f = hit.face as usize;
+        let face = mesh.faces()[f];
+        let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
+        let position = ray.origin + ray.dir * hit.t;
+        let vn = mesh.vertex_normals();
+        let n: Vector3<f64> = (0..3).map(|i| vn[face[i] as usize] * bary[i]).sum();
+        let len = n.norm();
+        let normal = if len > 1e-12 {
+            n / len
+        } else {
+            mesh.face_normals()[f]
+        };
+        let mean_curvature = self
+            .curvature
+            .map(|c| (0..3).map(|i| c[face[i] as usize] * bary[i]).sum::<f64>());
+        Some(Fragment {
+            face: hit.face,
+            bary,
+            depth: (position - self.centre).dot(&self.cam_z_world),
+            position,
+            normal,
+            mean_curvature,
+        })
+    }
+
+    /// The whole image, rows in parallel.
+    pub fn gbuffer(&self) -> GBuffer {
+        let (w, h) = (self.k.width, self.k.height);
+        let mut frags = vec![None; w * h];
+        if w > 0 {
+            frags.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                for (x, out) in row.iter_mut().enumerate() {
+                    *out = self.fragment(x as f64 + 0.5, y as f64 + 0.5);
+                }
+            });
+        }
+        GBuffer {
+            width: w,
+            height: h,
+            frags,
+        }
+    }
+}
+
+/// Renders the G-buffer of `mesh` (with its prebuilt `bvh`) seen by camera `k`, `pose`
+/// (see [`Rasteriser`] for the curvature argument and per-pixel queries).
 pub fn rasterise(
     mesh: &Mesh,
     bvh: &Bvh,
@@ -85,56 +174,5 @@ pub fn rasterise(
     pose: &Pose,
     mean_curvature: Option<&[f64]>,
 ) -> GBuffer {
-    let (w, h) = (k.width, k.height);
-    let curv = mean_curvature.filter(|c| c.len() == mesh.positions().len());
-    let centre = pose.centre();
-    let r_world_from_cam = pose.rotation.inverse();
-    let cam_z_world = r_world_from_cam * Vector3::z();
-    let mut frags = vec![None; w * h];
-    if w == 0 {
-        return GBuffer {
-            width: w,
-            height: h,
-            frags,
-        };
-    }
-    frags.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, out) in row.iter_mut().enumerate() {
-            let d_cam = k.ray(x as f64 + 0.5, y as f64 + 0.5);
-            let ray = Ray {
-                origin: centre,
-                dir: r_world_from_cam * d_cam,
-            };
-            let Some(hit) = bvh.intersect(&ray, 0.0, f64::INFINITY) else {
-                continue;
-            };
-            let f = hit.face as usize;
-            let face = mesh.faces()[f];
-            let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
-            let position = ray.origin + ray.dir * hit.t;
-            let vn = mesh.vertex_normals();
-            let n: Vector3<f64> = (0..3).map(|i| vn[face[i] as usize] * bary[i]).sum();
-            let len = n.norm();
-            let normal = if len > 1e-12 {
-                n / len
-            } else {
-                mesh.face_normals()[f]
-            };
-            let mean_curvature =
-                curv.map(|c| (0..3).map(|i| c[face[i] as usize] * bary[i]).sum::<f64>());
-            *out = Some(Fragment {
-                face: hit.face,
-                bary,
-                depth: (position - centre).dot(&cam_z_world),
-                position,
-                normal,
-                mean_curvature,
-            });
-        }
-    });
-    GBuffer {
-        width: w,
-        height: h,
-        frags,
-    }
+    Rasteriser::new(mesh, bvh, k, pose, mean_curvature).gbuffer()
 }

@@ -50,17 +50,17 @@ pub enum Reject {
 
 impl Reject {
     /// The reason word of PROTOCOL.md section 9 (`cobs`, `crc`, `short`, `long`, `kind`,
-    /// `length`), plus `field` and `overflow`, which the vectors do not use.
+    /// `length`), plus `field`, which the vectors do not use. A frame dropped by the 64-byte
+    /// buffer rule is `long` too: it was longer than any frame can be.
     pub fn reason(&self) -> &'static str {
         match self {
             Reject::Cobs(_) => "cobs",
             Reject::Short { .. } => "short",
-            Reject::Long { .. } => "long",
+            Reject::Long { .. } | Reject::Overflow => "long",
             Reject::Crc { .. } => "crc",
             Reject::Kind { .. } => "kind",
             Reject::Length { .. } => "length",
             Reject::Field { .. } => "field",
-            Reject::Overflow => "overflow",
         }
     }
 }

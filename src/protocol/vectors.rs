@@ -247,6 +247,10 @@ pub fn reject_file() -> String {
     let mut p = vec![kind::HEARTBEAT, 0x01, 0x00];
     p.extend(std::iter::repeat_n(0xAA, 58));
     line(raw(&p), "long");
+    // long: 65 bytes before the 0x00, dropped by the buffer rule before any decoding.
+    let mut p = vec![kind::HEARTBEAT, 0x02, 0x00];
+    p.extend(std::iter::repeat_n(0xAA, 60));
+    line(raw(&p), "long");
     // kind: unknown request and reply kinds with correct CRCs.
     line(raw(&[0x05, 0x30, 0x00]), "kind");
     line(raw(&[0x7F, 0x31, 0x00, 0x01]), "kind");

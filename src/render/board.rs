@@ -1,5 +1,6 @@
 //! A planar rectangular board (the white reference target): a one-sided quad given by its
-//! centre, unit normal and two half-extent axes. Rendering goes through `render::analytic`. Pure.
+//! centre and two orthogonal half-extent axes, facing `half_u x half_v`. Rendering goes through
+//! `render::analytic`. Pure.
 
 use super::analytic::{AnalyticShape, SceneObject, render_analytic};
 use super::image::LinearImage;

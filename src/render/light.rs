@@ -29,8 +29,9 @@ impl DirectionalLight {
 }
 
 /// A uniform environment of constant RGB radiance from every direction, integrated by
-/// cosine-weighted hemisphere sampling of the BRDF: `samples` stratified directions per pixel
-/// (rounded up to a square number), jittered per pixel from `seed`, so images are deterministic.
+/// cosine-weighted hemisphere sampling of the BRDF: `samples` directions per pixel (rounded up to
+/// a square number), one jittered point per stratum of the unit square, drawn from `seed` and the
+/// pixel index, so images are deterministic.
 /// With `occlusion`, each sample direction is tested against the mesh (ambient occlusion);
 /// without, the whole hemisphere counts. For a Lambertian BRDF the estimate is exact without
 /// occlusion (`albedo * radiance`) whatever the sample count.

@@ -1,6 +1,7 @@
 //! Rendering shared by the simulated camera and reconstruction: linear images, shading of a mesh
 //! with a BRDF under a directional light and a uniform environment, and analytic scenes (sphere,
-//! board) for previews and calibration. Pure: no files, ports or terminal.
+//! board) for previews and calibration. Pure: no files, ports or terminal. Depends on `geometry`
+//! (cameras, meshes, BVH) and the `Brdf` trait only; file formats live in `crate::imageio`.
 
 pub mod analytic;
 pub mod board;

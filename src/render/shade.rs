@@ -17,7 +17,7 @@ use crate::brdf::Brdf;
 use crate::geometry::bvh::{Bvh, Ray};
 use crate::geometry::camera::{Intrinsics, Pose};
 use crate::geometry::mesh::Mesh;
-use crate::geometry::raster::{GBuffer, rasterise};
+use crate::geometry::raster::{Fragment, GBuffer, rasterise};
 use crate::geometry::shadow::{default_offset, light_visible};
 use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -74,86 +74,92 @@ pub fn shade(
     if w == 0 {
         return img;
     }
-    let offset = default_offset(mesh);
-    let env_dirs = opts.environment.map(|e| stratified_count(e.samples));
     img.data_mut()
         .par_chunks_mut(w * 3)
         .enumerate()
         .for_each(|(y, row)| {
             for x in 0..w {
-                let px = &mut row[3 * x..3 * x + 3];
-                let Some(f) = gbuf.get(x, y) else {
-                    px.copy_from_slice(&opts.background);
-                    continue;
+                let rgb = match gbuf.get(x, y) {
+                    Some(f) => {
+                        let pixel_id = (y * w + x) as u64;
+                        shade_fragment(mesh, bvh, f, camera_centre, brdf, opts, pixel_id)
+                            .map(|v| v as f32)
+                    }
+                    None => opts.background,
                 };
-                let v = (camera_centre - f.position).normalize();
-                let frame = ShadingFrame::new(f.normal);
-                let wo = frame.to_local(&v);
-                if wo.z <= 0.0 {
-                    px.copy_from_slice(&[0.0; 3]);
-                    continue;
-                }
-                let fnorm = mesh.face_normals()[f.face as usize];
-                let mut l_out = [0.0f64; 3];
-                if let Some(light) = &opts.light {
-                    let wi = frame.to_local(&light.to_light);
-                    let lit = wi.z > 0.0
-                        && (!opts.shadows
-                            || light_visible(
-                                bvh,
-                                &f.position,
-                                &fnorm,
-                                &light.to_light,
-                                &v,
-                                offset,
-                            ));
-                    if lit {
-                        let fr = brdf.eval_local(&wi, &wo);
-                        for c in 0..3 {
-                            l_out[c] += fr[c] * light.irradiance[c] * wi.z;
-                        }
-                    }
-                }
-                if let (Some(env), Some(n_side)) = (&opts.environment, env_dirs) {
-                    let pixel_seed =
-                        env.seed ^ ((y * w + x) as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(pixel_seed);
-                    let (ju, jv): (f64, f64) = (rng.r#gen(), rng.r#gen());
-                    let n = n_side * n_side;
-                    let front = if fnorm.dot(&v) >= 0.0 { fnorm } else { -fnorm };
-                    let mut sum = [0.0f64; 3];
-                    for i in 0..n_side {
-                        for j in 0..n_side {
-                            // stratum (i, j), shifted by one per-pixel jitter (Cranley-Patterson)
-                            let u1 = ((i as f64 + ju) / n_side as f64).fract();
-                            let u2 = ((j as f64 + jv) / n_side as f64).fract();
-                            let wi = cosine_direction(u1, u2);
-                            if env.occlusion {
-                                let d = frame.to_world(&wi);
-                                let ray = Ray {
-                                    origin: f.position + front * offset,
-                                    dir: d,
-                                };
-                                if d.dot(&front) <= 0.0 || bvh.occluded(&ray, 0.0, f64::INFINITY) {
-                                    continue;
-                                }
-                            }
-                            let fr = brdf.eval_local(&wi, &wo);
-                            for c in 0..3 {
-                                sum[c] += fr[c];
-                            }
-                        }
-                    }
-                    for c in 0..3 {
-                        l_out[c] += std::f64::consts::PI / n as f64 * sum[c] * env.radiance[c];
-                    }
-                }
-                for c in 0..3 {
-                    px[c] = l_out[c] as f32;
-                }
+                row[3 * x..3 * x + 3].copy_from_slice(&rgb);
             }
         });
     img
+}
+
+/// Radiance towards `camera_centre` from one fragment (see the module header): the per-pixel
+/// kernel of [`shade`], public so callers can shade only the pixels they sample.
+/// `pixel_id` seeds the environment's per-pixel jitter (row-major index in `shade`).
+pub fn shade_fragment(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    f: &Fragment,
+    camera_centre: &Point3<f64>,
+    brdf: &dyn Brdf,
+    opts: &ShadeOptions,
+    pixel_id: u64,
+) -> [f64; 3] {
+    let offset = default_offset(mesh);
+    let v = (camera_centre - f.position).normalize();
+    let frame = ShadingFrame::new(f.normal);
+    let wo = frame.to_local(&v);
+    if wo.z <= 0.0 {
+        return [0.0; 3];
+    }
+    let fnorm = mesh.face_normals()[f.face as usize];
+    let mut l_out = [0.0f64; 3];
+    if let Some(light) = &opts.light {
+        let wi = frame.to_local(&light.to_light);
+        let lit = wi.z > 0.0
+            && (!opts.shadows
+                || light_visible(bvh, &f.position, &fnorm, &light.to_light, &v, offset));
+        if lit {
+            let fr = brdf.eval_local(&wi, &wo);
+            for c in 0..3 {
+                l_out[c] += fr[c] * light.irradiance[c] * wi.z;
+            }
+        }
+    }
+    if let Some(env) = &opts.environment {
+        let n_side = stratified_count(env.samples);
+        let seed = env.seed ^ pixel_id.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let front = if fnorm.dot(&v) >= 0.0 { fnorm } else { -fnorm };
+        let mut sum = [0.0f64; 3];
+        for i in 0..n_side {
+            for j in 0..n_side {
+                // jittered stratification: one uniform point inside stratum (i, j)
+                let u1 = (i as f64 + rng.r#gen::<f64>()) / n_side as f64;
+                let u2 = (j as f64 + rng.r#gen::<f64>()) / n_side as f64;
+                let wi = cosine_direction(u1, u2);
+                if env.occlusion {
+                    let d = frame.to_world(&wi);
+                    let ray = Ray {
+                        origin: f.position + front * offset,
+                        dir: d,
+                    };
+                    if d.dot(&front) <= 0.0 || bvh.occluded(&ray, 0.0, f64::INFINITY) {
+                        continue;
+                    }
+                }
+                let fr = brdf.eval_local(&wi, &wo);
+                for c in 0..3 {
+                    sum[c] += fr[c];
+                }
+            }
+        }
+        let n = (n_side * n_side) as f64;
+        for c in 0..3 {
+            l_out[c] += std::f64::consts::PI / n * sum[c] * env.radiance[c];
+        }
+    }
+    l_out
 }
 
 /// Side of the square sample grid: `ceil(sqrt(samples))`, at least 1.

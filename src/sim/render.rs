@@ -246,6 +246,15 @@ impl SceneRenderer for ObjectScene {
     }
 }
 
+impl super::camera::RigView for crate::sim::SimHandle {
+    fn angle_deg(&self) -> f64 {
+        self.snapshot().angle_deg
+    }
+    fn levels(&self) -> Vec<f64> {
+        self.snapshot().levels
+    }
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {

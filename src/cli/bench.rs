@@ -1,0 +1,108 @@
+//! `brdf-rig bench ...`: measurements that produce the tables in `docs/benchmarks-*.md`, with
+//! the command that made them. One subcommand per area.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+
+use brdf_rig::devices::bench::{self, RigBenchOptions};
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    #[command(subcommand)]
+    pub command: BenchCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// STATUS round trip and controller overhead per step, over a pty to the simulated firmware.
+    Rig(BenchRigArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchRigArgs {
+    /// Rig profile with `port = "sim"` (default: the built-in simulated rig).
+    #[arg(long)]
+    pub profile: Option<PathBuf>,
+    #[arg(long, default_value_t = 2000)]
+    pub round_trips: usize,
+    #[arg(long, default_value_t = 40)]
+    pub steps: usize,
+    #[arg(long, default_value_t = 1.0)]
+    pub step_deg: f64,
+    /// Also write the markdown page here (e.g. docs/benchmarks-rig.md).
+    #[arg(long)]
+    pub write: Option<PathBuf>,
+}
+
+pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
+    match args.command {
+        BenchCommand::Rig(a) => rig(a),
+    }
+}
+
+fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease")
+        .map(|s| format!("Linux {}", s.trim()))
+        .unwrap_or_else(|_| std::env::consts::OS.into());
+    format!("{cpu}, {cores} cores, {kernel}")
+}
+
+fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
+    let profile = match &a.profile {
+        Some(p) => brdf_rig::profile::Profile::load(p)?,
+        None => brdf_rig::profile::Profile::simulated()?,
+    };
+    anyhow::ensure!(
+        profile.is_simulated(),
+        "{}: bench rig needs a profile with port = \"sim\"",
+        profile.origin
+    );
+    let opts = RigBenchOptions {
+        round_trips: a.round_trips.max(1),
+        steps: a.steps.max(1),
+        step_deg: a.step_deg,
+    };
+    let report = bench::run(&profile, &opts).context("running the rig benchmark")?;
+    let mut command = String::from("cargo run --release -- bench rig");
+    if let Some(p) = &a.profile {
+        command += &format!(" --profile {}", p.display());
+    }
+    command += &format!(
+        " --round-trips {} --steps {} --step-deg {}",
+        opts.round_trips, opts.steps, opts.step_deg
+    );
+    if let Some(w) = &a.write {
+        command += &format!(" --write {}", w.display());
+    }
+    for (i, w) in report.walls.iter().enumerate() {
+        if *w > report.step_wall[0] * 3 / 2 {
+            eprintln!(
+                "note: step {} took {:.1} ms (median {:.1} ms)",
+                i + 1,
+                w.as_secs_f64() * 1e3,
+                report.step_wall[0].as_secs_f64() * 1e3
+            );
+        }
+    }
+    let md = report.markdown(&command, &machine());
+    print!("{md}");
+    if let Some(w) = &a.write {
+        std::fs::write(w, &md).with_context(|| format!("writing {}", w.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}

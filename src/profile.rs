@@ -1,0 +1,457 @@
+//! Rig profiles: the TOML file that says how to reach the rig and what it may do (serial port,
+//! turntable limits, light channels with their directions). `rig-profiles/simulated.toml` is
+//! built into the binary as the default.
+//!
+//! Sections owned here (`[serial]`, `[turntable]`, `[light]`, `[sim]`) reject unknown keys, so a
+//! typo is an error, not a silently ignored setting. Other top-level sections (capture's
+//! `[camera]`, calibration's `[calibration]`) are ignored here; their owners parse them from
+//! [`Profile::source`] with their own types. Errors name the file, the line and the key.
+//!
+//! Units: degrees and seconds-based rates as an operator writes them (`*_deg`, `*_deg_s`,
+//! `*_deg_s2`), durations in milliseconds (`*_ms`), light levels in [0, 1].
+//! Must not open ports or spawn anything (that is `devices::rig`).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use thiserror::Error;
+
+/// The built-in simulated profile (`rig-profiles/simulated.toml`).
+pub const SIMULATED: &str = include_str!("../rig-profiles/simulated.toml");
+/// Name under which the built-in profile appears in messages.
+pub const SIMULATED_NAME: &str = "<built-in rig-profiles/simulated.toml>";
+
+#[derive(Debug, Error)]
+pub enum ProfileError {
+    #[error("cannot read rig profile {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{file}:{line}: {key}: {message}")]
+    Parse {
+        file: String,
+        line: usize,
+        key: String,
+        message: String,
+    },
+    #[error("{file}:{line}: {key}: {reason}")]
+    Invalid {
+        file: String,
+        line: usize,
+        key: String,
+        reason: String,
+    },
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SerialSection {
+    /// A device path, or `"sim"` for the in-process simulated firmware.
+    pub port: String,
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    pub timeout_ms: u64,
+    pub retries: u32,
+    #[serde(default = "default_reconnect")]
+    pub reconnect_ms: u64,
+    #[serde(default = "default_watchdog")]
+    pub watchdog_ms: u16,
+}
+
+fn default_baud() -> u32 {
+    115_200
+}
+fn default_reconnect() -> u64 {
+    3000
+}
+fn default_watchdog() -> u16 {
+    2000
+}
+fn default_poll() -> u64 {
+    2
+}
+fn default_warmup_timeout() -> u64 {
+    3000
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TurntableSection {
+    pub max_speed_deg_s: f64,
+    pub max_accel_deg_s2: f64,
+    pub min_angle_deg: f64,
+    pub max_angle_deg: f64,
+    pub steps_per_rev: u32,
+    #[serde(default = "default_poll")]
+    pub poll_ms: u64,
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelSection {
+    pub name: String,
+    /// Highest level the driver will send, in (0, 1].
+    pub max_level: f64,
+    /// Around the turntable axis from the camera's direction, counter-clockwise seen from above.
+    pub azimuth_deg: f64,
+    /// Above the horizontal plane through the object's centre.
+    pub elevation_deg: f64,
+}
+
+impl ChannelSection {
+    /// Unit vector towards the light in the lab frame: +z up (the turntable axis), +x towards
+    /// the camera (horizontally), +y = z cross x.
+    pub fn direction_lab(&self) -> [f64; 3] {
+        let (az, el) = (
+            self.azimuth_deg.to_radians(),
+            self.elevation_deg.to_radians(),
+        );
+        [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+    }
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LightSection {
+    #[serde(default = "default_warmup_timeout")]
+    pub warmup_timeout_ms: u64,
+    pub channels: Vec<ChannelSection>,
+}
+
+/// Settings of the simulated firmware (used only with `port = "sim"`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimSection {
+    pub warmup_ms: u32,
+    pub drop_rate: f64,
+    pub corrupt_rate: f64,
+    pub seed: u64,
+}
+
+impl Default for SimSection {
+    fn default() -> SimSection {
+        SimSection {
+            warmup_ms: 50,
+            drop_rate: 0.0,
+            corrupt_rate: 0.0,
+            seed: 1,
+        }
+    }
+}
+
+/// The sections of the file this module owns; unknown top-level sections are ignored.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+struct Sections {
+    serial: SerialSection,
+    turntable: TurntableSection,
+    light: LightSection,
+    #[serde(default)]
+    sim: SimSection,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Profile {
+    /// Where it came from (a path, or [`SIMULATED_NAME`]), for messages.
+    pub origin: String,
+    /// The whole file, for the sections other modules own.
+    pub source: String,
+    pub serial: SerialSection,
+    pub turntable: TurntableSection,
+    pub light: LightSection,
+    pub sim: SimSection,
+}
+
+impl Profile {
+    /// The built-in simulated rig.
+    pub fn simulated() -> Result<Profile, ProfileError> {
+        Profile::parse(SIMULATED, SIMULATED_NAME)
+    }
+
+    pub fn load(path: &Path) -> Result<Profile, ProfileError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Profile::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses and validates profile text; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Profile, ProfileError> {
+        let s: Sections = toml::from_str(text).map_err(|e| {
+            let (line, key) = match e.span() {
+                Some(span) => locate(text, span.start),
+                None => (0, String::from("(file)")),
+            };
+            ProfileError::Parse {
+                file: origin.to_owned(),
+                line,
+                key,
+                message: e.message().trim().to_owned(),
+            }
+        })?;
+        let p = Profile {
+            origin: origin.to_owned(),
+            source: text.to_owned(),
+            serial: s.serial,
+            turntable: s.turntable,
+            light: s.light,
+            sim: s.sim,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// True when the port is the in-process simulated firmware.
+    pub fn is_simulated(&self) -> bool {
+        self.serial.port == "sim"
+    }
+
+    fn invalid(&self, section: &str, key: &str, reason: String) -> ProfileError {
+        ProfileError::Invalid {
+            file: self.origin.clone(),
+            line: line_of_key(&self.source, section, key),
+            key: format!("{section}.{key}"),
+            reason,
+        }
+    }
+
+    fn validate(&self) -> Result<(), ProfileError> {
+        let s = &self.serial;
+        if s.port.trim().is_empty() {
+            return Err(self.invalid("serial", "port", "empty port path".into()));
+        }
+        if s.timeout_ms == 0 || s.timeout_ms > 60_000 {
+            return Err(self.invalid("serial", "timeout_ms", "must be in 1..=60000".into()));
+        }
+        if s.retries > 100 {
+            return Err(self.invalid("serial", "retries", "must be at most 100".into()));
+        }
+        if !(100..=60_000).contains(&s.watchdog_ms) {
+            return Err(self.invalid(
+                "serial",
+                "watchdog_ms",
+                "must be in 100..=60000 (PROTOCOL.md SET_WATCHDOG)".into(),
+            ));
+        }
+        let t = &self.turntable;
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(t.max_speed_deg_s) || t.max_speed_deg_s * 1000.0 > u32::MAX as f64 {
+            return Err(self.invalid("turntable", "max_speed_deg_s", "must be > 0".into()));
+        }
+        if !pos(t.max_accel_deg_s2) || t.max_accel_deg_s2 * 1000.0 > u32::MAX as f64 {
+            return Err(self.invalid("turntable", "max_accel_deg_s2", "must be > 0".into()));
+        }
+        let lim = i32::MAX as f64 / 1000.0;
+        if !t.min_angle_deg.is_finite() || t.min_angle_deg.abs() > lim {
+            return Err(self.invalid("turntable", "min_angle_deg", "not a usable angle".into()));
+        }
+        if !t.max_angle_deg.is_finite() || t.max_angle_deg <= t.min_angle_deg {
+            return Err(self.invalid(
+                "turntable",
+                "max_angle_deg",
+                format!("must be above min_angle_deg ({})", t.min_angle_deg),
+            ));
+        }
+        if t.max_angle_deg.abs() > lim {
+            return Err(self.invalid("turntable", "max_angle_deg", "not a usable angle".into()));
+        }
+        if t.steps_per_rev == 0 {
+            return Err(self.invalid("turntable", "steps_per_rev", "must be > 0".into()));
+        }
+        if t.poll_ms > 1000 {
+            return Err(self.invalid("turntable", "poll_ms", "must be at most 1000".into()));
+        }
+        let n = self.light.channels.len();
+        if n == 0 || n > crate::protocol::messages::MAX_CHANNELS {
+            return Err(self.invalid(
+                "light",
+                "channels",
+                format!(
+                    "{n} channels; the protocol carries 1 to {}",
+                    crate::protocol::messages::MAX_CHANNELS
+                ),
+            ));
+        }
+        for (i, c) in self.light.channels.iter().enumerate() {
+            let at = |key: &str, reason: String| ProfileError::Invalid {
+                file: self.origin.clone(),
+                line: line_of_nth(&self.source, "[[light.channels]]", i, key),
+                key: format!("light.channels[{i}].{key}"),
+                reason,
+            };
+            if !(c.max_level > 0.0 && c.max_level <= 1.0) {
+                return Err(at("max_level", "must be in (0, 1]".into()));
+            }
+            if !c.azimuth_deg.is_finite() {
+                return Err(at("azimuth_deg", "must be a number".into()));
+            }
+            if !(-90.0..=90.0).contains(&c.elevation_deg) {
+                return Err(at("elevation_deg", "must be in [-90, 90]".into()));
+            }
+        }
+        let rate = |r: f64| (0.0..1.0).contains(&r);
+        if !rate(self.sim.drop_rate) {
+            return Err(self.invalid("sim", "drop_rate", "must be in [0, 1)".into()));
+        }
+        if !rate(self.sim.corrupt_rate) {
+            return Err(self.invalid("sim", "corrupt_rate", "must be in [0, 1)".into()));
+        }
+        Ok(())
+    }
+}
+
+/// 1-based line of byte `offset`, and the key written on that line (`section.key`).
+fn locate(text: &str, offset: usize) -> (usize, String) {
+    let offset = offset.min(text.len());
+    let line = text[..offset].matches('\n').count() + 1;
+    let mut section = String::new();
+    let mut key = String::new();
+    for (i, l) in text.lines().enumerate() {
+        if i + 1 > line {
+            break;
+        }
+        let t = l.trim();
+        if t.starts_with('[') {
+            section = t.trim_matches(|c| c == '[' || c == ']').trim().to_owned();
+            key.clear();
+        }
+        if i + 1 == line {
+            if let Some((k, _)) = t.split_once('=') {
+                key = k.trim().to_owned();
+            }
+        }
+    }
+    let full = match (section.is_empty(), key.is_empty()) {
+        (true, true) => "(top level)".to_owned(),
+        (false, true) => format!("[{section}]"),
+        (true, false) => key,
+        (false, false) => format!("{section}.{key}"),
+    };
+    (line, full)
+}
+
+/// 1-based line of `key = ...` inside `[section]`, or of the section header, or 0.
+fn line_of_key(text: &str, section: &str, key: &str) -> usize {
+    let header = format!("[{section}]");
+    let mut inside = false;
+    let mut header_line = 0;
+    for (i, l) in text.lines().enumerate() {
+        let t = l.trim();
+        if t.starts_with('[') {
+            inside = t == header;
+            if inside {
+                header_line = i + 1;
+            }
+            continue;
+        }
+        if inside && t.split_once('=').map(|(k, _)| k.trim()) == Some(key) {
+            return i + 1;
+        }
+    }
+    header_line
+}
+
+/// Like [`line_of_key`] for the `n`-th occurrence of an array-of-tables header.
+fn line_of_nth(text: &str, header: &str, n: usize, key: &str) -> usize {
+    let mut count = 0;
+    let mut inside = false;
+    let mut header_line = 0;
+    for (i, l) in text.lines().enumerate() {
+        let t = l.trim();
+        if t.starts_with('[') {
+            inside = false;
+            if t == header {
+                if count == n {
+                    inside = true;
+                    header_line = i + 1;
+                }
+                count += 1;
+            }
+            continue;
+        }
+        if inside && t.split_once('=').map(|(k, _)| k.trim()) == Some(key) {
+            return i + 1;
+        }
+    }
+    header_line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn built_in_and_example_profiles_parse() {
+        let p = Profile::simulated().unwrap();
+        assert!(p.is_simulated());
+        assert_eq!(p.light.channels.len(), 3);
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("rig-profiles");
+        let real = Profile::load(&dir.join("example-real.toml")).unwrap();
+        assert!(!real.is_simulated());
+        assert_eq!(real.light.channels[0].max_level, 0.8);
+    }
+
+    #[test]
+    fn unknown_key_names_file_line_and_key() {
+        let text = SIMULATED.replace("max_accel_deg_s2", "max_acel_deg_s2");
+        let want_line = SIMULATED
+            .lines()
+            .position(|l| l.starts_with("max_accel_deg_s2"))
+            .unwrap()
+            + 1;
+        let e = Profile::parse(&text, "my-rig.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with(&format!("my-rig.toml:{want_line}: ")), "{e}");
+        assert!(e.contains("turntable.max_acel_deg_s2"), "{e}");
+        assert!(e.contains("unknown field"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_names_the_key() {
+        let text = SIMULATED.replace("retries = 5", "retries = \"five\"");
+        let want_line = text.lines().position(|l| l.contains("\"five\"")).unwrap() + 1;
+        let e = Profile::parse(&text, "x.toml").unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("x.toml:{want_line}: serial.retries:")),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn out_of_range_value_names_the_key_and_line() {
+        let text = SIMULATED.replacen(
+            "name = \"mid\"\nmax_level = 1.0",
+            "name = \"mid\"\nmax_level = 1.5",
+            1,
+        );
+        let want_line = text.lines().position(|l| l == "max_level = 1.5").unwrap() + 1;
+        let e = Profile::parse(&text, "x.toml").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!("x.toml:{want_line}: light.channels[1].max_level: must be in (0, 1]")
+        );
+        let text = SIMULATED.replace("min_angle_deg = -360.0", "min_angle_deg = 400.0");
+        let e = Profile::parse(&text, "x.toml").unwrap_err().to_string();
+        assert!(e.contains("turntable.max_angle_deg: must be above"), "{e}");
+    }
+
+    #[test]
+    fn sections_of_other_modules_are_tolerated() {
+        let text = format!("{SIMULATED}\n[camera]\nbackend = \"sim\"\n\n[calibration]\nx = 1\n");
+        let p = Profile::parse(&text, "x.toml").unwrap();
+        assert!(p.source.contains("[camera]"));
+    }
+
+    #[test]
+    fn light_directions_are_unit_vectors_in_the_lab_frame() {
+        let p = Profile::simulated().unwrap();
+        let d = p.light.channels[0].direction_lab();
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        assert!((n - 1.0).abs() < 1e-12);
+        // Azimuth 20 degrees in the horizontal plane: 20 degrees from the camera direction +x.
+        assert!((d[1].atan2(d[0]).to_degrees() - 20.0).abs() < 1e-9);
+        assert_eq!(d[2], 0.0);
+    }
+}
