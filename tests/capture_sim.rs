@@ -79,7 +79,20 @@ fn a_full_simulated_capture_takes_every_planned_shot_of_the_scene() {
         images.lines().filter(|l| l.contains("ambient/v")).count(),
         6
     );
-    assert!(out.join("sim/truth.json").exists() && out.join("sim/mesh_true.ply").exists());
+    for f in [
+        "sim/truth.json",
+        "sim/mesh_true.ply",
+        "sim/mesh_sfm.ply",
+        "profile.toml",
+        "plan.toml",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    let (sfm, _) = brdf_rig::geometry::mesh_io::load_mesh(&out.join("sim/mesh_sfm.ply")).unwrap();
+    let (truth_mesh, _) =
+        brdf_rig::geometry::mesh_io::load_mesh(&out.join("sim/mesh_true.ply")).unwrap();
+    assert_eq!(sfm.faces().len(), truth_mesh.faces().len());
+    assert_ne!(sfm.positions(), truth_mesh.positions());
     let truth = std::fs::read_to_string(out.join("sim/truth.json")).unwrap();
     assert!(truth.contains("not measured MERL data"));
 }

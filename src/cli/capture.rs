@@ -266,6 +266,14 @@ fn open_camera(
 }
 
 pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
+    let (result, dir) = execute(args)?;
+    report(result, &dir)
+}
+
+/// Prepares everything and runs the session; the outcome of the run and the session folder.
+pub fn execute(
+    args: CaptureArgs,
+) -> anyhow::Result<(Result<brdf_rig::capture::RunSummary, CaptureError>, PathBuf)> {
     let resuming = args.resume.is_some();
     // 1. Plan and profile.
     let (dir, plan, plan_text, profile) = match (&args.resume, &args.out) {
@@ -438,6 +446,13 @@ pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
         &mut bars,
         &options,
     );
+    Ok((result, dir))
+}
+
+fn report(
+    result: Result<brdf_rig::capture::RunSummary, CaptureError>,
+    dir: &Path,
+) -> anyhow::Result<ExitCode> {
     match result {
         Ok(summary) => {
             eprintln!(

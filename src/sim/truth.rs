@@ -11,6 +11,8 @@
 //!                       view's first ambient file (e.g. `ambient/v003_e0.exr`); single-light
 //!                       shots of view N use that view's pose
 //! sim/mesh_true.ply     the object as placed on the turntable (object frame)
+//! sim/mesh_sfm.ply      what SfM/MVS would give: the true mesh smoothed and noised
+//!                       (`geometry::sfm_like`, default parameters, seeded by the scene seed)
 //! ```
 
 use serde::Serialize;
@@ -23,6 +25,7 @@ use crate::capture::plan::{CapturePlan, LabGeometry, ShotKind};
 use crate::capture::session::write_atomic;
 use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, write_text};
 use crate::geometry::mesh_io::{PlyEncoding, write_ply};
+use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
 
 #[derive(Serialize)]
 struct ChannelTruth {
@@ -137,6 +140,19 @@ pub fn write_ground_truth(
     write_ply(
         &sim.join("mesh_true.ply"),
         scene.mesh(),
+        PlyEncoding::BinaryLittleEndian,
+    )
+    .map_err(|e| e.to_string())?;
+    let sfm = sfm_like(
+        scene.mesh(),
+        &SfmLikeParams {
+            seed: config.seed,
+            ..SfmLikeParams::default()
+        },
+    );
+    write_ply(
+        &sim.join("mesh_sfm.ply"),
+        &sfm,
         PlyEncoding::BinaryLittleEndian,
     )
     .map_err(|e| e.to_string())?;
