@@ -12,6 +12,7 @@ pub mod geometry;
 pub mod imageio;
 pub mod profile;
 pub mod protocol;
+pub mod reconstruct;
 pub mod render;
 pub mod report;
 pub mod sim;

@@ -1,18 +1,21 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
-mod cameras;
-mod capture;
+pub mod calibrate;
 mod merl;
-mod session;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
 mod bench_capture;
+mod cameras;
+mod capture;
+mod session;
 mod light;
 mod ports;
+mod reconstruct;
+mod report;
 mod rig;
 mod turntable;
 
@@ -33,10 +36,16 @@ pub enum Command {
     Capture(capture::CaptureArgs),
     /// List the cameras each backend finds (sim, gphoto2, webcam, v4l2).
     Cameras(cameras::CamerasArgs),
-    /// Inspect a session folder.
+    /// Inspect a session folder: `session verify DIR` re-checks every checksum.
     Session(session::SessionArgs),
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
+    /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
+    Reconstruct(reconstruct::Args),
+    /// Write a self-contained HTML report of a session or reconstruction folder.
+    Report(report::ReportArgs),
     /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
     Rig(rig::RigCommandArgs),
     /// Home, move or query the turntable.
@@ -45,8 +54,8 @@ pub enum Command {
     Light(light::LightArgs),
     /// Measurements behind the tables in docs/benchmarks-*.md.
     Bench(bench::BenchArgs),
-    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
-    Merl(merl::MerlArgs),
+    /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -55,10 +64,13 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Cameras(a) => cameras::run(a),
         Command::Session(a) => session::run(a),
         Command::Ports => ports::run(),
+        Command::Merl(args) => merl::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Report(args) => report::run(args),
         Command::Rig(a) => rig::run(a),
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
-        Command::Merl(args) => merl::run(args),
+        Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }

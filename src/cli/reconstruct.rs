@@ -1,0 +1,128 @@
+//! `brdf-rig reconstruct JOB --out DIR`: recover a BRDF from a reconstruction job and write
+//! `brdf.binary`, `report.json` and sphere renders. Thin: arguments become
+//! `reconstruct::Settings`, the library does the work, progress goes to stderr.
+
+use anyhow::Context;
+use brdf_rig::reconstruct::{self, Job, Settings};
+use clap::Args as ClapArgs;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(ClapArgs, Debug)]
+pub struct Args {
+    /// The job file (TOML): mesh, COLMAP model, light images.
+    pub job: PathBuf,
+    /// Output folder (created): brdf.binary, report.json, sphere.exr, sphere.png.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Random trials, the best chosen by cosine similarity with the captured images.
+    #[arg(long, default_value_t = 10)]
+    pub trials: usize,
+    /// Sample pixels per trial.
+    #[arg(long, default_value_t = 80)]
+    pub samples: usize,
+    /// Fraction of the reliable pixels each trial draws.
+    #[arg(long, default_value_t = 0.5)]
+    pub subset: f64,
+    /// Basis components; default: chosen by validation on held-back pixels.
+    #[arg(long)]
+    pub components: Option<usize>,
+    /// Ridge weight eta with --components (validation chooses it otherwise).
+    #[arg(long, default_value_t = 40.0)]
+    pub eta: f64,
+    /// Keep pixels whose |mean curvature| is at or below this quantile (0..1).
+    #[arg(long, default_value_t = 0.5, conflicts_with = "curvature_max")]
+    pub curvature_quantile: f64,
+    /// Keep pixels whose |mean curvature| is at or below this (1 / mesh unit) instead.
+    #[arg(long)]
+    pub curvature_max: Option<f64>,
+    /// Ablation: switch off assumption 1 (curvature).
+    #[arg(long)]
+    pub no_curvature: bool,
+    /// Ablation: switch off assumption 2 (monotonicity, eq. 1).
+    #[arg(long)]
+    pub no_monotonicity: bool,
+    /// Ablation: switch off assumption 3 (brightest pixel, n = h).
+    #[arg(long)]
+    pub no_brightest: bool,
+    /// Materials to leave out of the basis (repeatable), e.g. the one being evaluated.
+    #[arg(long = "exclude")]
+    pub exclude: Vec<String>,
+    /// Folder of the neural MERL fits the basis is built from.
+    #[arg(long, env = "BRDF_RIG_NBRDF_DIR")]
+    pub nbrdf_dir: Option<PathBuf>,
+    /// Basis cache folder (built on first use).
+    #[arg(long, env = "BRDF_RIG_BASIS_CACHE")]
+    pub basis_cache: Option<PathBuf>,
+    /// Pixel values at or above this are clipped (dropped); default: 1.0 for 16-bit files,
+    /// none for EXR.
+    #[arg(long)]
+    pub saturation: Option<f64>,
+    /// Basis grid stride along theta_h, theta_d, phi_d (coarser = faster, less exact).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [1usize, 2, 2])]
+    pub basis_stride: Vec<usize>,
+    /// Components kept in the basis.
+    #[arg(long, default_value_t = 80)]
+    pub basis_components: usize,
+    /// Random seed of the trials.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let job = Job::from_file(&args.job)?;
+    for w in &job.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut settings = Settings::default();
+    settings.core.trials.trials = args.trials;
+    settings.core.trials.samples = args.samples;
+    settings.core.trials.subset_fraction = args.subset;
+    settings.core.trials.seed = args.seed;
+    settings.core.fixed_components = args.components;
+    settings.core.fixed_eta = args.eta;
+    let r = &mut settings.core.reliable;
+    r.use_curvature = !args.no_curvature;
+    r.use_monotonicity = !args.no_monotonicity;
+    r.use_brightest = !args.no_brightest;
+    r.curvature_threshold = match args.curvature_max {
+        Some(t) => reconstruct::reliable::CurvatureThreshold::Absolute(t),
+        None => reconstruct::reliable::CurvatureThreshold::Quantile(args.curvature_quantile),
+    };
+    settings.basis.exclude = args.exclude;
+    if let [h, d, p] = args.basis_stride[..] {
+        settings.basis.stride = brdf_rig::brdf::basis::GridStride {
+            theta_h: h,
+            theta_d: d,
+            phi_d: p,
+        };
+    }
+    settings.basis.n_components = args.basis_components;
+    if let Some(d) = args.nbrdf_dir {
+        settings.nbrdf_dir = d;
+    }
+    settings.basis_cache = args.basis_cache;
+    settings.saturation = args.saturation;
+    let started = std::time::Instant::now();
+    let mut progress = |stage: &str| {
+        eprintln!("[{:7.2} s] {stage}", started.elapsed().as_secs_f64());
+    };
+    let output = reconstruct::reconstruct(&job, &settings, &mut progress)
+        .with_context(|| format!("reconstructing from {}", args.job.display()))?;
+    reconstruct::output::write(&args.out, &output)
+        .with_context(|| format!("writing results to {}", args.out.display()))?;
+    for w in &output.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    let chosen = &output.report.trials[output.report.chosen_trial];
+    eprintln!(
+        "done in {:.2} s: trial {} of {} (similarity {:.5}), k = {}; wrote {}",
+        started.elapsed().as_secs_f64(),
+        chosen.index + 1,
+        output.report.trials.len(),
+        chosen.similarity,
+        output.report.components.k,
+        args.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,137 @@
+//! The pure heart of reconstruction: from observations to the chosen BRDF, with everything the
+//! report needs (counts, choices, per-trial similarity, timings).
+//!
+//! Pure: no I/O; the caller supplies the observations and the prior.
+
+use super::components::{ComponentChoice, ComponentSettings, choose_components};
+use super::observe::Observation;
+use super::prior::{Candidate, Prior};
+use super::reliable::{ReliableSettings, select_reliable};
+use super::trials::{Trial, TrialSettings, best_trial, run_trials};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Settings of the steps after observation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CoreSettings {
+    pub reliable: ReliableSettings,
+    pub trials: TrialSettings,
+    pub components: ComponentSettings,
+    /// Use this k instead of choosing one by validation.
+    pub fixed_components: Option<usize>,
+    /// Ridge weight used with `fixed_components` (validation chooses its own otherwise).
+    pub fixed_eta: f64,
+}
+
+impl Default for CoreSettings {
+    fn default() -> Self {
+        Self {
+            reliable: ReliableSettings::default(),
+            trials: TrialSettings::default(),
+            components: ComponentSettings::default(),
+            fixed_components: None,
+            fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
+        }
+    }
+}
+
+/// Reasons the core cannot produce a BRDF.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CoreError {
+    #[error("no usable pixels: every pixel was shadowed, masked out, grazing, saturated or black")]
+    NoObservations,
+    #[error("no reliable pixels left after the curvature filter (threshold {threshold:.4e})")]
+    NoReliablePixels { threshold: f64 },
+    #[error("every trial failed to fit a BRDF")]
+    AllTrialsFailed,
+}
+
+/// What the core produces.
+pub struct CoreOutput {
+    pub brdf: Box<dyn Candidate>,
+    pub trials: Vec<Trial>,
+    pub chosen_trial: usize,
+    pub components: ComponentChoice,
+    pub reliable_pixels: usize,
+    pub dropped_by_curvature: usize,
+    pub curvature_threshold: Option<f64>,
+    /// (stage, seconds)
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Reliable pixels, number of components, trials, choice.
+pub fn reconstruct_observations(
+    observations: &[Observation],
+    prior: &dyn Prior,
+    settings: &CoreSettings,
+    progress: &mut dyn FnMut(&str),
+) -> Result<CoreOutput, CoreError> {
+    if observations.is_empty() {
+        return Err(CoreError::NoObservations);
+    }
+    let mut timings = Vec::new();
+    let t = Instant::now();
+    progress("reliable pixels (curvature, brightest pixel)");
+    let reliable = select_reliable(observations, &settings.reliable);
+    if reliable.pixels.is_empty() && reliable.brightest.is_none() {
+        return Err(CoreError::NoReliablePixels {
+            threshold: reliable.curvature_threshold.unwrap_or(f64::NAN),
+        });
+    }
+    timings.push(("reliable".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = Instant::now();
+    let components = match settings.fixed_components {
+        Some(k) => ComponentChoice {
+            k: k.min(prior.max_components()).max(1),
+            eta: settings.fixed_eta,
+            curve: Vec::new(),
+            held_out_pixels: 0,
+            samples: 0,
+            note: Some("fixed by the settings".to_string()),
+        },
+        None => {
+            progress("number of components (validation on held-back pixels)");
+            choose_components(
+                prior,
+                &reliable,
+                &settings.reliable,
+                settings.trials.samples,
+                &settings.components,
+                settings.trials.seed,
+            )
+        }
+    };
+    timings.push(("components".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = Instant::now();
+    progress(&format!(
+        "{} trials ({} samples, k = {}, eta = {})",
+        settings.trials.trials, settings.trials.samples, components.k, components.eta
+    ));
+    let mut trials = run_trials(
+        prior,
+        &reliable,
+        observations,
+        &settings.reliable,
+        &settings.trials,
+        components.k,
+        components.eta,
+    );
+    let chosen = best_trial(&trials).ok_or(CoreError::AllTrialsFailed)?;
+    let brdf = trials[chosen]
+        .candidate
+        .take()
+        .ok_or(CoreError::AllTrialsFailed)?;
+    timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
+    Ok(CoreOutput {
+        brdf,
+        trials,
+        chosen_trial: chosen,
+        components,
+        reliable_pixels: reliable.pixels.len() + usize::from(reliable.brightest.is_some()),
+        dropped_by_curvature: reliable.dropped_by_curvature,
+        curvature_threshold: reliable.curvature_threshold,
+        timings,
+    })
+}

@@ -1,0 +1,33 @@
+//! Reconstruction of an isotropic BRDF from a mesh, camera poses and single-light images
+//! (METHOD.md sections 2-6; the paper: Ono et al., NAIST).
+//!
+//! The flow, one file per concept:
+//! - [`job`]: the job file (mesh, COLMAP model, light images with light direction and irradiance);
+//! - [`observe`]: per pixel directions, reflectance, Rusinkiewicz angles and MERL bin;
+//! - [`reliable`]: the three assumptions (curvature, monotonicity, brightest pixel);
+//! - [`prior`]: what a BRDF prior offers (sample selection, ridge fit), [`nielsen`] the real one;
+//! - [`components`]: the number of basis components, by validation on held-back pixels;
+//! - [`trials`]: random trials, chosen by cosine similarity with the captured images.
+//!
+//! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and runs
+//! everything; [`output`] writes the results; [`synthetic`] writes simulated scenes. Only
+//! `pipeline`, `output` and `synthetic` touch files.
+//!
+//! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
+//! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
+
+pub mod components;
+pub mod core;
+pub mod job;
+pub mod nielsen;
+pub mod observe;
+pub mod output;
+pub mod pipeline;
+pub mod prior;
+pub mod reliable;
+pub mod synthetic;
+pub mod trials;
+
+pub use core::{CoreOutput, CoreSettings, reconstruct_observations};
+pub use job::{Job, JobError, LightImageSpec};
+pub use pipeline::{Output, ReconstructError, Settings, reconstruct, reconstruct_with_basis};

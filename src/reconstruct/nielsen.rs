@@ -1,0 +1,104 @@
+//! The Nielsen prior: the PCA basis of measured BRDFs (`brdf::basis`), sample selection by
+//! condition number (`brdf::sampling`) restricted to the rows the reliable pixels observe, and
+//! ridge reconstruction (`brdf::ridge`). An adapter only: the mathematics lives in `brdf`.
+//!
+//! Convention: the basis lives on a subsampled grid; a MERL bin stands for the row of its block
+//! (`BasisGrid::row_of_bin`), so several pixels may share a row; the fit uses one sample per row
+//! chosen by the trial logic.
+
+use super::prior::{Candidate, Prior, Sample};
+use crate::brdf::basis::Basis;
+use crate::brdf::merl::MerlTable;
+use crate::brdf::ridge::{self, Reconstruction, RidgeSettings};
+use crate::brdf::sampling::{self, SamplingSettings};
+use serde::Serialize;
+
+/// Knobs of selection and fit (speed against conditioning).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NielsenSettings {
+    /// Random candidates tried per added sample.
+    pub n_random: usize,
+    /// Coordinate-descent passes after each addition.
+    pub descent_passes: usize,
+}
+
+impl Default for NielsenSettings {
+    fn default() -> Self {
+        Self {
+            n_random: 64,
+            descent_passes: 1,
+        }
+    }
+}
+
+pub struct NielsenPrior<'a> {
+    pub basis: &'a Basis,
+    pub settings: NielsenSettings,
+}
+
+struct Fitted(Reconstruction);
+
+impl Candidate for Fitted {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.0.value_at_bin(bin).unwrap_or([0.0; 3])
+    }
+
+    fn to_merl_table(&self) -> MerlTable {
+        self.0.to_merl_table()
+    }
+}
+
+impl Prior for NielsenPrior<'_> {
+    fn max_components(&self) -> usize {
+        self.basis.n_components()
+    }
+
+    fn row_of(&self, bin: usize) -> Option<usize> {
+        self.basis.grid().row_of_bin(bin)
+    }
+
+    fn select(
+        &self,
+        chosen: &[usize],
+        candidates: &[usize],
+        n: usize,
+        k: usize,
+        seed: u64,
+    ) -> Vec<usize> {
+        let mut pool: Vec<usize> = chosen.iter().chain(candidates).copied().collect();
+        pool.sort_unstable();
+        pool.dedup();
+        let settings = SamplingSettings {
+            n_components: k.max(1),
+            n_random: self.settings.n_random,
+            descent_passes: self.settings.descent_passes,
+            seed,
+        };
+        let rows = sampling::select_samples(self.basis, n.min(pool.len()), Some(&pool), &settings)
+            .unwrap_or_default();
+        // The accepted pixels stay; the selection's other rows follow in its order.
+        let mut out: Vec<usize> = chosen.to_vec();
+        out.extend(rows.into_iter().filter(|r| !chosen.contains(r)));
+        out.truncate(n.max(chosen.len()));
+        out
+    }
+
+    fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String> {
+        let obs: Vec<ridge::Observation> = samples
+            .iter()
+            .filter_map(|s| {
+                self.row_of(s.bin).map(|row| ridge::Observation {
+                    row,
+                    rgb: s.reflectance,
+                })
+            })
+            .collect();
+        let settings = RidgeSettings {
+            n_components: k,
+            eta,
+        };
+        ridge::reconstruct(self.basis, &obs, &settings)
+            .map(|r| Box::new(Fitted(r)) as Box<dyn Candidate>)
+            .map_err(|e| e.to_string())
+    }
+}

@@ -1,0 +1,394 @@
+//! Observations: one per usable pixel of a single-light image, carrying what the rest of the
+//! reconstruction needs (directions, reflectance, MERL bin, curvature).
+//!
+//! Conventions: every direction is a unit vector in the world (photogrammetry) frame, pointing
+//! away from the surface: `light` towards the light, `view` towards the camera centre; `normal`
+//! is the rasterised (interpolated) mesh normal, flipped to face the camera. The light direction
+//! of a job is given in camera axes and carried to the world by the inverse camera rotation
+//! (`Pose::dir_to_world`), which is how a turntable capture is seen from the object.
+//! Reflectance `r = I / (E cos theta_i)` per channel (1/sr when I is radiance and E irradiance).
+//! Rusinkiewicz angles use a local frame with the normal as +z and any tangent (the BRDF is
+//! isotropic; `render::frame`), then `brdf::coords`.
+//!
+//! Pure: the surface samples come from the rasteriser, the image and mask from the loader.
+
+use crate::brdf::coords::{HalfDiff, merl_index};
+use crate::render::frame::ShadingFrame;
+use crate::render::image::LinearImage;
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+
+/// What the rasteriser knows about the surface seen through one pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePixel {
+    pub x: u32,
+    pub y: u32,
+    pub position: Point3<f64>,
+    /// Unit normal, world frame (any orientation; it is flipped to face the camera).
+    pub normal: Vector3<f64>,
+    /// Mean curvature H = (k1 + k2) / 2, in 1 / (mesh unit).
+    pub mean_curvature: f64,
+    /// Whether the light reaches this point (shadow ray not blocked).
+    pub lit: bool,
+}
+
+/// One usable pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Observation {
+    /// Index of the light image in the job.
+    pub image: usize,
+    pub x: u32,
+    pub y: u32,
+    pub position: Point3<f64>,
+    pub normal: Vector3<f64>,
+    pub light: Vector3<f64>,
+    pub view: Vector3<f64>,
+    pub mean_curvature: f64,
+    /// Pixel value I (linear), RGB.
+    pub radiance: [f64; 3],
+    pub irradiance: [f64; 3],
+    /// r = I / (E cos theta_i), RGB.
+    pub reflectance: [f64; 3],
+    pub cos_theta_i: f64,
+    pub cos_theta_o: f64,
+    /// n . h, the quantity ordered by the monotonicity assumption.
+    pub n_dot_h: f64,
+    pub angles: HalfDiff,
+    /// Flat MERL index of (theta_h, theta_d, phi_d).
+    pub bin: usize,
+}
+
+/// `(wi, wo)` in the local shading frame of `n` (normal = +z; `render::frame`, shared with
+/// the renderer so observation and rendering agree).
+pub fn to_local(
+    n: &Vector3<f64>,
+    l: &Vector3<f64>,
+    v: &Vector3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let frame = ShadingFrame::new(*n);
+    (frame.to_local(l), frame.to_local(v))
+}
+
+impl Observation {
+    /// Builds an observation; `None` when the geometry is below either horizon.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        image: usize,
+        x: u32,
+        y: u32,
+        position: Point3<f64>,
+        normal: Vector3<f64>,
+        light: Vector3<f64>,
+        view: Vector3<f64>,
+        mean_curvature: f64,
+        radiance: [f64; 3],
+        irradiance: [f64; 3],
+    ) -> Option<Self> {
+        let cos_theta_i = normal.dot(&light);
+        let cos_theta_o = normal.dot(&view);
+        if !(cos_theta_i > 0.0 && cos_theta_o > 0.0) {
+            return None;
+        }
+        let h = (light + view).try_normalize(1e-12)?;
+        let (wi, wo) = to_local(&normal, &light, &view);
+        let reflectance = [0, 1, 2].map(|c| radiance[c] / (irradiance[c] * cos_theta_i));
+        Some(Self {
+            image,
+            x,
+            y,
+            position,
+            normal,
+            light,
+            view,
+            mean_curvature,
+            radiance,
+            irradiance,
+            reflectance,
+            cos_theta_i,
+            cos_theta_o,
+            n_dot_h: normal.dot(&h),
+            angles: HalfDiff::from_directions(&wi, &wo),
+            bin: merl_index(&wi, &wo),
+        })
+    }
+
+    /// The half vector h = (l + v) / |l + v|.
+    pub fn half(&self) -> Vector3<f64> {
+        (self.light + self.view).normalize()
+    }
+
+    /// Mean reflectance over the channels (the "luminance" compared by the monotonicity check).
+    pub fn luminance(&self) -> f64 {
+        self.reflectance.iter().sum::<f64>() / 3.0
+    }
+
+    /// The same pixel with another normal (assumption 3 sets n = h); `None` below a horizon.
+    pub fn with_normal(&self, normal: Vector3<f64>) -> Option<Self> {
+        Self::new(
+            self.image,
+            self.x,
+            self.y,
+            self.position,
+            normal,
+            self.light,
+            self.view,
+            self.mean_curvature,
+            self.radiance,
+            self.irradiance,
+        )
+    }
+}
+
+/// Thresholds for keeping a pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ObserveSettings {
+    /// Drop pixels with cos(theta_i) or cos(theta_o) below this (grazing: normal errors and
+    /// foreshortening dominate there). Default cos(80 deg).
+    pub min_cos: f64,
+    /// Drop a pixel when any channel reaches this value (clipped); `None` = never (HDR input).
+    pub saturation: Option<f64>,
+    /// Drop a pixel whose mean value is at or below this fraction of the image's maximum mean
+    /// (black: no signal, and the log mapping of the basis needs positive values).
+    pub black_fraction: f64,
+}
+
+impl Default for ObserveSettings {
+    fn default() -> Self {
+        Self {
+            min_cos: 80f64.to_radians().cos(),
+            saturation: None,
+            black_fraction: 1e-4,
+        }
+    }
+}
+
+/// Pixels dropped, by reason (each pixel is counted once, under the first reason that applies,
+/// in the order of the fields).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DropCounts {
+    pub masked_out: usize,
+    pub shadowed: usize,
+    pub grazing: usize,
+    pub saturated: usize,
+    pub black: usize,
+    /// NaN or infinite pixel values or geometry.
+    pub invalid: usize,
+}
+
+impl DropCounts {
+    pub fn add(&mut self, o: &DropCounts) {
+        self.masked_out += o.masked_out;
+        self.shadowed += o.shadowed;
+        self.grazing += o.grazing;
+        self.saturated += o.saturated;
+        self.black += o.black;
+        self.invalid += o.invalid;
+    }
+
+    pub fn total(&self) -> usize {
+        self.masked_out + self.shadowed + self.grazing + self.saturated + self.black + self.invalid
+    }
+}
+
+/// Everything known about one light image before observations are made.
+pub struct ViewInput<'a> {
+    pub image_index: usize,
+    pub image: &'a LinearImage,
+    /// Per pixel, row-major; `true` = material. `None` = everything is material.
+    pub mask: Option<&'a [bool]>,
+    pub camera_centre: Point3<f64>,
+    /// Unit direction towards the light, world frame.
+    pub light_world: Vector3<f64>,
+    pub irradiance: [f64; 3],
+}
+
+/// Turns the surface pixels of one view into observations, counting what was dropped and why.
+pub fn observe_view(
+    input: &ViewInput<'_>,
+    surface: &[SurfacePixel],
+    settings: &ObserveSettings,
+) -> (Vec<Observation>, DropCounts) {
+    let img = input.image;
+    let width = img.width();
+    let max_mean = surface
+        .iter()
+        .map(|s| img.luminance(s.x as usize, s.y as usize) as f64)
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let black_level = max_mean * settings.black_fraction;
+    let mut drops = DropCounts::default();
+    let mut out = Vec::with_capacity(surface.len());
+    for s in surface {
+        let (px, py) = (s.x as usize, s.y as usize);
+        if let Some(mask) = input.mask
+            && !mask.get(py * width + px).copied().unwrap_or(false)
+        {
+            drops.masked_out += 1;
+            continue;
+        }
+        if !s.lit {
+            drops.shadowed += 1;
+            continue;
+        }
+        let rgb = img.get(px, py).map(f64::from);
+        let view = input.camera_centre - s.position;
+        let finite = rgb.iter().all(|v| v.is_finite())
+            && s.normal.iter().all(|v| v.is_finite())
+            && view.iter().all(|v| v.is_finite());
+        if !finite {
+            drops.invalid += 1;
+            continue;
+        }
+        let view = view.normalize();
+        let mut normal = s.normal;
+        if normal.dot(&view) < 0.0 {
+            normal = -normal;
+        }
+        let cos_i = normal.dot(&input.light_world);
+        let cos_o = normal.dot(&view);
+        if cos_i < settings.min_cos || cos_o < settings.min_cos {
+            drops.grazing += 1;
+            continue;
+        }
+        if let Some(sat) = settings.saturation
+            && rgb.iter().any(|&v| v >= sat)
+        {
+            drops.saturated += 1;
+            continue;
+        }
+        let mean = (rgb[0] + rgb[1] + rgb[2]) / 3.0;
+        if mean <= black_level || rgb.iter().any(|&v| v <= 0.0) {
+            drops.black += 1;
+            continue;
+        }
+        match Observation::new(
+            input.image_index,
+            s.x,
+            s.y,
+            s.position,
+            normal,
+            input.light_world,
+            view,
+            s.mean_curvature,
+            rgb,
+            input.irradiance,
+        ) {
+            Some(o) => out.push(o),
+            None => drops.grazing += 1,
+        }
+    }
+    (out, drops)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reflectance_and_angles_of_a_known_configuration() {
+        // Normal +z, light 60 deg from it in the xz plane, viewer straight above.
+        let n = Vector3::z();
+        let l = Vector3::new(60f64.to_radians().sin(), 0.0, 60f64.to_radians().cos());
+        let v = Vector3::z();
+        let o = Observation::new(
+            0,
+            1,
+            2,
+            Point3::origin(),
+            n,
+            l,
+            v,
+            0.0,
+            [0.5, 1.0, 1.5],
+            [2.0; 3],
+        )
+        .unwrap();
+        // r = I / (E cos 60) = I
+        for c in 0..3 {
+            assert!((o.reflectance[c] - [0.5, 1.0, 1.5][c]).abs() < 1e-12);
+        }
+        assert!((o.angles.theta_h - 30f64.to_radians()).abs() < 1e-12);
+        assert!((o.angles.theta_d - 30f64.to_radians()).abs() < 1e-12);
+        assert!((o.n_dot_h - 30f64.to_radians().cos()).abs() < 1e-12);
+        // The result does not depend on the world orientation (isotropy + local frame).
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0);
+        let o2 = Observation::new(
+            0,
+            1,
+            2,
+            Point3::origin(),
+            rot * n,
+            rot * l,
+            rot * v,
+            0.0,
+            [0.5, 1.0, 1.5],
+            [2.0; 3],
+        )
+        .unwrap();
+        assert_eq!(o.bin, o2.bin);
+        assert!((o.angles.theta_d - o2.angles.theta_d).abs() < 1e-9);
+        // Below the horizon: none.
+        assert!(
+            Observation::new(0, 0, 0, Point3::origin(), n, -l, v, 0.0, [1.0; 3], [1.0; 3])
+                .is_none()
+        );
+        // n = h puts the pixel in theta_h bin 0.
+        let oh = o.with_normal(o.half()).unwrap();
+        assert!(oh.angles.theta_h < 1e-7);
+        assert!((oh.n_dot_h - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn drops_are_counted_by_reason() {
+        let mut img = LinearImage::new(6, 1);
+        for x in 0..6 {
+            img.set(x, 0, [0.5; 3]);
+        }
+        img.set(3, 0, [2.0, 0.5, 0.5]); // saturated at 1.0
+        img.set(4, 0, [0.0; 3]); // black
+        let mask = [false, true, true, true, true, true];
+        let input = ViewInput {
+            image_index: 0,
+            image: &img,
+            mask: Some(&mask),
+            camera_centre: Point3::new(0.0, 0.0, 10.0),
+            light_world: Vector3::z(),
+            irradiance: [1.0; 3],
+        };
+        let px = |x: u32, normal: Vector3<f64>, lit: bool| SurfacePixel {
+            x,
+            y: 0,
+            position: Point3::origin(),
+            normal,
+            mean_curvature: 0.0,
+            lit,
+        };
+        let surface = [
+            px(0, Vector3::z(), true),                             // masked out
+            px(1, Vector3::z(), false),                            // shadowed
+            px(2, Vector3::new(1.0, 0.0, 0.05).normalize(), true), // grazing
+            px(3, Vector3::z(), true),                             // saturated
+            px(4, Vector3::z(), true),                             // black
+            px(5, -Vector3::z(), true), // kept (flipped to face the camera)
+        ];
+        let settings = ObserveSettings {
+            saturation: Some(1.0),
+            ..Default::default()
+        };
+        let (obs, drops) = observe_view(&input, &surface, &settings);
+        assert_eq!(obs.len(), 1);
+        assert_eq!(obs[0].x, 5);
+        assert!((obs[0].normal - Vector3::z()).norm() < 1e-12);
+        assert_eq!(
+            drops,
+            DropCounts {
+                masked_out: 1,
+                shadowed: 1,
+                grazing: 1,
+                saturated: 1,
+                black: 1,
+                invalid: 0
+            }
+        );
+    }
+}

@@ -1,0 +1,185 @@
+//! The report of a reconstruction and the files written for it: `brdf.binary` (MERL),
+//! `report.json`, and sphere renders of the result (`sphere.exr`, linear; `sphere.png`, preview).
+//!
+//! The sphere is seen by a camera on +z looking at the origin, lit from 45 degrees above-right in
+//! the camera's plane (a fixed, documented view, so reports compare across runs).
+//! Files are written atomically (`imageio::write_atomic`).
+
+use super::components::ComponentChoice;
+use super::core::CoreOutput;
+use super::job::Job;
+use super::observe::DropCounts;
+use super::pipeline::{ImageCounts, Observed, Output, Scene, Settings, peak_memory_bytes};
+use super::trials::Trial;
+use crate::brdf::basis::Basis;
+use crate::brdf::merl::MerlTable;
+use crate::geometry::camera::{Intrinsics, Pose};
+use crate::imageio::{self, ExrPrecision};
+use crate::render::image::LinearImage;
+use crate::render::light::DirectionalLight;
+use crate::render::sphere::{Sphere, render_sphere};
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Said wherever a result made from the neural fits is reported.
+pub const PROVENANCE: &str = "basis built from neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, not measured MERL data";
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StageTiming {
+    pub stage: String,
+    pub seconds: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BasisReport {
+    pub materials: usize,
+    pub excluded: Vec<String>,
+    pub stride: [usize; 3],
+    pub rows: usize,
+    pub components: usize,
+    pub cache: Option<String>,
+    pub note: &'static str,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SettingsReport {
+    pub observe: super::observe::ObserveSettings,
+    pub core: super::core::CoreSettings,
+    pub nielsen: super::nielsen::NielsenSettings,
+    pub png_scale: f32,
+    pub saturation: Option<f64>,
+}
+
+#[derive(Serialize)]
+pub struct Report {
+    pub job: PathBuf,
+    pub settings: SettingsReport,
+    pub basis: BasisReport,
+    pub mesh_vertices: usize,
+    pub mesh_faces: usize,
+    pub images: Vec<ImageCounts>,
+    pub dropped: DropCounts,
+    pub observed_pixels: usize,
+    pub reliable_pixels: usize,
+    pub dropped_by_curvature: usize,
+    pub curvature_threshold: Option<f64>,
+    pub components: ComponentChoice,
+    pub trials: Vec<Trial>,
+    pub chosen_trial: usize,
+    pub timings: Vec<StageTiming>,
+    pub peak_memory_bytes: Option<u64>,
+    pub warnings: Vec<String>,
+}
+
+impl Report {
+    pub(super) fn new(
+        job: &Job,
+        settings: &Settings,
+        basis: &Basis,
+        scene: &Scene,
+        observed: &Observed,
+        core: &CoreOutput,
+        timings: Vec<(String, f64)>,
+    ) -> Self {
+        let s = basis.settings().stride;
+        let mut warnings = scene.warnings.clone();
+        if let Some(note) = &core.components.note {
+            warnings.push(format!("components: {note}"));
+        }
+        Self {
+            job: job.source.clone(),
+            settings: SettingsReport {
+                observe: settings.observe,
+                core: settings.core.clone(),
+                nielsen: settings.nielsen,
+                png_scale: settings.png_scale,
+                saturation: settings.saturation,
+            },
+            basis: BasisReport {
+                materials: basis.materials().len(),
+                excluded: basis.settings().exclude.clone(),
+                stride: [s.theta_h, s.theta_d, s.phi_d],
+                rows: basis.n_rows(),
+                components: basis.n_components(),
+                cache: None,
+                note: PROVENANCE,
+            },
+            mesh_vertices: scene.mesh.positions().len(),
+            mesh_faces: scene.mesh.faces().len(),
+            images: observed.images.clone(),
+            dropped: observed.dropped,
+            observed_pixels: observed.observations.len(),
+            reliable_pixels: core.reliable_pixels,
+            dropped_by_curvature: core.dropped_by_curvature,
+            curvature_threshold: core.curvature_threshold,
+            components: core.components.clone(),
+            trials: core
+                .trials
+                .iter()
+                .map(|t| Trial {
+                    index: t.index,
+                    similarity: t.similarity,
+                    rejected_by_monotonicity: t.rejected_by_monotonicity,
+                    samples: t.samples.clone(),
+                    candidate: None,
+                })
+                .collect(),
+            chosen_trial: core.chosen_trial,
+            timings: timings
+                .into_iter()
+                .map(|(stage, seconds)| StageTiming { stage, seconds })
+                .collect(),
+            peak_memory_bytes: peak_memory_bytes(),
+            warnings,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Merl(#[from] crate::brdf::merl::MerlError),
+    #[error(transparent)]
+    Image(#[from] imageio::ImageIoError),
+}
+
+/// A preview of a BRDF on a sphere (see the module header), `size` pixels square.
+pub fn sphere_preview(table: &MerlTable, size: usize) -> LinearImage {
+    let f = size as f64 * 1.6;
+    let k = Intrinsics::pinhole(size, size, f, f, size as f64 / 2.0, size as f64 / 2.0);
+    let pose = Pose::look_at(Point3::new(0.0, 0.0, 4.0), Point3::origin(), Vector3::y());
+    let to_light = Vector3::new(1.0, 1.0, std::f64::consts::SQRT_2).normalize();
+    let sphere = Sphere {
+        centre: Point3::origin(),
+        radius: 1.0,
+    };
+    match DirectionalLight::new(to_light, [1.0; 3]) {
+        Some(light) => render_sphere(&sphere, table, &light, &k, &pose, [0.0; 3]),
+        None => LinearImage::new(size, size),
+    }
+}
+
+/// Writes `brdf.binary`, `report.json`, `sphere.exr` and `sphere.png` into `dir` (created).
+pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
+    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    output.table.write(&dir.join("brdf.binary"))?;
+    let json = serde_json::to_vec_pretty(&output.report).map_err(|e| OutputError::Io {
+        path: dir.join("report.json"),
+        source: std::io::Error::other(e),
+    })?;
+    let path = dir.join("report.json");
+    imageio::write_atomic(&path, &json).map_err(|source| OutputError::Io { path, source })?;
+    let sphere = sphere_preview(&output.table, 256);
+    imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
+    imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;
+    Ok(())
+}

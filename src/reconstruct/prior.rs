@@ -1,0 +1,147 @@
+//! What reconstruction needs from a BRDF prior: choose sample bins that make the basis
+//! sub-matrix well conditioned, and fit a BRDF to reflectance samples with a given number of
+//! components. The real prior is the Nielsen PCA basis (`brdf::basis`, `brdf::sampling`,
+//! `brdf::ridge`, adapted in [`super::nielsen`]); tests also use small synthetic priors, so the
+//! trial and component logic is checked against truths it cannot know.
+//!
+//! Convention: a bin is a flat MERL index (`brdf::coords`), reflectance is f_r in 1/sr, RGB.
+
+use crate::brdf::merl::MerlTable;
+
+/// One reflectance sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub bin: usize,
+    pub reflectance: [f64; 3],
+}
+
+/// A reconstructed BRDF, evaluated per MERL bin.
+pub trait Candidate: Send + Sync {
+    /// f_r at the centre of a bin, RGB, 1/sr.
+    fn eval_bin(&self, bin: usize) -> [f64; 3];
+
+    /// The full MERL table (every bin evaluated; a prior on a coarser grid overrides this).
+    fn to_merl_table(&self) -> MerlTable {
+        MerlTable::from_fn(|b| Some(self.eval_bin(b.index())))
+    }
+}
+
+/// A basis-backed prior.
+pub trait Prior: Send + Sync {
+    /// Components available (the largest k a fit may use).
+    fn max_components(&self) -> usize;
+
+    /// The basis row standing for a MERL bin (a basis may live on a coarser grid, so several
+    /// bins share a row); `None` when the basis has no row for it (below the horizon).
+    fn row_of(&self, bin: usize) -> Option<usize>;
+
+    /// Extends `chosen` (rows already selected, in order, kept as the prefix) to at most `n`
+    /// rows drawn from `candidates`, minimising the condition number of the basis sub-matrix
+    /// on its first `min(|S|, k)` columns; returns the whole ordered list. `seed` drives the
+    /// random candidate draws.
+    fn select(
+        &self,
+        chosen: &[usize],
+        candidates: &[usize],
+        n: usize,
+        k: usize,
+        seed: u64,
+    ) -> Vec<usize>;
+
+    /// Fits a BRDF to the samples with the first `min(k, samples)` components and ridge
+    /// weight `eta` (a prior without regularisation may ignore it).
+    fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String>;
+}
+
+/// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least
+/// squares, selection in a seeded random order. The truths in tests are built from it, so the
+/// logic above it is checked against values it cannot see.
+#[cfg(test)]
+pub mod synthetic {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+    use rand::SeedableRng;
+    use rand::seq::SliceRandom;
+
+    pub struct CosinePrior {
+        pub k: usize,
+    }
+
+    /// Basis function `j` at a bin: cos(j pi t), t = theta_h bin / 90.
+    pub fn phi(j: usize, bin: usize) -> f64 {
+        let t = (bin / (90 * 180)) as f64 / 90.0;
+        (j as f64 * std::f64::consts::PI * t).cos()
+    }
+
+    pub struct Linear {
+        pub coeffs: Vec<[f64; 3]>,
+    }
+
+    impl Candidate for Linear {
+        fn eval_bin(&self, bin: usize) -> [f64; 3] {
+            let mut out = [0.0; 3];
+            for (j, c) in self.coeffs.iter().enumerate() {
+                for ch in 0..3 {
+                    out[ch] += c[ch] * phi(j, bin);
+                }
+            }
+            out
+        }
+    }
+
+    impl Prior for CosinePrior {
+        fn max_components(&self) -> usize {
+            self.k
+        }
+
+        fn row_of(&self, bin: usize) -> Option<usize> {
+            Some(bin)
+        }
+
+        fn select(
+            &self,
+            chosen: &[usize],
+            candidates: &[usize],
+            n: usize,
+            _k: usize,
+            seed: u64,
+        ) -> Vec<usize> {
+            let mut rest: Vec<usize> = candidates
+                .iter()
+                .copied()
+                .filter(|c| !chosen.contains(c))
+                .collect();
+            rest.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
+            chosen
+                .iter()
+                .copied()
+                .chain(rest)
+                .take(n.max(chosen.len()))
+                .collect()
+        }
+
+        fn fit(
+            &self,
+            samples: &[Sample],
+            k: usize,
+            _eta: f64,
+        ) -> Result<Box<dyn Candidate>, String> {
+            let k = k.min(samples.len()).min(self.k);
+            if k == 0 {
+                return Err("no samples".into());
+            }
+            let a = DMatrix::from_fn(samples.len(), k, |i, j| phi(j, samples[i].bin));
+            let ata = a.transpose() * &a + DMatrix::identity(k, k) * 1e-9;
+            let chol = ata.cholesky().ok_or("singular")?;
+            let mut coeffs = vec![[0.0; 3]; k];
+            for ch in 0..3 {
+                let b = DVector::from_fn(samples.len(), |i, _| samples[i].reflectance[ch]);
+                let x = chol.solve(&(a.transpose() * b));
+                for (c, xj) in coeffs.iter_mut().zip(x.iter()) {
+                    c[ch] = *xj;
+                }
+            }
+            Ok(Box::new(Linear { coeffs }))
+        }
+    }
+}

@@ -1,0 +1,158 @@
+//! Simulated reconstruction scenes: a mesh rendered with a known BRDF from a ring of cameras,
+//! each with its own single directional light, written as a job folder (SfM-like mesh, COLMAP
+//! text model, linear EXR images, `job.toml`). Used by the tests, the benchmark and the
+//! accuracy study; an I/O edge (writes files).
+//!
+//! Geometry: cameras on a ring around the mesh's bounding-box centre, world up = +y, at
+//! `elevation_deg` above the ring plane, alternately above and below; the mesh fills about 80 %
+//! of the shorter image side. Light: in camera axes, at angle `alpha` from the direction back to
+//! the camera (`theta_d` about `alpha / 2` at the object), `alpha` spread evenly over
+//! `light_angle_deg` across the views, rotated about the optical axis so it comes from above,
+//! alternately left and right. A turntable rig with one fixed light has a single `alpha`; this
+//! scene spreads it on purpose (METHOD.md section 1: the basis needs several `theta_d`).
+
+use super::job::{Job, LightImageSpec};
+use crate::brdf::Brdf;
+use crate::geometry::bvh::Bvh;
+use crate::geometry::camera::{Intrinsics, Pose};
+use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, write_text};
+use crate::geometry::mesh::Mesh;
+use crate::geometry::mesh_io::{PlyEncoding, write_ply};
+use crate::imageio::{self, ExrPrecision};
+use crate::render::light::DirectionalLight;
+use crate::render::shade::{ShadeOptions, render_mesh};
+use nalgebra::{Point3, Vector3};
+use std::path::Path;
+
+/// How to lay out a simulated scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneSpec {
+    pub views: usize,
+    pub width: usize,
+    pub height: usize,
+    pub elevation_deg: f64,
+    /// Range of the light-view angle alpha over the views, degrees.
+    pub light_angle_deg: (f64, f64),
+    pub irradiance: [f64; 3],
+}
+
+impl Default for SceneSpec {
+    fn default() -> Self {
+        Self {
+            views: 11,
+            width: 128,
+            height: 96,
+            elevation_deg: 25.0,
+            light_angle_deg: (10.0, 150.0),
+            irradiance: [3.0, 3.0, 3.0],
+        }
+    }
+}
+
+/// Camera and light of view `i` (light in camera axes).
+pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Pose, Vector3<f64>) {
+    let (lo, hi) = mesh.bounds();
+    let centre = Point3::from((lo.coords + hi.coords) / 2.0);
+    let radius = mesh.diagonal() / 2.0;
+    let dist = 3.0 * radius;
+    let az = 2.0 * std::f64::consts::PI * i as f64 / spec.views.max(1) as f64;
+    let el = spec.elevation_deg.to_radians() * if i % 2 == 0 { 1.0 } else { -0.4 };
+    let eye = centre + dist * Vector3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+    let pose = Pose::look_at(eye, centre, Vector3::y());
+    let short = spec.width.min(spec.height) as f64;
+    let f = 0.4 * short * dist / radius;
+    let k = Intrinsics::pinhole(
+        spec.width,
+        spec.height,
+        f,
+        f,
+        spec.width as f64 / 2.0,
+        spec.height as f64 / 2.0,
+    );
+    let t = if spec.views > 1 {
+        i as f64 / (spec.views - 1) as f64
+    } else {
+        0.5
+    };
+    let (a0, a1) = spec.light_angle_deg;
+    let alpha = (a0 + t * (a1 - a0)).to_radians();
+    // Around the optical axis: from above (-y), tilted left or right.
+    let phi = (-90.0f64 + if i % 2 == 0 { 40.0 } else { -40.0 }).to_radians();
+    let l_cam = Vector3::new(
+        alpha.sin() * phi.cos(),
+        alpha.sin() * phi.sin(),
+        -alpha.cos(),
+    );
+    (k, pose, l_cam)
+}
+
+/// Renders `truth_mesh` with `brdf` and writes the job folder; the job names `job_mesh` (the
+/// SfM-like mesh the reconstruction sees). Returns the job, as written to `dir/job.toml`.
+pub fn write_scene(
+    dir: &Path,
+    truth_mesh: &Mesh,
+    job_mesh: &Mesh,
+    brdf: &dyn Brdf,
+    spec: &SceneSpec,
+) -> std::io::Result<Job> {
+    let io = |e: &dyn std::fmt::Display| std::io::Error::other(e.to_string());
+    std::fs::create_dir_all(dir.join("light"))?;
+    let bvh = Bvh::build(truth_mesh);
+    let mut model = ColmapModel::default();
+    let mut light_images = Vec::with_capacity(spec.views);
+    for i in 0..spec.views {
+        let (k, pose, l_cam) = view_geometry(truth_mesh, spec, i);
+        let light = DirectionalLight::new(pose.dir_to_world(&l_cam), spec.irradiance)
+            .ok_or_else(|| io(&"degenerate light direction"))?;
+        let img = render_mesh(
+            truth_mesh,
+            &bvh,
+            &k,
+            &pose,
+            brdf,
+            &ShadeOptions::single_light(light),
+        );
+        let name = format!("view_{i:02}.exr");
+        let file = dir.join("light").join(&name);
+        imageio::write_exr(&file, &img, ExrPrecision::F32).map_err(|e| io(&e))?;
+        let id = i as u32 + 1;
+        model.cameras.insert(
+            id,
+            ColmapCamera {
+                id,
+                model: CameraModel::Pinhole,
+                intrinsics: k,
+            },
+        );
+        model.images.push(ColmapImage {
+            id,
+            camera_id: id,
+            name: name.clone(),
+            pose,
+        });
+        light_images.push(LightImageSpec {
+            file,
+            camera: name,
+            light_dir_camera: l_cam,
+            irradiance: spec.irradiance,
+            mask: None,
+        });
+    }
+    std::fs::create_dir_all(dir.join("sparse"))?;
+    write_text(&dir.join("sparse"), &model).map_err(|e| io(&e))?;
+    write_ply(
+        &dir.join("mesh.ply"),
+        job_mesh,
+        PlyEncoding::BinaryLittleEndian,
+    )
+    .map_err(|e| io(&e))?;
+    let job = Job {
+        source: dir.join("job.toml"),
+        mesh: dir.join("mesh.ply"),
+        cameras: dir.join("sparse"),
+        light_images,
+        warnings: Vec::new(),
+    };
+    std::fs::write(&job.source, job.to_toml(dir))?;
+    Ok(job)
+}

@@ -1,0 +1,402 @@
+//! Several random trials and the choice among them by cosine similarity (METHOD.md sections 5-6,
+//! the paper's 3.2-3.3).
+//!
+//! Each trial draws a random subset of the reliable pixels, selects sample pixels among them
+//! (bins chosen by the prior for the conditioning of the basis, each pixel checked against the
+//! monotonicity assumption as it is added, the brightest pixel always first), fits a BRDF, and
+//! "renders" it: every observed pixel of every light image is shaded with the candidate,
+//! `I_rend = f(bin) E cos(theta_i)`, using the same rasterised geometry (the one the captured
+//! image was observed through; shadowed, masked, grazing, saturated and black pixels are left
+//! out of both). Eq. 3 is then the cosine similarity of two vectors: the captured RGB values
+//! and the rendered RGB values of all those pixels, concatenated over all images and channels.
+//! The trial with the highest similarity wins.
+//!
+//! Pure: no I/O. Deterministic for a given seed (each trial derives its own).
+
+use super::observe::Observation;
+use super::prior::{Candidate, Prior, Sample};
+use super::reliable::{MonotonicSet, Reliable, ReliableSettings};
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::HashMap;
+
+/// Settings of the trials.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TrialSettings {
+    pub trials: usize,
+    /// Fraction of the reliable pixels each trial draws.
+    pub subset_fraction: f64,
+    /// Sample pixels per trial (the brightest pixel included).
+    pub samples: usize,
+    pub seed: u64,
+}
+
+impl Default for TrialSettings {
+    fn default() -> Self {
+        Self {
+            trials: 10,
+            subset_fraction: 0.5,
+            samples: 80,
+            seed: 1,
+        }
+    }
+}
+
+/// A chosen sample pixel, as reported.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SamplePixel {
+    pub image: usize,
+    pub x: u32,
+    pub y: u32,
+    pub bin: usize,
+    pub reflectance: [f64; 3],
+}
+
+impl From<&Observation> for SamplePixel {
+    fn from(o: &Observation) -> Self {
+        Self {
+            image: o.image,
+            x: o.x,
+            y: o.y,
+            bin: o.bin,
+            reflectance: o.reflectance,
+        }
+    }
+}
+
+/// One trial's outcome.
+#[derive(Serialize)]
+pub struct Trial {
+    pub index: usize,
+    pub similarity: f64,
+    /// Pixels rejected by the monotonicity check while selecting.
+    pub rejected_by_monotonicity: usize,
+    pub samples: Vec<SamplePixel>,
+    #[serde(skip)]
+    pub candidate: Option<Box<dyn Candidate>>,
+}
+
+/// Eq. 3: cosine similarity between captured and rendered RGB over the observed pixels.
+#[allow(clippy::needless_range_loop)] // three parallel RGB arrays
+pub fn cosine_similarity(candidate: &dyn Candidate, observations: &[Observation]) -> f64 {
+    let (mut dot, mut nc, mut nr) = (0.0, 0.0, 0.0);
+    for o in observations {
+        let f = candidate.eval_bin(o.bin);
+        for c in 0..3 {
+            let captured = o.radiance[c];
+            let rendered = f[c] * o.irradiance[c] * o.cos_theta_i;
+            if rendered.is_finite() {
+                dot += captured * rendered;
+                nr += rendered * rendered;
+            }
+            nc += captured * captured;
+        }
+    }
+    if nc <= 0.0 || nr <= 0.0 {
+        return 0.0;
+    }
+    dot / (nc.sqrt() * nr.sqrt())
+}
+
+/// Selected sample pixels and how many were rejected by eq. 1.
+pub struct Selection {
+    pub pixels: Vec<Observation>,
+    pub rejected_by_monotonicity: usize,
+}
+
+/// Rounds of the prior's selection: after a round whose rows partly failed eq. 1, the prior
+/// re-selects the missing samples around the pixels accepted so far.
+const MAX_ROUNDS: usize = 6;
+
+/// Chooses up to `n` pixels among `pool`: basis rows by the prior (conditioning on the first
+/// `min(|S|, k)` components), for each row the first pixel (pool order) that satisfies eq. 1
+/// against every pixel already chosen; `first` always first (the brightest pixel when
+/// assumption 3 is on). A row none of whose pixels passes is dropped from the candidates.
+pub fn select_pixels(
+    prior: &dyn Prior,
+    pool: &[Observation],
+    first: Option<&Observation>,
+    reliable: &ReliableSettings,
+    n: usize,
+    k: usize,
+    seed: u64,
+) -> Selection {
+    // Pixels grouped by the basis row of their bin: the prior chooses rows.
+    let mut by_row: HashMap<usize, Vec<&Observation>> = HashMap::new();
+    for o in pool {
+        if let Some(row) = prior.row_of(o.bin) {
+            by_row.entry(row).or_default().push(o);
+        }
+    }
+    let mut mono = MonotonicSet::new(reliable);
+    let mut pixels: Vec<Observation> = Vec::with_capacity(n);
+    if let Some(b) = first {
+        mono.push(b);
+        pixels.push(*b);
+        if let Some(row) = prior.row_of(b.bin) {
+            by_row.remove(&row);
+        }
+    }
+    let mut candidates: Vec<usize> = by_row.keys().copied().collect();
+    candidates.sort_unstable();
+    let mut rejected = 0;
+    for round in 0..MAX_ROUNDS {
+        if pixels.len() >= n || candidates.is_empty() {
+            break;
+        }
+        let chosen: Vec<usize> = pixels.iter().filter_map(|p| prior.row_of(p.bin)).collect();
+        let order = prior.select(&chosen, &candidates, n, k, seed.wrapping_add(round as u64));
+        let new: Vec<usize> = order
+            .into_iter()
+            .skip(chosen.len())
+            .filter(|r| by_row.contains_key(r))
+            .collect();
+        if new.is_empty() {
+            break;
+        }
+        for row in new {
+            if pixels.len() >= n {
+                break;
+            }
+            candidates.retain(|&c| c != row);
+            for o in by_row.get(&row).map(Vec::as_slice).unwrap_or(&[]) {
+                if mono.accepts(o) {
+                    mono.push(o);
+                    pixels.push(**o);
+                    break;
+                }
+                rejected += 1;
+            }
+        }
+    }
+    Selection {
+        pixels,
+        rejected_by_monotonicity: rejected,
+    }
+}
+
+/// Samples for a fit.
+pub fn samples_of(pixels: &[Observation]) -> Vec<Sample> {
+    pixels
+        .iter()
+        .map(|o| Sample {
+            bin: o.bin,
+            reflectance: o.reflectance,
+        })
+        .collect()
+}
+
+/// Runs the trials; `observations` are every observed pixel (for eq. 3). Returns the trials in
+/// index order; the best is the one with the highest similarity.
+pub fn run_trials(
+    prior: &dyn Prior,
+    reliable: &Reliable,
+    observations: &[Observation],
+    reliable_settings: &ReliableSettings,
+    settings: &TrialSettings,
+    k: usize,
+    eta: f64,
+) -> Vec<Trial> {
+    (0..settings.trials.max(1))
+        .into_par_iter()
+        .map(|index| {
+            let seed = settings
+                .seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(index as u64);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut pool = reliable.pixels.clone();
+            pool.shuffle(&mut rng);
+            let keep = ((pool.len() as f64 * settings.subset_fraction).ceil() as usize)
+                .clamp(1.min(pool.len()), pool.len());
+            pool.truncate(keep);
+            let sel = select_pixels(
+                prior,
+                &pool,
+                reliable.brightest.as_ref(),
+                reliable_settings,
+                settings.samples,
+                k,
+                seed,
+            );
+            let candidate = prior.fit(&samples_of(&sel.pixels), k, eta).ok();
+            let similarity = candidate
+                .as_deref()
+                .map(|c| cosine_similarity(c, observations))
+                .unwrap_or(f64::NEG_INFINITY);
+            Trial {
+                index,
+                similarity,
+                rejected_by_monotonicity: sel.rejected_by_monotonicity,
+                samples: sel.pixels.iter().map(SamplePixel::from).collect(),
+                candidate,
+            }
+        })
+        .collect()
+}
+
+/// Index of the trial with the highest similarity (ties: the first).
+pub fn best_trial(trials: &[Trial]) -> Option<usize> {
+    trials
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| t.candidate.is_some() && t.similarity.is_finite())
+        .max_by(|a, b| {
+            a.1.similarity
+                .total_cmp(&b.1.similarity)
+                .then(b.0.cmp(&a.0))
+        })
+        .map(|(i, _)| i)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::prior::synthetic::{CosinePrior, Linear, phi};
+    use super::*;
+    use crate::reconstruct::reliable::select_reliable;
+    use nalgebra::{Point3, Vector3};
+
+    fn pixels(truth: impl Fn(usize) -> f64, count: usize) -> Vec<Observation> {
+        let l = Vector3::new(0.5, 0.0, 1.0).normalize();
+        let v = Vector3::z();
+        (0..count)
+            .filter_map(|i| {
+                let a = i as f64 * 2.399;
+                let r = 0.6 * ((i as f64 + 0.5) / count as f64).sqrt();
+                let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
+                let mut o = Observation::new(
+                    0,
+                    i as u32,
+                    0,
+                    Point3::origin(),
+                    n,
+                    l,
+                    v,
+                    0.0,
+                    [1.0; 3],
+                    [1.0; 3],
+                )?;
+                let f = truth(o.bin);
+                o.reflectance = [f; 3];
+                o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
+                Some(o)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn similarity_is_one_for_the_truth_at_any_scale_and_lower_otherwise() {
+        let truth = |bin: usize| 1.0 + 0.8 * phi(1, bin);
+        let obs = pixels(truth, 300);
+        let exact = Linear {
+            coeffs: vec![[2.0; 3], [1.6; 3]],
+        };
+        assert!((cosine_similarity(&exact, &obs) - 1.0).abs() < 1e-12);
+        let flat = Linear {
+            coeffs: vec![[1.0; 3]],
+        };
+        let s = cosine_similarity(&flat, &obs);
+        assert!(s < 0.999 && s > 0.5, "{s}");
+    }
+
+    #[test]
+    fn selection_honours_monotonicity_and_puts_the_brightest_first() {
+        // A decreasing function of theta_h: eq. 1 holds for clean pixels.
+        let truth = |bin: usize| 2.0 - phi(0, bin) * 0.0 - (bin / (90 * 180)) as f64 / 90.0;
+        let mut obs = pixels(truth, 300);
+        // Corrupt every 10th pixel: far too bright for its n.h.
+        for o in obs.iter_mut().step_by(10) {
+            o.reflectance = [10.0; 3];
+        }
+        let settings = ReliableSettings {
+            use_curvature: false,
+            ..Default::default()
+        };
+        let reliable = select_reliable(&obs, &settings);
+        let first = reliable.brightest.unwrap();
+        let sel = select_pixels(
+            &CosinePrior { k: 4 },
+            &reliable.pixels,
+            Some(&first),
+            &settings,
+            40,
+            4,
+            3,
+        );
+        assert_eq!(sel.pixels[0].bin, first.bin);
+        assert!(sel.pixels.len() >= 30, "{}", sel.pixels.len());
+        // Every pair of selected pixels respects eq. 1.
+        for a in &sel.pixels {
+            for b in &sel.pixels {
+                if a.n_dot_h > b.n_dot_h + 1e-9 {
+                    assert!(a.luminance() >= b.luminance(), "{a:?} {b:?}");
+                }
+            }
+        }
+        assert!(sel.rejected_by_monotonicity > 0);
+        // Without the assumption, corrupted pixels get in.
+        let none = ReliableSettings::none();
+        let sel = select_pixels(
+            &CosinePrior { k: 4 },
+            &reliable.pixels,
+            None,
+            &none,
+            100,
+            4,
+            3,
+        );
+        assert!(sel.pixels.iter().any(|p| p.reflectance[0] == 10.0));
+    }
+
+    #[test]
+    fn trials_keep_the_most_similar_candidate() {
+        let truth = |bin: usize| 1.0 + 0.8 * phi(1, bin) + 0.2 * phi(2, bin);
+        let mut obs = pixels(truth, 400);
+        // Half the pixels noisy: trials that draw fewer of them fit better.
+        for (i, o) in obs.iter_mut().enumerate() {
+            if i % 2 == 0 {
+                let f = 1.0 + 0.3 * ((i * 7919) % 13) as f64 / 13.0;
+                o.reflectance = o.reflectance.map(|r| r * f);
+            }
+        }
+        let settings = ReliableSettings::none();
+        let reliable = select_reliable(&obs, &settings);
+        let ts = TrialSettings {
+            trials: 6,
+            subset_fraction: 0.3,
+            samples: 12,
+            seed: 5,
+        };
+        let trials = run_trials(
+            &CosinePrior { k: 3 },
+            &reliable,
+            &obs,
+            &settings,
+            &ts,
+            3,
+            1.0,
+        );
+        assert_eq!(trials.len(), 6);
+        let best = best_trial(&trials).unwrap();
+        for t in &trials {
+            assert!(t.similarity <= trials[best].similarity);
+            assert_eq!(t.samples.len(), 12);
+        }
+        // Deterministic for a seed.
+        let again = run_trials(
+            &CosinePrior { k: 3 },
+            &reliable,
+            &obs,
+            &settings,
+            &ts,
+            3,
+            1.0,
+        );
+        for (a, b) in trials.iter().zip(&again) {
+            assert_eq!(a.similarity, b.similarity);
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! Reconstruction end to end on simulated scenes: Spot rendered with a neural MERL fit (a smooth
+//! approximation of a MERL material, not measured data) from several views and light
+//! directions, reconstructed from an SfM-like (smoothed, perturbed) mesh with a reduced basis
+//! from which the target material is always left out. Also: job validation through the binary.
+
+use crate::util;
+use brdf_rig::brdf::analytic::{Lambert, LambertGgx, ReflectanceSample};
+use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
+use brdf_rig::brdf::merl::MerlTable;
+use brdf_rig::brdf::metrics::{ErrorReport, compare};
+use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
+use brdf_rig::brdf::{BinValues, basis_cache};
+use brdf_rig::geometry::mesh::Mesh;
+use brdf_rig::geometry::mesh_io::load_mesh;
+use brdf_rig::reconstruct::observe::{Observation, to_local};
+use brdf_rig::reconstruct::reliable::ReliableSettings;
+use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
+use brdf_rig::reconstruct::{Job, Settings, reconstruct_with_basis};
+use nalgebra::{Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use std::path::Path;
+use std::process::Command;
+
+/// Materials of the reduced test basis (the paper's six among them; the target is excluded).
+const BASIS_MATERIALS: [&str; 24] = [
+    "alum-bronze",
+    "fruitwood-241",
+    "pink-fabric",
+    "blue-acrylic",
+    "pink-fabric2",
+    "green-latex",
+    "aluminium",
+    "black-obsidian",
+    "blue-metallic-paint",
+    "brass",
+    "chrome",
+    "gold-paint",
+    "green-plastic",
+    "maroon-plastic",
+    "nickel",
+    "orange-paint",
+    "red-fabric",
+    "silver-paint",
+    "specular-blue-phenolic",
+    "teflon",
+    "violet-rubber",
+    "white-paint",
+    "yellow-matte-plastic",
+    "cherry-235",
+];
+
+pub fn materials() -> Vec<(String, Nbrdf)> {
+    load_dir(&util::shared_data().join("merl-nbrdf"))
+        .unwrap()
+        .into_iter()
+        .filter(|(n, _)| BASIS_MATERIALS.contains(&n.as_str()))
+        .collect()
+}
+
+fn reduced_basis(target: &str, materials: &[(String, Nbrdf)]) -> Basis {
+    let settings = BasisSettings {
+        stride: GridStride {
+            theta_h: 1,
+            theta_d: 4,
+            phi_d: 6,
+        },
+        n_components: 40,
+        exclude: vec![target.to_string()],
+    };
+    let cache = std::env::temp_dir().join("brdf-rig-test-basis");
+    basis_cache::load_or_build(&settings, materials, &cache)
+        .unwrap()
+        .0
+}
+
+/// An SfM-like copy of a mesh: Laplacian smoothing (MVS rounds off curved detail, so normal
+/// errors grow with curvature) and a small random displacement along the normals.
+pub fn sfm_like(mesh: &Mesh, iterations: usize, noise: f64, seed: u64) -> Mesh {
+    let n = mesh.positions().len();
+    let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for f in mesh.faces() {
+        for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+            nbrs[a as usize].push(b);
+            nbrs[b as usize].push(a);
+        }
+    }
+    let mut p: Vec<Point3<f64>> = mesh.positions().to_vec();
+    for _ in 0..iterations {
+        let q = p.clone();
+        for (i, nb) in nbrs.iter().enumerate() {
+            if nb.is_empty() {
+                continue;
+            }
+            let mean: Vector3<f64> = nb
+                .iter()
+                .map(|&j| q[j as usize].coords)
+                .sum::<Vector3<f64>>()
+                / nb.len() as f64;
+            p[i] = Point3::from(q[i].coords * 0.5 + mean * 0.5);
+        }
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let scale = noise * mesh.diagonal();
+    for (i, pi) in p.iter_mut().enumerate() {
+        let d: f64 = rng.gen_range(-1.0..1.0);
+        *pi += mesh.vertex_normals()[i] * d * scale;
+    }
+    let mut out = mesh.clone();
+    assert!(out.set_positions(p));
+    out
+}
+
+/// Bins for the error metrics: every 5th MERL bin (the metric skips those below the horizon).
+fn eval_bins() -> Vec<usize> {
+    (0..90 * 90 * 180).step_by(5).collect()
+}
+
+pub fn errors(truth: &dyn BinValues, rec: &dyn BinValues) -> ErrorReport {
+    compare(&eval_bins(), truth, rec)
+}
+
+/// Baselines fitted to the same observed pixels a user would fit them to.
+pub fn baselines(obs: &[Observation]) -> (MerlTable, MerlTable) {
+    let samples: Vec<ReflectanceSample> = obs
+        .iter()
+        .map(|o| {
+            let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
+            ReflectanceSample {
+                wi,
+                wo,
+                rgb: o.reflectance,
+            }
+        })
+        .collect();
+    let lambert = Lambert::fit(&samples).unwrap();
+    let ggx = LambertGgx::fit(&samples).unwrap();
+    (MerlTable::tabulate(&lambert), MerlTable::tabulate(&ggx))
+}
+
+fn spot() -> Mesh {
+    load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj"))
+        .unwrap()
+        .0
+}
+
+fn test_settings() -> Settings {
+    let mut s = Settings::default();
+    s.core.trials.trials = 6;
+    s.core.trials.samples = 40;
+    s.core.components.grid = vec![5, 10, 20, 40];
+    s
+}
+
+#[test]
+fn three_assumptions_beat_none_and_the_analytic_baselines() {
+    let target = "green-latex";
+    let mats = materials();
+    let truth = &mats.iter().find(|(n, _)| n == target).unwrap().1;
+    let basis = reduced_basis(target, &mats);
+    assert!(!basis.materials().iter().any(|m| m == target));
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = spot();
+    let job_mesh = sfm_like(&mesh, 3, 0.002, 7);
+    let spec = SceneSpec {
+        views: 8,
+        ..SceneSpec::default()
+    };
+    let job = write_scene(dir.path(), &mesh, &job_mesh, truth, &spec).unwrap();
+    let job = Job::from_file(&job.source).unwrap();
+
+    let all = test_settings();
+    let out = reconstruct_with_basis(&job, &all, &basis, &mut |_| {}).unwrap();
+    let mut none = test_settings();
+    none.core.reliable = ReliableSettings::none();
+    let out_none = reconstruct_with_basis(&job, &none, &basis, &mut |_| {}).unwrap();
+    let (lambert, ggx) = baselines(&out.observed.observations);
+
+    let e_all = errors(truth, &out.table);
+    let e_none = errors(truth, &out_none.table);
+    let e_lambert = errors(truth, &lambert);
+    let e_ggx = errors(truth, &ggx);
+    eprintln!(
+        "{target}: cosine-weighted relative error: assumptions {:.4}, none {:.4}, Lambert {:.4}, Lambert+GGX {:.4}; relative {:.4} / {:.4} / {:.4} / {:.4}; k = {}",
+        e_all.cosine_weighted,
+        e_none.cosine_weighted,
+        e_lambert.cosine_weighted,
+        e_ggx.cosine_weighted,
+        e_all.relative,
+        e_none.relative,
+        e_lambert.relative,
+        e_ggx.relative,
+        out.report.components.k
+    );
+    assert!(e_all.cosine_weighted < e_none.cosine_weighted);
+    assert!(e_all.cosine_weighted < e_lambert.cosine_weighted);
+    // Lambert+GGX is not beaten on this small scene and reduced basis (see
+    // docs/benchmarks-reconstruct.md); it is reported, not asserted.
+    assert!(e_ggx.cosine_weighted.is_finite());
+    // The report carries what a user needs to judge the result.
+    let r = &out.report;
+    assert_eq!(r.trials.len(), 6);
+    assert!(
+        r.trials[r.chosen_trial].similarity
+            >= r.trials.iter().map(|t| t.similarity).fold(0.0, f64::max)
+    );
+    assert!(r.observed_pixels > 1000, "{}", r.observed_pixels);
+    assert!(r.dropped_by_curvature > 0);
+    assert!(!r.components.curve.is_empty());
+}
+
+fn write_small_job(dir: &Path) -> Job {
+    let mats = materials();
+    let truth = &mats.iter().find(|(n, _)| n == "blue-acrylic").unwrap().1;
+    let mesh = spot();
+    let spec = SceneSpec {
+        views: 2,
+        width: 64,
+        height: 48,
+        ..SceneSpec::default()
+    };
+    write_scene(dir, &mesh, &mesh, truth, &spec).unwrap()
+}
+
+fn run_cli(job: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(util::bin())
+        .arg("reconstruct")
+        .arg(job)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .env(
+            "BRDF_RIG_BASIS_CACHE",
+            std::env::temp_dir().join("brdf-rig-test-basis"),
+        )
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn bad_jobs_fail_with_messages_naming_file_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = write_small_job(dir.path());
+    let text = std::fs::read_to_string(&job.source).unwrap();
+    let out = dir.path().join("out");
+    let cases: [(&str, String, &[&str]); 4] = [
+        (
+            "camera",
+            text.replace("camera = \"view_01.exr\"", "camera = \"nope.exr\""),
+            &["light_image[1].camera", "nope.exr", "view_00.exr"],
+        ),
+        (
+            "mesh",
+            text.replace("mesh.ply", "missing.ply"),
+            &["missing.ply"],
+        ),
+        (
+            "irradiance",
+            text.replacen(
+                "irradiance = [3.0, 3.0, 3.0]",
+                "irradiance = [3.0, -1.0, 3.0]",
+                1,
+            ),
+            &["light_image[0].irradiance", "job.toml"],
+        ),
+        (
+            "light",
+            text.replacen(
+                "light_dir_camera = [",
+                "light_dir_camera = [0.0, 0.0, 0.0] #",
+                1,
+            ),
+            &["light_image[0].light_dir_camera", "unit"],
+        ),
+    ];
+    for (what, bad, needles) in cases {
+        std::fs::write(&job.source, &bad).unwrap();
+        let o = run_cli(&job.source, &out, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{what}: {err}");
+        for n in needles {
+            assert!(err.contains(n), "{what}: {n:?} not in {err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // An image whose size does not match its camera.
+    std::fs::write(&job.source, &text).unwrap();
+    let small = brdf_rig::render::image::LinearImage::new(10, 10);
+    brdf_rig::imageio::write_exr(
+        &job.light_images[1].file,
+        &small,
+        brdf_rig::imageio::ExrPrecision::F32,
+    )
+    .unwrap();
+    let o = run_cli(&job.source, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("10x10") && err.contains("64x48"), "{err}");
+}
