@@ -5,14 +5,14 @@
 #![allow(clippy::unwrap_used)]
 
 mod brdf;
-mod capture_kill;
-mod capture_sim;
-mod capture_util;
 mod calib_cli;
 mod calib_hdr;
 mod calib_sphere;
 mod calib_synth;
 mod calib_white;
+mod capture_kill;
+mod capture_sim;
+mod capture_util;
 mod geometry;
 mod reconstruct;
 mod render;

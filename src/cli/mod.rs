@@ -11,12 +11,12 @@ mod bench;
 mod bench_capture;
 mod cameras;
 mod capture;
-mod session;
 mod light;
 mod ports;
 mod reconstruct;
 mod report;
 mod rig;
+mod session;
 mod turntable;
 
 #[derive(Parser, Debug)]
