@@ -55,3 +55,19 @@ pub fn check_disk_space(
     }
     Ok(())
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disk_space_is_checked_against_the_remaining_shots() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("not/yet/there");
+        check_disk_space(&dir, 10, 64, 48).unwrap();
+        let err = check_disk_space(&dir, 1_000_000_000, 4000, 3000).unwrap_err();
+        assert!(matches!(err, CaptureError::DiskSpace { .. }), "{err}");
+        assert!(err.to_string().contains("MiB are free"), "{err}");
+    }
+}
