@@ -19,6 +19,8 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// STATUS round trip and controller overhead per step, over a pty to the simulated firmware.
     Rig(BenchRigArgs),
+    /// Time, peak memory and accuracy of reconstruction on a simulated Bunny scene.
+    Reconstruct(super::bench_reconstruct::BenchReconstructArgs),
 }
 
 #[derive(Args, Debug)]
@@ -40,10 +42,11 @@ pub struct BenchRigArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
+        BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
     }
 }
 
-fn machine() -> String {
+pub fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {

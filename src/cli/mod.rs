@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod bench_reconstruct;
 mod light;
 mod ports;
 mod reconstruct;
