@@ -34,7 +34,7 @@ use brdf_rig::sim::SimRig;
     about = "Simulated rig firmware on a pseudo-terminal (prints its port path, runs until killed)"
 )]
 struct Args {
-    /// Rig profile the simulated board follows (channels, limits, [sim] faults); default: the
+    /// Rig profile the simulated board follows (channels, limits, `[sim]` faults); default: the
     /// built-in simulated profile.
     #[arg(long)]
     profile: Option<PathBuf>,

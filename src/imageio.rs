@@ -122,7 +122,8 @@ pub fn read_exr(path: &Path) -> Result<LinearImage, ImageIoError> {
     })
 }
 
-/// Writes an RGB EXR (no alpha), atomically.
+/// Writes an RGB EXR (no alpha), atomically. `F16` halves the size but holds 11 significant
+/// bits and overflows to infinity above 65504: scale radiance first if it can be that large.
 pub fn write_exr(
     path: &Path,
     img: &LinearImage,

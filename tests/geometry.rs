@@ -419,17 +419,24 @@ fn timing_bunny_640x480_raster_and_shadow() {
 
 use brdf_rig::geometry::curvature::principal_curvatures;
 
-/// An open cylinder of radius `r` along z, `rings` x `segments` quads over length `len`.
-pub fn cylinder(r: f64, len: f64, rings: usize, segments: usize) -> Mesh {
+/// An open cylinder of radius `r` along z, `rings` x `segments` quads over length `len`, each
+/// vertex moved along the surface by up to `jitter` of a cell (seeded), so the tessellation is
+/// irregular but every vertex lies exactly on the cylinder.
+pub fn cylinder(r: f64, len: f64, rings: usize, segments: usize, jitter: f64) -> Mesh {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
     let mut p = Vec::new();
     for i in 0..=rings {
         for j in 0..segments {
-            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
-            p.push(Point3::new(
-                r * ph.cos(),
-                r * ph.sin(),
-                len * (i as f64 / rings as f64 - 0.5),
-            ));
+            let dj = jitter * rng.gen_range(-1.0..1.0);
+            let di = if i == 0 || i == rings {
+                0.0
+            } else {
+                jitter * rng.gen_range(-1.0..1.0)
+            };
+            let ph = std::f64::consts::TAU * (j as f64 + dj) / segments as f64;
+            let z = len * ((i as f64 + di) / rings as f64 - 0.5);
+            p.push(Point3::new(r * ph.cos(), r * ph.sin(), z));
         }
     }
     let id = |i: usize, j: usize| (i * segments + j % segments) as i64;
@@ -459,34 +466,49 @@ fn curvature_of_a_sphere_is_one_over_r_everywhere() {
     }
 }
 
+/// Worst and RMS relative error of `H 2r` and worst `|k_min| r` and `1 - |dir_min . z|` over the
+/// cylinder's vertices away from its open ends (one-sided neighbourhoods there), and mean `H 2r`.
+fn cylinder_errors(cyl: &Mesh, r: f64) -> (f64, f64, f64, f64, f64) {
+    let c = principal_curvatures(cyl);
+    let inner: Vec<usize> = (0..cyl.positions().len())
+        .filter(|&i| cyl.positions()[i].z.abs() <= 1.7)
+        .collect();
+    assert!(inner.len() > 1000);
+    let rel: Vec<f64> = inner.iter().map(|&i| c.mean[i] * 2.0 * r - 1.0).collect();
+    let worst = rel.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    let rms = (rel.iter().map(|e| e * e).sum::<f64>() / rel.len() as f64).sqrt();
+    let mean = 1.0 + rel.iter().sum::<f64>() / rel.len() as f64;
+    let kmin = inner
+        .iter()
+        .fold(0.0f64, |m, &i| m.max(c.k_min[i].abs() * r));
+    let dir = inner
+        .iter()
+        .fold(0.0f64, |m, &i| m.max(1.0 - c.dir_min[i].z.abs()));
+    (worst, rms, mean, kmin, dir)
+}
+
 #[test]
 fn curvature_of_a_cylinder_is_one_over_2r_with_the_axis_as_minimum_direction() {
-    // tolerance 2% on H and k_max, 0.02/r on k_min = 0; the open ends are left out (one-sided)
     let r = 0.5;
-    let rings = 20;
-    let cyl = cylinder(r, 4.0, rings, 64);
-    let c = principal_curvatures(&cyl);
-    let mut n = 0;
-    for (i, p) in cyl.positions().iter().enumerate() {
-        if p.z.abs() > 1.7 {
-            continue;
-        }
-        n += 1;
-        assert!(
-            (c.mean[i] * 2.0 * r - 1.0).abs() < 0.02,
-            "vertex {i}: H = {}",
-            c.mean[i]
-        );
-        assert!((c.k_max[i] * r - 1.0).abs() < 0.02);
-        assert!(c.k_min[i].abs() * r < 0.02);
-        assert!(
-            c.dir_min[i].z.abs() > 0.99,
-            "min direction {:?}",
-            c.dir_min[i]
-        );
-    }
-    assert!(n > 64 * 10);
+    // regular tessellation: symmetric neighbourhoods make the estimate exact to rounding
+    let (worst, _, _, kmin, dir) = cylinder_errors(&cylinder(r, 4.0, 80, 64, 0.0), r);
+    assert!(
+        worst < 1e-9 && kmin < 1e-9 && dir < 1e-9,
+        "{worst} {kmin} {dir}"
+    );
+    // irregular (vertices moved up to 0.2 cell along the surface): measured worst 8.5%, RMS
+    // 2.1%, mean +0.01%. Tolerances: worst 10%, RMS 3%, mean 0.5% (no bias), k_min r 0.07,
+    // principal direction within 0.005 of the axis in 1 - cos
+    let cyl = cylinder(r, 4.0, 80, 64, 0.2);
+    let (worst, rms, mean, kmin, dir) = cylinder_errors(&cyl, r);
+    assert!(worst < 0.10 && rms < 0.03, "worst {worst}, rms {rms}");
+    assert!((mean - 1.0).abs() < 0.005, "mean H 2r = {mean}");
+    assert!(
+        kmin < 0.07 && dir < 0.005,
+        "k_min r {kmin}, direction {dir}"
+    );
     // reversing the winding flips the normals and the sign
+    let c = principal_curvatures(&cyl);
     let faces: Vec<[i64; 3]> = cyl
         .faces()
         .iter()
@@ -494,12 +516,9 @@ fn curvature_of_a_cylinder_is_one_over_2r_with_the_axis_as_minimum_direction() {
         .collect();
     let (flipped, _) = Mesh::new(cyl.positions().to_vec(), faces, "<flipped>").unwrap();
     let cf = principal_curvatures(&flipped);
-    let mid = cyl
-        .positions()
-        .iter()
-        .position(|p| p.z.abs() < 0.01)
-        .unwrap();
-    assert!((cf.mean[mid] + c.mean[mid]).abs() < 1e-9);
+    for i in (0..cyl.positions().len()).step_by(97) {
+        assert!((cf.mean[i] + c.mean[i]).abs() < 1e-9);
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -895,4 +914,24 @@ fn a_convex_mesh_never_shadows_itself_beyond_its_terminator() {
         }
         assert!(lit > 0 || l.y > 0.9);
     }
+}
+
+#[test]
+fn obj_objects_sharing_vertices_stay_connected() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "two.obj",
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 1\no a\nf 1 2 3\no b\nf 1 3 4\n",
+    );
+    let (m, _) = load_mesh(&p).unwrap();
+    // the shared edge (1, 3) must be one edge, so both faces blend normals at its ends
+    assert_eq!(m.positions().len(), 4);
+    let (f0, f1) = (m.faces()[0], m.faces()[1]);
+    assert_eq!((f0[0], f0[2]), (f1[0], f1[1]));
+    let n = m.vertex_normals()[f0[0] as usize];
+    assert!(
+        n.y < -0.1 && n.z > 0.5,
+        "normal at the shared corner blends both faces: {n:?}"
+    );
 }

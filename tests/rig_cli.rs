@@ -99,3 +99,62 @@ fn limits_and_bad_profiles_give_clear_errors() {
         "{err}"
     );
 }
+
+/// The standalone simulated firmware keeps its state between CLI invocations and takes fault
+/// commands on stdin.
+#[test]
+fn standalone_simulated_firmware_serves_several_invocations() {
+    use std::io::{BufRead, BufReader, Write};
+    use std::process::{Command as Std, Stdio};
+
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("rig");
+    /// Kills the program if the test fails half-way (it serves until killed).
+    struct Reap(std::process::Child);
+    impl Drop for Reap {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let child = Std::new(env!("CARGO_BIN_EXE_brdf-rig-simfw"))
+        .arg("--link")
+        .arg(&link)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut child = Reap(child);
+    let mut out = BufReader::new(child.0.stdout.take().unwrap());
+    let mut first = String::new();
+    out.read_line(&mut first).unwrap();
+    assert_eq!(first.trim(), link.to_str().unwrap());
+    let port = link.to_str().unwrap();
+
+    let moved = stdout_of(&["turntable", "move", "45", "--port", port]);
+    assert!(moved.starts_with("angle 45.000 deg"), "{moved}");
+    let again = stdout_of(&["turntable", "status", "--port", port]);
+    assert!(
+        again.starts_with("angle 45.000 deg"),
+        "state persists: {again}"
+    );
+    assert!(again.contains(" homed"), "{again}");
+
+    let mut stdin = child.0.stdin.take().unwrap();
+    writeln!(stdin, "reset").unwrap();
+    stdin.flush().unwrap();
+    let t = std::time::Instant::now();
+    let check = loop {
+        let c = stdout_of(&["rig", "check", "--port", port]);
+        if c.contains("boot:       2") || t.elapsed() > std::time::Duration::from_secs(5) {
+            break c;
+        }
+    };
+    assert!(check.contains("boot:       2"), "{check}");
+    assert!(check.contains("not homed"), "{check}");
+    writeln!(stdin, "quit").unwrap();
+    drop(stdin);
+    let status = child.0.wait().unwrap();
+    assert!(status.success());
+}

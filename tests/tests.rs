@@ -5,9 +5,18 @@
 #![allow(clippy::unwrap_used)]
 
 mod brdf;
+mod calib_cli;
+mod calib_hdr;
+mod calib_sphere;
+mod calib_synth;
+mod calib_white;
+mod firmware;
+mod firmware_flash;
+mod firmware_qemu;
 mod geometry;
 mod reconstruct;
 mod render;
+mod report;
 mod rig_cli;
 mod rig_sim;
 mod rig_vectors;

@@ -62,7 +62,13 @@ pub fn machine() -> String {
     let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease")
         .map(|s| format!("Linux {}", s.trim()))
         .unwrap_or_else(|_| std::env::consts::OS.into());
-    format!("{cpu}, {cores} cores, {kernel}")
+    // The machine may be shared (parallel builds): the load explains the tails.
+    let load = std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
+        .map(|l| format!(", load average {l} when the run started"))
+        .unwrap_or_default();
+    format!("{cpu}, {cores} cores, {kernel}{load}")
 }
 
 fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
@@ -80,6 +86,7 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
         steps: a.steps.max(1),
         step_deg: a.step_deg,
     };
+    let machine = machine();
     let report = bench::run(&profile, &opts).context("running the rig benchmark")?;
     let mut command = String::from("cargo run --release -- bench rig");
     if let Some(p) = &a.profile {
@@ -102,7 +109,7 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
-    let md = report.markdown(&command, &machine());
+    let md = report.markdown(&command, &machine);
     print!("{md}");
     if let Some(w) = &a.write {
         std::fs::write(w, &md).with_context(|| format!("writing {}", w.display()))?;

@@ -1,6 +1,7 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+pub mod calibrate;
 mod merl;
 
 use clap::{Parser, Subcommand};
@@ -8,9 +9,11 @@ use std::process::ExitCode;
 
 mod bench;
 mod bench_reconstruct;
+mod firmware;
 mod light;
 mod ports;
 mod reconstruct;
+mod report;
 mod rig;
 mod turntable;
 
@@ -27,12 +30,19 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Reference firmware for the rig's Arduino Mega 2560.
+    Firmware {
+        #[command(subcommand)]
+        command: firmware::FirmwareCommand,
+    },
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
     Merl(merl::MerlArgs),
     /// Recover a BRDF from a reconstruction job (mesh, COLMAP poses, single-light images).
     Reconstruct(reconstruct::Args),
+    /// Write a self-contained HTML report of a session or reconstruction folder.
+    Report(report::ReportArgs),
     /// Talk to the rig: `rig check` connects, shakes hands and prints what it found.
     Rig(rig::RigCommandArgs),
     /// Home, move or query the turntable.
@@ -41,16 +51,21 @@ pub enum Command {
     Light(light::LightArgs),
     /// Measurements behind the tables in docs/benchmarks-*.md.
     Bench(bench::BenchArgs),
+    /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Firmware { command } => firmware::run(command),
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Report(args) => report::run(args),
         Command::Rig(a) => rig::run(a),
         Command::Turntable(a) => turntable::run(a),
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
     }
 }

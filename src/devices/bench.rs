@@ -71,11 +71,15 @@ impl RigBenchReport {
              ## STATUS round trip ({n} requests)\n\n\
              | median | p90 | p99 | max | target |\n|---|---|---|---|---|\n\
              | {r0} ms | {r1} ms | {r2} ms | {r3} ms | < 2 ms: {rok} |\n\n\
+             The median is the cost of the stack; the tail (p99, max) is scheduling: host, \
+             firmware thread and\nwhatever else runs share the cores, and a thread that waits \
+             for one waits a time slice.\n\n\
              ## Controller overhead per turntable step ({steps} steps of {step} deg)\n\n\
              The overhead is the wall time of `Turntable::move_to` minus the simulated motion \
              time of the step\n(trapezoidal profile), so it is what the host adds: the MOVE_ABS \
              round trip, STATUS polling\ngranularity, and the final STATUS that sees the platter \
-             at rest.\n\n\
+             at rest.\nWith polling every {poll} ms the expected overhead is about half a poll \
+             interval plus two round trips.\n\n\
              | motion time | wall (median) | wall (max) | overhead (median) | overhead | target |\n\
              |---|---|---|---|---|---|\n\
              | {m} ms | {w0} ms | {w1} ms | {o} ms | {op:.2} % | < 5 %: {ook} |\n\n\

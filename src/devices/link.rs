@@ -207,9 +207,8 @@ impl SerialLink {
         let Some(port) = self.port.as_mut() else {
             return Err(Wait::Io("not connected".into()));
         };
-        port.write_all(wire)
-            .and_then(|_| port.flush())
-            .map_err(|e| Wait::Io(e.to_string()))?;
+        // No flush: on a tty it is tcdrain, which has no timeout; the kernel sends anyway.
+        port.write_all(wire).map_err(|e| Wait::Io(e.to_string()))?;
         self.last_tx = Instant::now();
         let deadline = self.last_tx + self.cfg.timeout;
         let mut buf = [0u8; 256];

@@ -82,6 +82,8 @@ pub enum RigEvent {
     WatchdogTripped,
     /// The firmware lost its position (stall) or forgot it was homed.
     PositionLost,
+    /// Moved back to where the turntable was before a reset (millidegrees).
+    Resumed { angle_mdeg: i32 },
 }
 
 /// How many times one command may be interrupted (reset, watchdog, busy) before giving up.
@@ -300,8 +302,11 @@ impl Controller {
         false
     }
 
-    /// After a reset: shake hands again, home again if we had homed, light what was lit.
-    fn recover(&mut self) -> Result<(), DeviceError> {
+    /// After a reset: shake hands again, home again if we had homed, light what was lit, and
+    /// with `resume`, move back to the last target (a command that moves anyway, such as the
+    /// next step of a scan, passes `false`: going back first would be wasted motion).
+    fn recover(&mut self, resume: bool) -> Result<(), DeviceError> {
+        let back_to = self.target;
         for _ in 0..MAX_INTERRUPTIONS {
             self.needs_recovery = false;
             self.handshake()?;
@@ -309,6 +314,13 @@ impl Controller {
                 self.events.push(RigEvent::Rehomed);
                 if !self.run_motion(Request::Home, 0)? {
                     continue;
+                }
+                if let Some(t) = back_to.filter(|&t| resume && t != 0) {
+                    if !self.run_motion(Request::MoveAbs { angle: t }, t)? {
+                        continue;
+                    }
+                    self.target = Some(t);
+                    self.events.push(RigEvent::Resumed { angle_mdeg: t });
                 }
             }
             self.restore_lights()?;
@@ -348,9 +360,9 @@ impl Controller {
         Ok(())
     }
 
-    fn ensure_ready(&mut self) -> Result<(), DeviceError> {
+    fn ensure_ready(&mut self, resume: bool) -> Result<(), DeviceError> {
         if self.needs_recovery {
-            self.recover()?;
+            self.recover(resume)?;
         }
         if self.needs_lights {
             self.restore_lights()?;
@@ -475,7 +487,7 @@ impl Controller {
 
     fn motion(&mut self, req: Request, target: i32) -> Result<(), DeviceError> {
         for _ in 0..MAX_INTERRUPTIONS {
-            self.ensure_ready()?;
+            self.ensure_ready(false)?;
             if self.run_motion(req.clone(), target)? {
                 if req != Request::Home {
                     self.target = Some(target);
@@ -536,7 +548,7 @@ impl Controller {
     fn light_on(&mut self, channel: usize, level: f64, exclusive: bool) -> Result<(), DeviceError> {
         let raw = self.light_level(channel, level)?;
         for _ in 0..MAX_INTERRUPTIONS {
-            self.ensure_ready()?;
+            self.ensure_ready(true)?;
             let req = Request::LightOn {
                 channel: channel as u8,
                 level: raw,
@@ -682,7 +694,7 @@ impl Turntable for SerialTurntable {
         let mut c = lock(&self.ctl);
         let mut s = c.status_raw()?;
         if c.observe(&s) {
-            c.ensure_ready()?;
+            c.ensure_ready(true)?;
             s = c.status_raw()?;
             c.observe(&s);
         }

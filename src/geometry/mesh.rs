@@ -53,6 +53,8 @@ pub struct Mesh {
     faces: Vec<[u32; 3]>,
     vertex_normals: Vec<Vector3<f64>>,
     face_normals: Vec<Vector3<f64>>,
+    /// Cached `(min, max)` of the positions: shading asks for the scale once per pixel.
+    bounds: (Point3<f64>, Point3<f64>),
 }
 
 impl Mesh {
@@ -114,6 +116,7 @@ impl Mesh {
             faces: kept,
             vertex_normals: Vec::new(),
             face_normals: Vec::new(),
+            bounds: (Point3::origin(), Point3::origin()),
         };
         mesh.recompute_normals();
         Ok((mesh, report))
@@ -147,15 +150,9 @@ impl Mesh {
         ]
     }
 
-    /// Axis-aligned bounds `(min, max)`.
+    /// Axis-aligned bounds `(min, max)` of all positions (cached).
     pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
-        let mut lo = Point3::from([f64::INFINITY; 3]);
-        let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
-        for p in &self.positions {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-        (lo, hi)
+        self.bounds
     }
 
     /// Length of the bounding-box diagonal: the scale used for ray offsets and tolerances.
@@ -180,7 +177,15 @@ impl Mesh {
         true
     }
 
+    /// Recomputes the cached bounds and the normals after the positions changed.
     fn recompute_normals(&mut self) {
+        let mut lo = Point3::from([f64::INFINITY; 3]);
+        let mut hi = Point3::from([f64::NEG_INFINITY; 3]);
+        for p in &self.positions {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        self.bounds = (lo, hi);
         let mut vn = vec![Vector3::zeros(); self.positions.len()];
         let mut fnorm = Vec::with_capacity(self.faces.len());
         for f in &self.faces {

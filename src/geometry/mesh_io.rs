@@ -178,7 +178,7 @@ fn ply_err(path: &Path, message: String) -> MeshIoError {
 
 /// Loads an OBJ mesh: all objects merged, polygons triangulated, texture and normal indices
 /// ignored (no vertex is duplicated, so curvature sees the true connectivity). tobj keeps only
-/// the vertices faces use, renumbered in file order: vertex ids may differ from the file's.
+/// the vertices faces use, renumbered per object: vertex ids may differ from the file's.
 pub fn load_obj(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
     let opts = tobj::LoadOptions {
         triangulate: true,
@@ -196,15 +196,39 @@ pub fn load_obj(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
             source,
         },
     })?;
-    let mut positions = Vec::new();
+    // tobj gives each object (`o`/`g`) its own copy of the vertices it uses, so objects sharing
+    // vertices in the file would come apart at their seams (split normals, broken curvature).
+    // A vertex of a later object is welded to an earlier object's vertex with bit-identical
+    // coordinates: that restores the file's sharing (both copies come from the same `v` line).
+    let mut positions: Vec<Point3<f64>> = Vec::new();
     let mut faces = Vec::new();
+    let mut seen: std::collections::HashMap<[u32; 3], i64> = std::collections::HashMap::new();
     for m in &models {
-        let base = positions.len() as i64;
+        let mut local = Vec::with_capacity(m.mesh.positions.len() / 3);
+        let mut added = Vec::new();
         for p in m.mesh.positions.chunks_exact(3) {
-            positions.push(Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            let key = [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
+            let id = match seen.get(&key) {
+                Some(&id) => id,
+                None => {
+                    positions.push(Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+                    let id = positions.len() as i64 - 1;
+                    added.push((key, id));
+                    id
+                }
+            };
+            local.push(id);
         }
+        // weld across objects only: vertices within one object stay as tobj numbered them
+        seen.extend(added);
         for t in m.mesh.indices.chunks_exact(3) {
-            faces.push([base + t[0] as i64, base + t[1] as i64, base + t[2] as i64]);
+            let mut tri = [0i64; 3];
+            for (k, &i) in t.iter().enumerate() {
+                // tobj checks indices against the file; an index past this object's vertices
+                // would be a tobj bug, reported like a bad file rather than a panic
+                tri[k] = local.get(i as usize).copied().unwrap_or(i64::MAX);
+            }
+            faces.push(tri);
         }
     }
     Ok(Mesh::new(positions, faces, &path.display().to_string())?)

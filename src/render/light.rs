@@ -32,8 +32,9 @@ impl DirectionalLight {
 /// cosine-weighted hemisphere sampling of the BRDF: `samples` directions per pixel (rounded up to
 /// a square number), one jittered point per stratum of the unit square, drawn from `seed` and the
 /// pixel index, so images are deterministic.
-/// With `occlusion`, each sample direction is tested against the mesh (ambient occlusion);
-/// without, the whole hemisphere counts. For a Lambertian BRDF the estimate is exact without
+/// With `occlusion`, each sample direction is tested against the mesh (ambient occlusion), and
+/// directions below the hit face's plane (possible when the interpolated normal leans away from
+/// the face normal) count as blocked; without, the whole hemisphere of the normal counts. For a Lambertian BRDF the estimate is exact without
 /// occlusion (`albedo * radiance`) whatever the sample count.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UniformEnvironment {

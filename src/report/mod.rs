@@ -1,1 +1,63 @@
-//! report
+//! Reports: the paper's in-plane BRDF plot, SVG charts (plotters) and a self-contained HTML
+//! page summarising a capture session or a reconstruction.
+//!
+//! `inplane` and `charts` are pure (data in, SVG strings out). `html` gathers what a folder
+//! holds (tolerantly: a missing piece is reported as "not available" with the reason) and
+//! renders the page; only `html::gather` and [`write_report`] touch files.
+
+pub mod charts;
+pub mod html;
+pub mod inplane;
+
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error("{dir}: cannot read the folder")]
+    ReadDir {
+        dir: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{dir}: not a folder (give a session folder or a reconstruction output folder)")]
+    NotADir { dir: PathBuf },
+    #[error(
+        "{dir}: neither a session folder (manifest.json, journal.jsonl or session.json) nor a \
+         reconstruction output (brdf.binary or report.json, here or in a subfolder)"
+    )]
+    NotAReportDir { dir: PathBuf },
+    #[error("{path}: cannot write the report")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// The default place of the page: `DIR/report.html`.
+pub fn default_output(dir: &Path) -> PathBuf {
+    dir.join("report.html")
+}
+
+/// Gathers what `dir` holds, renders the page and writes it (atomically) to `out`, or to
+/// `DIR/report.html`. Returns the path written and what the page shows.
+pub fn write_report(
+    dir: &Path,
+    out: Option<&Path>,
+    opts: &html::ReportOptions,
+) -> Result<(PathBuf, html::ReportData), ReportError> {
+    let data = html::gather(dir, opts)?;
+    let page = html::render_html(&data);
+    let path = out.map_or_else(|| default_output(dir), Path::to_path_buf);
+    let werr = |source| ReportError::Write {
+        path: path.clone(),
+        source,
+    };
+    crate::imageio::write_atomic(&path, page.as_bytes()).map_err(werr)?;
+    // The atomic write goes through a private temporary file (mode 0600); a report is meant to
+    // be shared, so give it the usual permissions of a document.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).map_err(werr)?;
+    }
+    Ok((path, data))
+}

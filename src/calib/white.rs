@@ -1,0 +1,400 @@
+//! Irradiance of the light, per colour channel, from a white reference board (METHOD.md 1.4).
+//!
+//! A Lambertian board of albedo `a` under irradiance `E` (measured perpendicular to the light)
+//! sends radiance `L = a E cos(theta) / pi` towards every direction, `theta` being the angle
+//! between the board normal and the light, so `E = pi L / (a cos(theta))`.
+//!
+//! - `L` is a robust mean over the board: a region of interest given by the user, or the largest
+//!   bright region (Otsu threshold) eroded by a few pixels to stay off its edges. Pixels with a
+//!   clipped channel are dropped, then values further than `reject_k` MAD-sigmas from the median
+//!   (dust, glints below the clip level, hot pixels), per channel.
+//! - Orientation: the caller gives the board normal (camera axes, the lit face's normal, e.g.
+//!   from a fiducial pose or the photogrammetry); without it the board is **assumed to face the
+//!   light** (`cos(theta) = 1`) and the result says so. Fitting the normal from the image would
+//!   need the board's shape (e.g. its corners and size); that is not done here.
+//! - Flat field: the board's bounding box is cut into a 3x3 grid; the spread
+//!   `(max - min) / mean` of the cells' robust mean luminance reveals vignetting or an uneven
+//!   light, and a warning is raised above `flat_field_warn`.
+//!
+//! Conventions: camera axes as `calib`; `light_dir` points from the board towards the light.
+//! Units of `E` are those of the image times steradians (radiance in, irradiance out). Pure.
+
+use super::regions::{self, Plane, saturation_level};
+use super::robust::{RobustMean, robust_mean};
+use crate::render::image::LinearImage;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum WhiteError {
+    #[error("albedo {albedo:?}: each channel must be in (0, 1.5]")]
+    BadAlbedo { albedo: [f64; 3] },
+    #[error("{what} {value:?} is not a usable direction (finite, non-zero)")]
+    BadDirection { what: String, value: [f64; 3] },
+    #[error(
+        "the board normal {normal:?} points away from the camera (z > 0); give the normal of the \
+         face the camera sees"
+    )]
+    NormalAway { normal: [f64; 3] },
+    #[error(
+        "the light grazes the board (cos(theta) = {cos_theta:.3}); the irradiance would be \
+         unreliable: turn the board towards the light"
+    )]
+    Grazing { cos_theta: f64 },
+    #[error(
+        "region of interest {roi:?} (x, y, width, height) is not inside the {width}x{height} image"
+    )]
+    RoiOutside {
+        roi: [usize; 4],
+        width: usize,
+        height: usize,
+    },
+    #[error("no white board found: {reason}")]
+    NoBoard { reason: String },
+    #[error("only {usable} usable board pixels ({saturated} clipped of {total}): {advice}")]
+    TooFewPixels {
+        usable: usize,
+        saturated: usize,
+        total: usize,
+        advice: String,
+    },
+}
+
+/// Where the board is in the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BoardRegion {
+    /// Pixels `x..x+width`, `y..y+height`.
+    Roi {
+        x: usize,
+        y: usize,
+        width: usize,
+        height: usize,
+    },
+    /// The largest bright region, eroded.
+    Detect,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WhiteOptions {
+    /// Clip level; `None`: detected as a maximum shared by several pixels.
+    pub saturation: Option<f32>,
+    /// Outlier rejection, in MAD-sigmas from the median.
+    pub reject_k: f64,
+    /// Erosion of a detected board, in pixels.
+    pub erode_px: usize,
+    /// Flat-field spread above which a warning is raised.
+    pub flat_field_warn: f64,
+    /// Fewest usable pixels.
+    pub min_pixels: usize,
+}
+
+impl Default for WhiteOptions {
+    fn default() -> Self {
+        Self {
+            saturation: None,
+            reject_k: 3.5,
+            erode_px: 3,
+            flat_field_warn: 0.05,
+            min_pixels: 50,
+        }
+    }
+}
+
+/// The 3x3 flat-field check.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FlatField {
+    /// Robust mean luminance per cell, row-major from the top-left; `None` when a cell holds
+    /// too few board pixels.
+    pub cells: [Option<f64>; 9],
+    /// `(max - min) / mean` over the cells.
+    pub spread: f64,
+}
+
+/// Irradiance per channel with how it was obtained (serde: what a capture session stores).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IrradianceCalibration {
+    /// `E` per channel (R, G, B).
+    pub irradiance: [f64; 3],
+    /// Standard error of `irradiance` from the pixel scatter (albedo and normal errors excluded).
+    pub std_error: [f64; 3],
+    /// Robust mean board radiance per channel.
+    pub radiance: [f64; 3],
+    pub cos_theta: f64,
+    /// True when no normal was given and the board was assumed to face the light.
+    pub normal_assumed: bool,
+    pub pixels_used: usize,
+    pub pixels_saturated: usize,
+    /// Bounding box of the board pixels: x, y, width, height.
+    pub region: [usize; 4],
+    pub flat_field: FlatField,
+    pub warnings: Vec<String>,
+}
+
+fn unit(what: &str, v: &Vector3<f64>) -> Result<Vector3<f64>, WhiteError> {
+    let n = v.norm();
+    if !(n.is_finite() && n > 1e-12) {
+        return Err(WhiteError::BadDirection {
+            what: what.into(),
+            value: [v.x, v.y, v.z],
+        });
+    }
+    Ok(v / n)
+}
+
+/// Irradiance per channel from an image of the white board.
+pub fn calibrate_irradiance(
+    img: &LinearImage,
+    albedo: [f64; 3],
+    light_dir: &Vector3<f64>,
+    normal: Option<&Vector3<f64>>,
+    region: &BoardRegion,
+    opts: &WhiteOptions,
+) -> Result<IrradianceCalibration, WhiteError> {
+    if albedo
+        .iter()
+        .any(|a| !(a.is_finite() && *a > 0.0 && *a <= 1.5))
+    {
+        return Err(WhiteError::BadAlbedo { albedo });
+    }
+    let l = unit("light direction", light_dir)?;
+    let mut warnings = Vec::new();
+    let (cos_theta, normal_assumed) = match normal {
+        Some(n) => {
+            let n = unit("board normal", n)?;
+            if n.z > 0.0 {
+                return Err(WhiteError::NormalAway {
+                    normal: [n.x, n.y, n.z],
+                });
+            }
+            (n.dot(&l), false)
+        }
+        None => {
+            warnings.push(
+                "no board normal given: assumed the board faces the light (cos(theta) = 1)".into(),
+            );
+            (1.0, true)
+        }
+    };
+    if cos_theta < 0.1 {
+        return Err(WhiteError::Grazing { cos_theta });
+    }
+    let w = img.width();
+    let members = board_pixels(img, region, opts)?;
+    let sat = saturation_level(img, opts.saturation);
+    let data = img.data();
+    let clipped = |i: usize| sat.is_some_and(|s| data[3 * i..3 * i + 3].iter().any(|&v| v >= s));
+    let usable: Vec<usize> = members.iter().copied().filter(|&i| !clipped(i)).collect();
+    let saturated = members.len() - usable.len();
+    if usable.len() < opts.min_pixels {
+        return Err(WhiteError::TooFewPixels {
+            usable: usable.len(),
+            saturated,
+            total: members.len(),
+            advice: if saturated * 2 > members.len() {
+                "the board is clipped: shorten the exposure or dim the light".into()
+            } else {
+                "enlarge the region of interest or move the board closer".into()
+            },
+        });
+    }
+    let mut means = [RobustMean {
+        mean: 0.0,
+        std_dev: 0.0,
+        std_error: 0.0,
+        kept: 0,
+        rejected: 0,
+    }; 3];
+    for (k, m) in means.iter_mut().enumerate() {
+        let v: Vec<f64> = usable.iter().map(|&i| data[3 * i + k] as f64).collect();
+        *m = robust_mean(&v, opts.reject_k).ok_or_else(|| WhiteError::TooFewPixels {
+            usable: 0,
+            saturated,
+            total: members.len(),
+            advice: "no consistent board values".into(),
+        })?;
+    }
+    let radiance = means.map(|m| m.mean);
+    let irradiance = [0, 1, 2].map(|k| PI * radiance[k] / (albedo[k] * cos_theta));
+    let std_error = [0, 1, 2].map(|k| PI * means[k].std_error / (albedo[k] * cos_theta));
+    // flat field over the bounding box
+    let (x0, x1) = minmax(usable.iter().map(|&i| i % w));
+    let (y0, y1) = minmax(usable.iter().map(|&i| i / w));
+    let lum = Plane::luminance(img);
+    let mut cell_values: Vec<Vec<f64>> = vec![Vec::new(); 9];
+    let (bw, bh) = ((x1 - x0 + 1) as f64, (y1 - y0 + 1) as f64);
+    for &i in &usable {
+        let (x, y) = (i % w, i / w);
+        let cx = (((x - x0) as f64 / bw * 3.0) as usize).min(2);
+        let cy = (((y - y0) as f64 / bh * 3.0) as usize).min(2);
+        cell_values[cy * 3 + cx].push(lum.data[i] as f64);
+    }
+    let min_cell = (usable.len() / 40).max(5);
+    let cells: [Option<f64>; 9] = std::array::from_fn(|c| {
+        (cell_values[c].len() >= min_cell)
+            .then(|| robust_mean(&cell_values[c], opts.reject_k).map(|m| m.mean))
+            .flatten()
+    });
+    let present: Vec<f64> = cells.iter().flatten().copied().collect();
+    let spread = if present.len() >= 2 {
+        let mean = present.iter().sum::<f64>() / present.len() as f64;
+        let (lo, hi) = present
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        (hi - lo) / mean
+    } else {
+        0.0
+    };
+    if spread > opts.flat_field_warn {
+        warnings.push(format!(
+            "the board is not evenly lit or the lens vignettes: the 3x3 cells differ by {:.1} % \
+             (warning above {:.1} %); use a smaller board region near the object",
+            100.0 * spread,
+            100.0 * opts.flat_field_warn
+        ));
+    }
+    if saturated > 0 {
+        warnings.push(format!("{saturated} clipped board pixels ignored"));
+    }
+    Ok(IrradianceCalibration {
+        irradiance,
+        std_error,
+        radiance,
+        cos_theta,
+        normal_assumed,
+        pixels_used: means.iter().map(|m| m.kept).min().unwrap_or(0),
+        pixels_saturated: saturated,
+        region: [x0, y0, x1 - x0 + 1, y1 - y0 + 1],
+        flat_field: FlatField { cells, spread },
+        warnings,
+    })
+}
+
+fn minmax(it: impl Iterator<Item = usize>) -> (usize, usize) {
+    it.fold((usize::MAX, 0), |(a, b), v| (a.min(v), b.max(v)))
+}
+
+/// Indices of the board pixels.
+fn board_pixels(
+    img: &LinearImage,
+    region: &BoardRegion,
+    opts: &WhiteOptions,
+) -> Result<Vec<usize>, WhiteError> {
+    let (w, h) = (img.width(), img.height());
+    match *region {
+        BoardRegion::Roi {
+            x,
+            y,
+            width,
+            height,
+        } => {
+            let inside = width > 0
+                && height > 0
+                && x.checked_add(width).is_some_and(|e| e <= w)
+                && y.checked_add(height).is_some_and(|e| e <= h);
+            if !inside {
+                return Err(WhiteError::RoiOutside {
+                    roi: [x, y, width, height],
+                    width: w,
+                    height: h,
+                });
+            }
+            Ok((y..y + height)
+                .flat_map(|yy| (x..x + width).map(move |xx| yy * w + xx))
+                .collect())
+        }
+        BoardRegion::Detect => {
+            let lum = Plane::luminance(img).box3();
+            let lo = regions::quantile(&lum.data, 0.0).unwrap_or(0.0);
+            let hi = regions::quantile(&lum.data, 0.99).unwrap_or(0.0);
+            let thr =
+                regions::otsu_threshold(&lum.data, lo, hi).ok_or_else(|| WhiteError::NoBoard {
+                    reason: "the image has no contrast".into(),
+                })?;
+            let mask: Vec<bool> = lum.data.iter().map(|&v| v >= thr).collect();
+            let board = regions::components(&mask, w, h)
+                .into_iter()
+                .max_by_key(|c| c.pixels.len())
+                .ok_or_else(|| WhiteError::NoBoard {
+                    reason: "no bright region".into(),
+                })?;
+            let mut member = regions::filled_mask(&board, w, h);
+            for _ in 0..opts.erode_px {
+                member = erode(&member, w, h);
+            }
+            let px: Vec<usize> = (0..w * h).filter(|&i| member[i]).collect();
+            if px.is_empty() {
+                return Err(WhiteError::NoBoard {
+                    reason: format!(
+                        "the brightest region vanishes after eroding {} px",
+                        opts.erode_px
+                    ),
+                });
+            }
+            Ok(px)
+        }
+    }
+}
+
+/// One step of 4-neighbour erosion; the image border counts as outside.
+fn erode(m: &[bool], w: usize, h: usize) -> Vec<bool> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            m[i] && x > 0
+                && y > 0
+                && x + 1 < w
+                && y + 1 < h
+                && m[i - 1]
+                && m[i + 1]
+                && m[i - w]
+                && m[i + w]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_patch_gives_closed_form_irradiance() {
+        // L = a E cos / pi with a = 0.5, E = 2, cos = 0.5  =>  L = 0.5 / pi
+        let l_val = (0.5 * 2.0 * 0.5 / PI) as f32;
+        let img = LinearImage::from_rgb(20, 20, vec![l_val; 20 * 20 * 3]).unwrap();
+        let light = Vector3::new(0.0, -(0.75f64.sqrt()), -0.5);
+        let normal = Vector3::new(0.0, 0.0, -1.0);
+        let roi = BoardRegion::Roi {
+            x: 2,
+            y: 2,
+            width: 16,
+            height: 16,
+        };
+        let r = calibrate_irradiance(
+            &img,
+            [0.5; 3],
+            &light,
+            Some(&normal),
+            &roi,
+            &WhiteOptions::default(),
+        )
+        .unwrap();
+        for e in r.irradiance {
+            assert!((e - 2.0).abs() < 1e-5, "{e}");
+        }
+        assert!(r.flat_field.spread < 1e-6 && r.warnings.is_empty());
+        assert!(matches!(
+            calibrate_irradiance(
+                &img,
+                [0.0, 0.5, 0.5],
+                &light,
+                None,
+                &roi,
+                &Default::default()
+            ),
+            Err(WhiteError::BadAlbedo { .. })
+        ));
+    }
+}

@@ -1,0 +1,343 @@
+//! `brdf-rig report`: builds a small reconstruction output and a session folder the way the
+//! reconstruct and capture steps lay them out, makes the report through the real binary, and
+//! loads the page in headless Chromium to check it renders (SVG plots drawn, images decoded).
+
+use crate::util::bin;
+use brdf_rig::brdf::analytic::LambertGgx;
+use brdf_rig::brdf::merl::MerlTable;
+use brdf_rig::geometry::camera::{Intrinsics, Pose};
+use brdf_rig::imageio::{ExrPrecision, write_exr, write_preview_png};
+use brdf_rig::render::image::LinearImage;
+use brdf_rig::render::light::DirectionalLight;
+use brdf_rig::render::sphere::{Sphere, render_sphere};
+use brdf_rig::report::html::{Avail, ReportOptions, gather, render_html};
+use nalgebra::{Point3, Vector3};
+use serde_json::json;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const MATERIAL: LambertGgx = LambertGgx {
+    kd: [0.35, 0.2, 0.08],
+    ks: [0.6, 0.6, 0.6],
+    alpha: 0.12,
+    f0: 0.04,
+};
+
+/// A session folder as the capture step writes it: two single-light and one ambient EXR with
+/// their SHA-256 in `manifest.json`.
+fn make_session(dir: &Path) {
+    std::fs::create_dir_all(dir.join("light")).unwrap();
+    std::fs::create_dir_all(dir.join("ambient")).unwrap();
+    let mut shots = Vec::new();
+    let files = [
+        ("ambient", "ambient/v000_e0.exr", 0.0, None),
+        ("single_light", "light/v000_ch0_e0.exr", 0.0, Some(0)),
+        ("single_light", "light/v003_ch1_e0.exr", 45.0, Some(1)),
+    ];
+    for (i, (kind, file, angle, channel)) in files.iter().enumerate() {
+        let mut img = LinearImage::new(32, 24);
+        for y in 0..24 {
+            for x in 0..32 {
+                let v = (x + y + i) as f32 / 60.0;
+                img.set(x, y, [v, 0.5 * v, 0.25]);
+            }
+        }
+        let path = dir.join(file);
+        write_exr(&path, &img, ExrPrecision::F32).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        shots.push(json!({
+            "id": format!("s{i}"), "index": i, "kind": kind, "view": 0,
+            "angle_deg": angle, "measured_angle_deg": angle + 0.01, "channel": channel,
+            "level": 1.0, "light_dir_lab": channel.map(|_| [0.0, 0.5, 0.866]),
+            "exposure_secs": 0.01, "gain": 1.0, "saturation": 0.0, "device": "sim",
+            "file": file, "width": 32, "height": 24, "bytes": bytes.len(),
+            "sha256": hex::encode(Sha256::digest(&bytes)),
+            "time_unix": 1_790_000_000.0 + 10.0 * i as f64,
+            "time_utc": format!("2026-09-21T12:26:{:02}.000Z", 40 + 10 * i),
+        }));
+    }
+    let manifest = json!({
+        "header": {"format_version": 1, "tool": "brdf-rig", "plan_name": "test <plan>",
+                   "planned_shots": 3, "profile": "simulated", "camera_backend": "sim",
+                   "created_utc": "2026-09-21T12:26:40.000Z", "simulated": true},
+        "status": "complete",
+        "shots": shots,
+    });
+    std::fs::write(
+        dir.join("manifest.json"),
+        serde_json::to_vec_pretty(&manifest).unwrap(),
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.join("calib")).unwrap();
+    std::fs::write(
+        dir.join("calib/light.json"),
+        serde_json::to_vec(&json!({
+            "light_dir_camera": [0.1, -0.2, -0.97], "uncertainty_deg": 0.4,
+            "irradiance": [3.1, 3.0, 2.9], "irradiance_std_error": [0.01, 0.01, 0.02]
+        }))
+        .unwrap(),
+    )
+    .unwrap();
+}
+
+/// A reconstruction output: the MERL table of an analytic BRDF, a report.json with trials, and
+/// one sphere render as the reconstruction writes them.
+fn make_recon(dir: &Path, session: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    MerlTable::tabulate(&MATERIAL)
+        .write(&dir.join("brdf.binary"))
+        .unwrap();
+    let sphere = Sphere {
+        centre: Point3::origin(),
+        radius: 1.0,
+    };
+    let k = Intrinsics::pinhole(64, 64, 100.0, 100.0, 32.0, 32.0);
+    let pose = Pose::look_at(Point3::new(0.0, 0.0, 4.0), sphere.centre, Vector3::y());
+    let light = DirectionalLight::new(Vector3::new(0.3, 0.3, 1.0), [3.0; 3]).unwrap();
+    let img = render_sphere(&sphere, &MATERIAL, &light, &k, &pose, [0.0; 3]);
+    write_preview_png(&dir.join("sphere_chosen.png"), &img, 0.0).unwrap();
+    let report = json!({
+        "session": session.display().to_string(),
+        "trials": [
+            {"index": 0, "similarity": 0.962, "rejected_by_monotonicity": 4, "error": 0.31},
+            {"index": 1, "similarity": 0.981, "rejected_by_monotonicity": 2, "error": 0.12},
+            {"index": 2, "similarity": 0.955, "rejected_by_monotonicity": 7, "error": 0.40},
+            {"index": 3, "similarity": 0.974, "rejected_by_monotonicity": 1, "error": 0.18}
+        ],
+        "chosen_trial": 1,
+        "components": {"k": 6, "curve": [{"k": 2, "error": 0.4}, {"k": 4, "error": 0.25},
+                                          {"k": 6, "error": 0.2}, {"k": 8, "error": 0.21}]},
+        "timings": [["rasterise", 1.5], ["observe", 0.25], ["trials", 3.0]],
+        "warnings": ["<script>alert('x')</script> few pixels near the peak"],
+        "reliable_pixels": 4321
+    });
+    std::fs::write(
+        dir.join("report.json"),
+        serde_json::to_vec_pretty(&report).unwrap(),
+    )
+    .unwrap();
+}
+
+/// Headless Chromium, or a failure that says how to install it (never a silent pass).
+fn chromium() -> PathBuf {
+    for c in ["/usr/bin/chromium", "/usr/bin/chromium-browser"] {
+        if Path::new(c).is_file() {
+            return PathBuf::from(c);
+        }
+    }
+    panic!("chromium is not installed: run scripts/setup.sh (it installs Debian's chromium)");
+}
+
+fn run_chromium(page: &Path, extra: &[&str]) -> std::process::Output {
+    let profile = tempfile::tempdir().unwrap();
+    let url = format!("file://{}", page.display());
+    let mut cmd = Command::new(chromium());
+    cmd.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+    ])
+    .arg(format!("--user-data-dir={}", profile.path().display()))
+    .args(extra)
+    .arg(url);
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// The value of `name="..."` on the `<body ...>` tag of a DOM dump.
+fn body_attr(dom: &str, name: &str) -> Option<String> {
+    let start = dom.find("<body")?;
+    let tag = &dom[start..start + dom[start..].find('>')?];
+    let key = format!("{name}=\"");
+    let i = tag.find(&key)? + key.len();
+    Some(tag[i..i + tag[i..].find('"')?].to_string())
+}
+
+#[test]
+fn report_renders_in_headless_chromium() {
+    let tmp = tempfile::tempdir().unwrap();
+    let session = tmp.path().join("session");
+    let recon = tmp.path().join("recon");
+    make_session(&session);
+    make_recon(&recon, &session);
+
+    let out = Command::new(bin())
+        .arg("report")
+        .arg(&recon)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let page = recon.join("report.html");
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout).trim(),
+        page.display().to_string()
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    // Self-contained: nothing fetched from anywhere.
+    for bad in ["http://", "https://", "src=\"file:", "<link"] {
+        let hits: Vec<&str> = html.matches(bad).collect();
+        // The SVG namespace URI is an identifier, not a fetch.
+        let allowed = html.matches("xmlns=\"http://www.w3.org/2000/svg\"").count();
+        if bad == "http://" {
+            assert_eq!(hits.len(), allowed, "{bad}");
+        } else {
+            assert!(hits.is_empty(), "{bad}");
+        }
+    }
+    // Strings from files are escaped: the warning's script tag is text, not a script.
+    assert!(html.contains("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;"));
+    assert!(!html.contains("<script>alert"));
+
+    let dom = run_chromium(&page, &["--dump-dom"]);
+    let dom = String::from_utf8(dom.stdout).unwrap();
+    assert_eq!(
+        body_attr(&dom, "data-images-ok").as_deref(),
+        Some("true"),
+        "images did not decode"
+    );
+    // 3 sphere renders + 1 render from the reconstruction + 2 single-light thumbnails.
+    assert_eq!(body_attr(&dom, "data-images").as_deref(), Some("6"));
+    // 3 in-plane channels, similarity per trial, similarity vs error, k curve.
+    assert_eq!(body_attr(&dom, "data-svgs").as_deref(), Some("6"));
+    // The plotted curves are real polylines with many points (361 view angles per curve).
+    let longest = dom
+        .split("<polyline")
+        .skip(1)
+        .filter_map(|p| {
+            let i = p.find("points=\"")? + 8;
+            Some(p[i..i + p[i..].find('"')?].split_whitespace().count())
+        })
+        .max()
+        .unwrap_or(0);
+    assert!(longest >= 300, "longest polyline has {longest} points");
+    for text in [
+        "Chosen trial: <b>#1</b>, cosine similarity <b>0.981</b>",
+        "k chosen: <b>6</b>",
+        "all intact",
+        "single_light: 2",
+        "channel 1: 1 shots",
+        "rasterise",
+    ] {
+        assert!(dom.contains(text), "page lacks {text:?}");
+    }
+
+    // A screenshot that is not blank.
+    let shot = tmp.path().join("shot.png");
+    run_chromium(
+        &page,
+        &[
+            &format!("--screenshot={}", shot.display()),
+            "--window-size=1100,1600",
+            "--hide-scrollbars",
+        ],
+    );
+    let img = image::open(&shot).unwrap().to_rgb8();
+    let mut colours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(
+        colours.len() > 50,
+        "screenshot has {} colours",
+        colours.len()
+    );
+}
+
+#[test]
+fn missing_and_broken_pieces_are_reported_not_fatal() {
+    let tmp = tempfile::tempdir().unwrap();
+    let session = tmp.path().join("session");
+    make_session(&session);
+    // Corrupt one image after its checksum was recorded.
+    std::fs::write(
+        session.join("light/v003_ch1_e0.exr"),
+        b"not an exr any more",
+    )
+    .unwrap();
+    let opts = ReportOptions::default();
+    let data = gather(&session, &opts).unwrap();
+    let Avail::Yes(c) = &data.capture else {
+        panic!("no capture summary: {:?}", data.capture)
+    };
+    assert_eq!(c.shots, 3);
+    assert_eq!(c.by_kind.get("single_light"), Some(&2));
+    assert_eq!(c.angles_deg, vec![0.0, 45.0]);
+    assert_eq!(c.span_secs, Some(20.0));
+    let Avail::Yes(st) = &c.checksums else {
+        panic!("checksums not checked")
+    };
+    assert_eq!((st.checked, st.ok), (3, 2));
+    assert!(
+        st.problems[0].contains("v003_ch1_e0.exr"),
+        "{:?}",
+        st.problems
+    );
+    // One thumbnail decoded, the broken one skipped.
+    assert!(matches!(&c.thumbnails, Avail::Yes(t) if t.len() == 1));
+    assert!(data.calibration.is_available());
+    // No reconstruction here: each piece says why.
+    for why in [
+        match &data.brdf {
+            Avail::No(w) => w.clone(),
+            _ => panic!("brdf"),
+        },
+        match &data.trials {
+            Avail::No(w) => w.clone(),
+            _ => panic!("trials"),
+        },
+    ] {
+        assert!(!why.is_empty());
+    }
+    let html = render_html(&data);
+    assert!(html.contains("PROBLEMS: 2 of 3 files"));
+    assert!(html.contains("not available: no brdf.binary"));
+    assert!(html.contains("test &lt;plan&gt;"));
+
+    // A broken report.json and a truncated brdf.binary: a page all the same, with reasons.
+    let recon = tmp.path().join("recon");
+    std::fs::create_dir_all(&recon).unwrap();
+    std::fs::write(recon.join("report.json"), b"{ not json").unwrap();
+    std::fs::write(recon.join("brdf.binary"), [90u8, 0, 0, 0]).unwrap();
+    let data = gather(&recon, &opts).unwrap();
+    assert!(matches!(&data.brdf, Avail::No(w) if w.contains("brdf.binary")));
+    assert!(data.warnings.iter().any(|w| w.contains("not valid JSON")));
+    let html = render_html(&data);
+    assert!(html.contains("not available"));
+
+    // Not a report folder at all: the CLI says which folder and what it expected.
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let out = Command::new(bin())
+        .arg("report")
+        .arg(&empty)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&empty.display().to_string()) && err.contains("brdf.binary"),
+        "{err}"
+    );
+    // A bad --compare is refused before anything is read.
+    let out = Command::new(bin())
+        .args(["report", "--compare", "nolabel"])
+        .arg(&session)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("LABEL=PATH"));
+}
