@@ -21,6 +21,8 @@ pub enum BenchCommand {
     Rig(BenchRigArgs),
     /// Shots per second of whole simulated captures and the controller's overhead per shot.
     Capture(super::bench_capture::BenchCaptureArgs),
+    /// Time, peak memory and accuracy of reconstruction on a simulated Bunny scene.
+    Reconstruct(super::bench_reconstruct::BenchReconstructArgs),
 }
 
 #[derive(Args, Debug)]
@@ -43,10 +45,11 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
         BenchCommand::Capture(a) => super::bench_capture::run(a),
+        BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
     }
 }
 
-fn machine() -> String {
+pub fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {

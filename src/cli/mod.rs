@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod bench_reconstruct;
 mod firmware;
 mod bench_capture;
 mod cameras;
