@@ -19,6 +19,8 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// STATUS round trip and controller overhead per step, over a pty to the simulated firmware.
     Rig(BenchRigArgs),
+    /// Shots per second of whole simulated captures and the controller's overhead per shot.
+    Capture(super::bench_capture::BenchCaptureArgs),
 }
 
 #[derive(Args, Debug)]
@@ -40,6 +42,7 @@ pub struct BenchRigArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
+        BenchCommand::Capture(a) => super::bench_capture::run(a),
     }
 }
 

@@ -2,12 +2,16 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 pub mod calibrate;
+mod cameras;
+mod capture;
 mod merl;
+mod session;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod bench_capture;
 mod light;
 mod ports;
 mod reconstruct;
@@ -28,6 +32,12 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Run a capture session (new with --out, or continue one with --resume).
+    Capture(capture::CaptureArgs),
+    /// List the cameras each backend finds (sim, gphoto2, webcam, v4l2).
+    Cameras(cameras::CamerasArgs),
+    /// Inspect a session folder.
+    Session(session::SessionArgs),
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
@@ -46,10 +56,15 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
+    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
+    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Capture(a) => capture::run(a),
+        Command::Cameras(a) => cameras::run(a),
+        Command::Session(a) => session::run(a),
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
@@ -59,5 +74,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
+        Command::Merl(args) => merl::run(args),
     }
 }
