@@ -2,6 +2,7 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 pub mod calibrate;
+mod calibrate_session;
 mod cameras;
 mod capture;
 mod merl;
@@ -56,8 +57,6 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
-    /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
-    Merl(merl::MerlArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -74,6 +73,5 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
-        Command::Merl(args) => merl::run(args),
     }
 }
