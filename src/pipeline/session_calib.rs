@@ -251,7 +251,7 @@ pub fn calibrate_session(
     let mut channels = Vec::new();
     for (&ch, img) in &sphere_imgs {
         let sphere_opts = SphereOptions::default();
-        let outline = match outline_img.as_ref().filter(|_| std::env::var_os("BRDF_RIG_OUTLINE_SELF").is_none()) {
+        let outline = match &outline_img {
             Some(o) => OutlineInput::Image(o),
             None => OutlineInput::FromLightImage,
         };
