@@ -16,3 +16,4 @@ pub mod reconstruct;
 pub mod render;
 pub mod report;
 pub mod sim;
+pub mod pipeline;

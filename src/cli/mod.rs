@@ -2,6 +2,7 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 pub mod calibrate;
+mod calibrate_session;
 mod merl;
 
 use clap::{Parser, Subcommand};
