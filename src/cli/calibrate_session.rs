@@ -27,7 +27,9 @@ pub struct SessionArgs {
 
 pub fn run(a: SessionArgs) -> Result<()> {
     let Some(dir) = a.session else {
-        bail!("give a session folder (`brdf-rig calibrate SESSION`) or a subcommand (sphere, white)");
+        bail!(
+            "give a session folder (`brdf-rig calibrate SESSION`) or a subcommand (sphere, white)"
+        );
     };
     if let Some(al) = a.albedo
         && !(al.is_finite() && al > 0.0 && al <= 1.5)

@@ -3,17 +3,18 @@
 
 pub mod calibrate;
 mod calibrate_session;
+mod demo;
 mod merl;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
-mod bench_reconstruct;
-mod firmware;
 mod bench_capture;
+mod bench_reconstruct;
 mod cameras;
 mod capture;
+mod firmware;
 mod light;
 mod ports;
 mod reconstruct;
@@ -35,6 +36,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The whole story on the simulated rig: capture, calibrate, reconstruct, report.
+    Demo(demo::DemoArgs),
     /// Reference firmware for the rig's Arduino Mega 2560.
     Firmware {
         #[command(subcommand)]
@@ -68,6 +71,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Demo(a) => demo::run(a),
         Command::Firmware { command } => firmware::run(command),
         Command::Capture(a) => capture::run(a),
         Command::Cameras(a) => cameras::run(a),

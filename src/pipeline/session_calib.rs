@@ -156,7 +156,11 @@ fn read_truth(dir: &Path) -> Option<Truth> {
     for c in v["channels"].as_array()? {
         let ch = c["channel"].as_u64()? as usize;
         let d = c["light_dir_camera"].as_array()?;
-        let dir = Vector3::new(d.first()?.as_f64()?, d.get(1)?.as_f64()?, d.get(2)?.as_f64()?);
+        let dir = Vector3::new(
+            d.first()?.as_f64()?,
+            d.get(1)?.as_f64()?,
+            d.get(2)?.as_f64()?,
+        );
         channels.insert(ch, (dir, c["irradiance_w_m2"].as_f64()?));
     }
     Some(Truth {
@@ -233,7 +237,9 @@ pub fn calibrate_session(
             progress(&format!("merging the sphere bracket of channel {ch}"));
             sphere_imgs.insert(*ch, merge(dir, shots)?);
         } else if *k == white_key {
-            progress(&format!("merging the white-reference bracket of channel {ch}"));
+            progress(&format!(
+                "merging the white-reference bracket of channel {ch}"
+            ));
             white_imgs.insert(*ch, merge(dir, shots)?);
         }
     }
@@ -292,11 +298,10 @@ pub fn calibrate_session(
             reason: format!("irradiance from the white reference: {e}"),
         })?;
         let (mut dir_err, mut irr_err) = (None, None);
-        if let Some((t_dir, t_irr)) = truth.as_ref().and_then(|t| {
-            t.channels
-                .get(&ch)
-                .map(|(d, e)| (*d, *e * t.sensitivity))
-        }) {
+        if let Some((t_dir, t_irr)) = truth
+            .as_ref()
+            .and_then(|t| t.channels.get(&ch).map(|(d, e)| (*d, *e * t.sensitivity)))
+        {
             dir_err = Some(l.angle(&t_dir).to_degrees());
             let mean = irr.irradiance.iter().sum::<f64>() / 3.0;
             irr_err = Some((mean - t_irr).abs() / t_irr);
@@ -340,13 +345,14 @@ pub fn calibrate_session(
                 reason: "single-light shots but no calibration shots for this channel".into(),
             });
         };
-        let camera = ambient_names
-            .get(view)
-            .cloned()
-            .ok_or_else(|| SessionCalibError::Session {
-                dir: dir.into(),
-                reason: format!("view {view} has single-light shots but no ambient image"),
-            })?;
+        let camera =
+            ambient_names
+                .get(view)
+                .cloned()
+                .ok_or_else(|| SessionCalibError::Session {
+                    dir: dir.into(),
+                    reason: format!("view {view} has single-light shots but no ambient image"),
+                })?;
         if model.view(&camera).is_none() {
             return Err(SessionCalibError::File {
                 path: cameras.clone(),
