@@ -10,6 +10,7 @@ mod calib_hdr;
 mod calib_sphere;
 mod calib_synth;
 mod calib_white;
+mod eval;
 mod geometry;
 mod reconstruct;
 mod render;

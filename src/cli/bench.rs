@@ -19,6 +19,8 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// STATUS round trip and controller overhead per step, over a pty to the simulated firmware.
     Rig(BenchRigArgs),
+    /// The paper's simulation grid: materials x meshes, ablation, baselines, chosen-trial rank.
+    Accuracy(super::bench_accuracy::BenchAccuracyArgs),
 }
 
 #[derive(Args, Debug)]
@@ -40,10 +42,11 @@ pub struct BenchRigArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
+        BenchCommand::Accuracy(a) => super::bench_accuracy::run(a),
     }
 }
 
-fn machine() -> String {
+pub(super) fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {

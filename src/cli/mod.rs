@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod bench_accuracy;
 mod light;
 mod ports;
 mod reconstruct;
