@@ -21,6 +21,12 @@ pub enum BenchCommand {
     Rig(BenchRigArgs),
     /// The paper's simulation grid: materials x meshes, ablation, baselines, chosen-trial rank.
     Accuracy(super::bench_accuracy::BenchAccuracyArgs),
+    /// Error against time, one knob at a time (image size, samples, trials, k, basis grid).
+    Speed(super::bench_sweeps::BenchSweepArgs),
+    /// Error under perturbations (normal noise, image noise, clipping, views, light error).
+    Stability(super::bench_sweeps::BenchSweepArgs),
+    /// Rasterisation, shadows, curvature and shading of the bunny at 640x480.
+    Render(super::bench_render::BenchRenderArgs),
 }
 
 #[derive(Args, Debug)]
@@ -43,6 +49,9 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
         BenchCommand::Accuracy(a) => super::bench_accuracy::run(a),
+        BenchCommand::Speed(a) => super::bench_sweeps::speed(a),
+        BenchCommand::Stability(a) => super::bench_sweeps::stability(a),
+        BenchCommand::Render(a) => super::bench_render::run(a),
     }
 }
 

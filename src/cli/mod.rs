@@ -9,6 +9,8 @@ use std::process::ExitCode;
 
 mod bench;
 mod bench_accuracy;
+mod bench_render;
+mod bench_sweeps;
 mod light;
 mod ports;
 mod reconstruct;
