@@ -444,3 +444,19 @@ fn a_sphere_without_a_fresnel_rim_needs_no_correction() {
     );
     assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
 }
+
+#[test]
+fn a_sphere_on_a_dark_post_down_to_the_frame_edge() {
+    // the post joins the sphere's dark region to the frame edge: it must be cut off, not make
+    // the sphere "cut by the frame", and its side edges must not bend the outline
+    let errors = errors_over_directions(
+        4,
+        47,
+        |s| {
+            s.post = Some(0.25);
+        },
+        true,
+        true,
+    );
+    assert!(errors.iter().all(|&e| e < 0.5), "{errors:?}");
+}

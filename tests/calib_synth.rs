@@ -123,6 +123,9 @@ pub struct SphereScene {
     /// Fresnel reflection of the backdrop (Schlick, F0 = 0.04) in both images: a real glossy
     /// sphere's rim fades into the backdrop at grazing angles, which shrinks its apparent outline.
     pub fresnel_rim: bool,
+    /// A dark post holding the sphere from below, its half-width as a fraction of the sphere's
+    /// radius in the image (drawn in the image plane, behind the sphere).
+    pub post: Option<f64>,
     pub noise: Noise,
     pub supersample: usize,
 }
@@ -143,6 +146,7 @@ impl SphereScene {
             ambient: 0.3,
             second_light: None,
             fresnel_rim: true,
+            post: None,
             noise: Noise {
                 abs: 0.004,
                 rel: 0.01,
@@ -157,6 +161,18 @@ impl SphereScene {
         -self.centre.normalize()
     }
 
+    /// True where the post covers pixel position `(px, py)` (behind the sphere).
+    fn on_post(&self, px: f64, py: f64) -> bool {
+        let Some(f) = self.post else {
+            return false;
+        };
+        let Some((cx, cy)) = self.intr.project(&self.centre) else {
+            return false;
+        };
+        let r_px = self.intr.fx * self.radius / self.centre.norm();
+        (px - cx).abs() < f * r_px && py > cy
+    }
+
     fn hit(&self, ray: &Vector3<f64>) -> Option<Vector3<f64>> {
         let b = ray.dot(&self.centre);
         let disc = b * b - self.centre.norm_squared() + self.radius * self.radius;
@@ -169,8 +185,11 @@ impl SphereScene {
 
     pub fn render_light(&self, seed: u64) -> LinearImage {
         let (w, _) = (self.intr.width as f64, self.intr.height as f64);
-        let mut img = render(&self.intr, self.supersample, |ray, px, _| {
+        let mut img = render(&self.intr, self.supersample, |ray, px, py| {
             let Some(n) = self.hit(ray) else {
+                if self.on_post(px, py) {
+                    return [0.01; 3];
+                }
                 let b = self.backdrop * (1.0 + 0.3 * (px / w - 0.5));
                 return [b, b * 0.97, b * 0.94];
             };
@@ -201,7 +220,7 @@ impl SphereScene {
 
     pub fn render_ambient(&self, seed: u64) -> LinearImage {
         let h = self.intr.height as f64;
-        let mut img = render(&self.intr, self.supersample, |ray, _, py| {
+        let mut img = render(&self.intr, self.supersample, |ray, px, py| {
             match self.hit(ray) {
                 Some(n) => {
                     let cos = n.dot(&-ray).max(0.0);
@@ -212,6 +231,7 @@ impl SphereScene {
                     }
                     [s; 3]
                 }
+                None if self.on_post(px, py) => [0.03; 3],
                 None => [self.ambient * (1.0 + 0.3 * (py / h - 0.5)); 3],
             }
         });

@@ -193,9 +193,8 @@ fn three_assumptions_beat_none_and_the_analytic_baselines() {
     );
     assert!(e_all.cosine_weighted < e_none.cosine_weighted);
     assert!(e_all.cosine_weighted < e_lambert.cosine_weighted);
-    // Lambert+GGX is not beaten on this small scene and reduced basis (see
-    // docs/benchmarks-reconstruct.md); it is reported, not asserted.
-    assert!(e_ggx.cosine_weighted.is_finite());
+    // Beaten here, though not by the 2x the brief targets (docs/benchmarks-reconstruct.md).
+    assert!(e_all.cosine_weighted < e_ggx.cosine_weighted);
     // The report carries what a user needs to judge the result.
     let r = &out.report;
     assert_eq!(r.trials.len(), 6);
@@ -294,4 +293,49 @@ fn bad_jobs_fail_with_messages_naming_file_and_field() {
     let o = run_cli(&job.source, &out, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("10x10") && err.contains("64x48"), "{err}");
+}
+
+#[test]
+fn cli_writes_merl_table_report_and_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = write_small_job(dir.path());
+    let out = dir.path().join("out");
+    let o = run_cli(
+        &job.source,
+        &out,
+        &[
+            "--exclude",
+            "blue-acrylic",
+            "--basis-stride",
+            "3,10,10",
+            "--basis-components",
+            "10",
+            "--trials",
+            "3",
+            "--samples",
+            "15",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("trials") && err.contains("done in"), "{err}");
+    let table = MerlTable::read(&out.join("brdf.binary")).unwrap();
+    // Some bin near the specular direction has a positive value.
+    assert!(table.get(10).is_some_and(|v| v[0] > 0.0));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["trials"].as_array().unwrap().len(), 3);
+    assert_eq!(report["basis"]["excluded"][0], "blue-acrylic");
+    assert!(
+        report["basis"]["note"]
+            .as_str()
+            .unwrap()
+            .contains("not measured")
+    );
+    assert!(report["timings"].as_array().unwrap().len() >= 6);
+    assert!(report["peak_memory_bytes"].as_u64().unwrap() > 0);
+    let sphere = brdf_rig::imageio::read_exr(&out.join("sphere.exr")).unwrap();
+    assert_eq!((sphere.width(), sphere.height()), (256, 256));
+    assert!(sphere.luminance(128, 128) > 0.0);
+    assert!(out.join("sphere.png").is_file());
 }

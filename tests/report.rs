@@ -10,7 +10,8 @@ use brdf_rig::imageio::{ExrPrecision, write_exr, write_preview_png};
 use brdf_rig::render::image::LinearImage;
 use brdf_rig::render::light::DirectionalLight;
 use brdf_rig::render::sphere::{Sphere, render_sphere};
-use brdf_rig::report::html::{Avail, ReportOptions, gather, render_html};
+use brdf_rig::report::gather::{Avail, ReportOptions, gather};
+use brdf_rig::report::html::render_html;
 use nalgebra::{Point3, Vector3};
 use serde_json::json;
 use sha2::{Digest, Sha256};
@@ -97,18 +98,32 @@ fn make_recon(dir: &Path, session: &Path) {
     let light = DirectionalLight::new(Vector3::new(0.3, 0.3, 1.0), [3.0; 3]).unwrap();
     let img = render_sphere(&sphere, &MATERIAL, &light, &k, &pose, [0.0; 3]);
     write_preview_png(&dir.join("sphere_chosen.png"), &img, 0.0).unwrap();
+    // The shape `reconstruct::output::Report` serialises to, plus per-trial errors against the
+    // truth as a simulation's evaluation adds them.
+    std::fs::write(
+        session.join("job.toml"),
+        "# the job the capture step wrote\n",
+    )
+    .unwrap();
     let report = json!({
-        "session": session.display().to_string(),
+        "job": session.join("job.toml").display().to_string(),
+        "basis": {"materials": 99, "note": "basis built from neural fits <not measured>"},
         "trials": [
-            {"index": 0, "similarity": 0.962, "rejected_by_monotonicity": 4, "error": 0.31},
-            {"index": 1, "similarity": 0.981, "rejected_by_monotonicity": 2, "error": 0.12},
-            {"index": 2, "similarity": 0.955, "rejected_by_monotonicity": 7, "error": 0.40},
-            {"index": 3, "similarity": 0.974, "rejected_by_monotonicity": 1, "error": 0.18}
+            {"index": 0, "similarity": 0.962, "rejected_by_monotonicity": 4, "error": 0.31,
+             "samples": [{"image": 0, "x": 3, "y": 4}]},
+            {"index": 1, "similarity": 0.981, "rejected_by_monotonicity": 2, "error": 0.12,
+             "samples": []},
+            {"index": 2, "similarity": 0.955, "rejected_by_monotonicity": 7, "error": 0.40,
+             "samples": []},
+            {"index": 3, "similarity": 0.974, "rejected_by_monotonicity": 1, "error": 0.18,
+             "samples": []}
         ],
         "chosen_trial": 1,
         "components": {"k": 6, "curve": [{"k": 2, "error": 0.4}, {"k": 4, "error": 0.25},
-                                          {"k": 6, "error": 0.2}, {"k": 8, "error": 0.21}]},
-        "timings": [["rasterise", 1.5], ["observe", 0.25], ["trials", 3.0]],
+                                          {"k": 6, "error": 0.2}, {"k": 8, "error": null}],
+                       "held_out_pixels": 50, "samples": 80, "note": null},
+        "timings": [{"stage": "rasterise", "seconds": 1.5}, {"stage": "observe", "seconds": 0.25},
+                    {"stage": "trials", "seconds": 3.0}],
         "warnings": ["<script>alert('x')</script> few pixels near the peak"],
         "reliable_pixels": 4321
     });
@@ -230,6 +245,7 @@ fn report_renders_in_headless_chromium() {
         "k chosen: <b>6</b>",
         "all intact",
         "single_light: 2",
+        "Provenance: basis built from neural fits &lt;not measured&gt;",
         "channel 1: 1 shots",
         "rasterise",
     ] {
@@ -306,6 +322,13 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     assert!(html.contains("PROBLEMS: 2 of 3 files"));
     assert!(html.contains("not available: no brdf.binary"));
     assert!(html.contains("test &lt;plan&gt;"));
+
+    // A reconstruction output naming its session finds the capture summary there.
+    let named = tmp.path().join("named");
+    std::fs::create_dir_all(&named).unwrap();
+    std::fs::write(named.join("report.json"), br#"{"session": "../session"}"#).unwrap();
+    let data = gather(&named, &opts).unwrap();
+    assert!(matches!(&data.capture, Avail::Yes(c) if c.shots == 3));
 
     // A broken report.json and a truncated brdf.binary: a page all the same, with reasons.
     let recon = tmp.path().join("recon");

@@ -261,6 +261,44 @@ pub fn filled_mask(c: &Component, width: usize, height: usize) -> Vec<bool> {
     outside.iter().map(|o| !o).collect()
 }
 
+/// Morphological opening with a `(2k+1)` square: removes parts narrower than `2k+1` pixels (a
+/// stand or post holding a sphere) and keeps the rest as it was. Outside the image counts as
+/// empty for the erosion, so a region cut by the frame still reaches the frame afterwards.
+pub fn open_mask(mask: &[bool], w: usize, h: usize, k: usize) -> Vec<bool> {
+    if k == 0 {
+        return mask.to_vec();
+    }
+    // erosion: every pixel of the window set; dilation: any. Separable, with prefix counts.
+    let pass = |m: &[bool], all: bool| -> Vec<bool> {
+        let mut rows = vec![false; w * h];
+        for y in 0..h {
+            let mut pre = vec![0usize; w + 1];
+            for x in 0..w {
+                pre[x + 1] = pre[x] + m[y * w + x] as usize;
+            }
+            for x in 0..w {
+                let (a, b) = (x.saturating_sub(k), (x + k + 1).min(w));
+                let n = pre[b] - pre[a];
+                rows[y * w + x] = if all { n == 2 * k + 1 } else { n > 0 };
+            }
+        }
+        let mut out = vec![false; w * h];
+        for x in 0..w {
+            let mut pre = vec![0usize; h + 1];
+            for y in 0..h {
+                pre[y + 1] = pre[y] + rows[y * w + x] as usize;
+            }
+            for y in 0..h {
+                let (a, b) = (y.saturating_sub(k), (y + k + 1).min(h));
+                let n = pre[b] - pre[a];
+                out[y * w + x] = if all { n == 2 * k + 1 } else { n > 0 };
+            }
+        }
+        out
+    };
+    pass(&pass(mask, true), false)
+}
+
 /// Algebraic (Kasa) circle fit to points: `(cx, cy, r)`; `None` when degenerate.
 pub fn fit_circle(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
     if points.len() < 3 {
@@ -301,6 +339,28 @@ mod tests {
             .collect();
         let (cx, cy, r) = fit_circle(&pts).unwrap();
         assert!((cx - 12.5).abs() < 1e-9 && (cy + 3.0).abs() < 1e-9 && (r - 7.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn opening_removes_a_thin_post_and_keeps_a_disc() {
+        let (w, h) = (40, 40);
+        let mut mask = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let disc = (x as f64 - 20.0).hypot(y as f64 - 15.0) < 10.0;
+                let post = (19..=21).contains(&x) && y >= 15;
+                mask[y * w + x] = disc || post;
+            }
+        }
+        let opened = open_mask(&mask, w, h, 2);
+        assert!(
+            !opened[39 * w + 20],
+            "the post reaches the bottom edge no more"
+        );
+        assert!(opened[15 * w + 20] && opened[15 * w + 11] && opened[15 * w + 29]);
+        let c = components(&opened, w, h);
+        assert_eq!(c.len(), 1);
+        assert!(!c[0].touches_border);
     }
 
     #[test]

@@ -365,12 +365,21 @@ pub fn detect_outline(
             if (comp.pixels.len() as f64) < min_area {
                 continue;
             }
+            // cut off a stand or post narrower than about 0.6 of the region's radius
             let filled = regions::filled_mask(&comp, w, h);
-            if let Some(c) = round_candidate(&filled, &lum, w, h, comp.touches_border, sat)
-                && (c.area as f64) >= min_area
-                && best.as_ref().is_none_or(|b| c.area > b.area)
-            {
-                best = Some(c);
+            let k = ((comp.pixels.len() as f64 / PI).sqrt() * 0.3).round() as usize;
+            let opened = regions::open_mask(&filled, w, h, k.max(1));
+            for part in regions::components(&opened, w, h) {
+                if (part.pixels.len() as f64) < min_area {
+                    continue;
+                }
+                let part_filled = regions::filled_mask(&part, w, h);
+                if let Some(c) = round_candidate(&part_filled, &lum, w, h, part.touches_border, sat)
+                    && (c.area as f64) >= min_area
+                    && best.as_ref().is_none_or(|b| c.area > b.area)
+                {
+                    best = Some(c);
+                }
             }
         }
     }
@@ -474,6 +483,11 @@ fn round_candidate(
     if rms > 0.08 * r + 0.5 {
         return None;
     }
+    // a straight boundary fits a huge circle; a sphere (even one cut by the frame) has its
+    // centre in the frame and fits in it
+    if !(cx > 0.0 && cy > 0.0 && cx < w as f64 && cy < h as f64 && 2.0 * r < w.max(h) as f64) {
+        return None;
+    }
     // the region must fill its circle (within the frame) and stay inside it
     let (mut in_circle, mut members_in, mut members_out) = (0usize, 0usize, 0usize);
     let mut interior = Vec::new();
@@ -494,7 +508,7 @@ fn round_candidate(
     }
     if in_circle == 0
         || (members_in as f64) < 0.95 * in_circle as f64
-        || (members_out as f64) > 0.02 * area as f64
+        || (members_out as f64) > 0.05 * area as f64
     {
         return None;
     }

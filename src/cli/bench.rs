@@ -27,6 +27,10 @@ pub enum BenchCommand {
     Stability(super::bench_sweeps::BenchSweepArgs),
     /// Rasterisation, shadows, curvature and shading of the bunny at 640x480.
     Render(super::bench_render::BenchRenderArgs),
+    /// Shots per second of whole simulated captures and the controller's overhead per shot.
+    Capture(super::bench_capture::BenchCaptureArgs),
+    /// Time, peak memory and accuracy of reconstruction on a simulated Bunny scene.
+    Reconstruct(super::bench_reconstruct::BenchReconstructArgs),
 }
 
 #[derive(Args, Debug)]
@@ -52,10 +56,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         BenchCommand::Speed(a) => super::bench_sweeps::speed(a),
         BenchCommand::Stability(a) => super::bench_sweeps::stability(a),
         BenchCommand::Render(a) => super::bench_render::run(a),
+        BenchCommand::Capture(a) => super::bench_capture::run(a),
+        BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
     }
 }
 
-pub(super) fn machine() -> String {
+pub fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {

@@ -9,13 +9,19 @@ use std::process::ExitCode;
 
 mod bench;
 mod bench_accuracy;
+mod bench_capture;
+mod bench_reconstruct;
 mod bench_render;
 mod bench_sweeps;
+mod cameras;
+mod capture;
+mod firmware;
 mod light;
 mod ports;
 mod reconstruct;
 mod report;
 mod rig;
+mod session;
 mod turntable;
 
 #[derive(Parser, Debug)]
@@ -31,6 +37,17 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Reference firmware for the rig's Arduino Mega 2560.
+    Firmware {
+        #[command(subcommand)]
+        command: firmware::FirmwareCommand,
+    },
+    /// Run a capture session (new with --out, or continue one with --resume).
+    Capture(capture::CaptureArgs),
+    /// List the cameras each backend finds (sim, gphoto2, webcam, v4l2).
+    Cameras(cameras::CamerasArgs),
+    /// Inspect a session folder: `session verify DIR` re-checks every checksum.
+    Session(session::SessionArgs),
     /// List serial ports (to find the rig for a profile's `[serial] port`).
     Ports,
     /// Evaluate and convert BRDF files (MERL tables, neural MERL fits).
@@ -53,6 +70,10 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Firmware { command } => firmware::run(command),
+        Command::Capture(a) => capture::run(a),
+        Command::Cameras(a) => cameras::run(a),
+        Command::Session(a) => session::run(a),
         Command::Ports => ports::run(),
         Command::Merl(args) => merl::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),

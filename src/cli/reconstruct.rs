@@ -59,7 +59,7 @@ pub struct Args {
     #[arg(long)]
     pub saturation: Option<f64>,
     /// Basis grid stride along theta_h, theta_d, phi_d (coarser = faster, less exact).
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [1usize, 2, 2])]
+    #[arg(long, value_delimiter = ',', default_values_t = [1usize, 2, 2])]
     pub basis_stride: Vec<usize>,
     /// Components kept in the basis.
     #[arg(long, default_value_t = 80)]
@@ -90,6 +90,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => reconstruct::reliable::CurvatureThreshold::Quantile(args.curvature_quantile),
     };
     settings.basis.exclude = args.exclude;
+    anyhow::ensure!(
+        args.basis_stride.len() == 3,
+        "--basis-stride takes three numbers (theta_h,theta_d,phi_d), got {:?}",
+        args.basis_stride
+    );
     if let [h, d, p] = args.basis_stride[..] {
         settings.basis.stride = brdf_rig::brdf::basis::GridStride {
             theta_h: h,

@@ -6,6 +6,13 @@
 //! protocol uses millidegrees), light levels in [0, 1], exposure in seconds.
 
 pub mod bench;
+pub mod camera_gphoto2;
+pub mod camera_raw;
+#[cfg(feature = "v4l2")]
+pub mod camera_v4l2;
+#[cfg(feature = "webcam")]
+pub mod camera_webcam;
+pub mod cameras;
 pub mod error;
 pub mod link;
 pub mod rig;

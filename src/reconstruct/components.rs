@@ -126,13 +126,9 @@ pub fn choose_components(
         reliable.brightest.as_ref(),
         reliable_settings,
         samples,
-        settings
-            .grid
-            .iter()
-            .copied()
-            .max()
-            .unwrap_or(samples)
-            .min(max_k),
+        // Selection conditions on the fallback's columns: as cheap as a trial's, where the
+        // largest k of the grid would make every condition number an 80-column SVD.
+        fallback,
         seed,
     );
     let fit_samples = samples_of(&sel.pixels);

@@ -16,6 +16,7 @@
 //! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
 
+pub mod baselines;
 pub mod components;
 pub mod core;
 pub mod job;

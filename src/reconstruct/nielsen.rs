@@ -25,8 +25,8 @@ pub struct NielsenSettings {
 impl Default for NielsenSettings {
     fn default() -> Self {
         Self {
-            n_random: 64,
-            descent_passes: 1,
+            n_random: 32,
+            descent_passes: 0,
         }
     }
 }

@@ -109,7 +109,7 @@ pub struct Selection {
 
 /// Rounds of the prior's selection: after a round whose rows partly failed eq. 1, the prior
 /// re-selects the missing samples around the pixels accepted so far.
-const MAX_ROUNDS: usize = 6;
+const MAX_ROUNDS: usize = 3;
 
 /// Chooses up to `n` pixels among `pool`: basis rows by the prior (conditioning on the first
 /// `min(|S|, k)` components), for each row the first pixel (pool order) that satisfies eq. 1

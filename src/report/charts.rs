@@ -190,7 +190,11 @@ pub fn line_chart(series: &[Series], spec: &ChartSpec) -> Result<String, ChartEr
         })
         .collect();
     let all: Vec<(f64, f64)> = runs.iter().flatten().flatten().copied().collect();
-    let (xr, yr) = ranges(spec, &all);
+    let (xr, mut yr) = ranges(spec, &all);
+    let legend_rows = series.iter().filter(|s| !s.label.is_empty()).count();
+    if legend_rows > 0 && !all.is_empty() {
+        yr = with_legend_headroom(spec, yr, legend_rows);
+    }
     let plot = |root: &DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
         with_axes(root, spec, xr, yr, |chart| {
             for (k, (s, runs)) in series.iter().zip(&runs).enumerate() {
@@ -284,6 +288,21 @@ fn ranges(spec: &ChartSpec, pts: &[(f64, f64)]) -> ((f64, f64), (f64, f64)) {
         axis(pts.iter().map(|p| p.0).collect(), spec.log_x),
         axis(pts.iter().map(|p| p.1).collect(), spec.log_y),
     )
+}
+
+/// Raises the top of the y range so the legend box (upper right, about 17 px a row) sits above
+/// the data rather than over it.
+fn with_legend_headroom(spec: &ChartSpec, yr: (f64, f64), rows: usize) -> (f64, f64) {
+    // Plot height: the SVG less the caption, margins and the x label area (see `axes_and`).
+    let plot_px = (spec.height as f64 - 90.0).max(40.0);
+    let legend_px = 17.0 * rows as f64 + 14.0;
+    let f = (legend_px / plot_px).min(0.6);
+    if spec.log_y {
+        let (lo, hi) = (yr.0.ln(), yr.1.ln());
+        (yr.0, (hi + (hi - lo) * f / (1.0 - f)).exp())
+    } else {
+        (yr.0, yr.1 + (yr.1 - yr.0) * f / (1.0 - f))
+    }
 }
 
 /// Number text for tick labels: short, and scientific where plain would be long.

@@ -157,7 +157,7 @@ pub fn channel_chart(
         "f_r (1/sr)",
     )
     .log_y(log_y)
-    .size(540, 380);
+    .size(520, 400);
     line_chart(&series, &spec)
 }
 

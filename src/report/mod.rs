@@ -1,13 +1,17 @@
 //! Reports: the paper's in-plane BRDF plot, SVG charts (plotters) and a self-contained HTML
 //! page summarising a capture session or a reconstruction.
 //!
-//! `inplane` and `charts` are pure (data in, SVG strings out). `html` gathers what a folder
-//! holds (tolerantly: a missing piece is reported as "not available" with the reason) and
-//! renders the page; only `html::gather` and [`write_report`] touch files.
+//! `inplane` and `charts` are pure (data in, SVG strings out). `gather` (with `session` for the
+//! capture and `images` for previews and sphere renders) reads what a folder holds, tolerantly:
+//! a missing piece is reported as "not available" with the reason. `html` renders the page from
+//! that, purely. Only the gathering and [`write_report`] touch files.
 
 pub mod charts;
+pub mod gather;
 pub mod html;
+pub mod images;
 pub mod inplane;
+pub mod session;
 
 use std::path::{Path, PathBuf};
 
@@ -42,9 +46,9 @@ pub fn default_output(dir: &Path) -> PathBuf {
 pub fn write_report(
     dir: &Path,
     out: Option<&Path>,
-    opts: &html::ReportOptions,
-) -> Result<(PathBuf, html::ReportData), ReportError> {
-    let data = html::gather(dir, opts)?;
+    opts: &gather::ReportOptions,
+) -> Result<(PathBuf, gather::ReportData), ReportError> {
+    let data = gather::gather(dir, opts)?;
     let page = html::render_html(&data);
     let path = out.map_or_else(|| default_output(dir), Path::to_path_buf);
     let werr = |source| ReportError::Write {

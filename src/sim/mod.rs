@@ -4,9 +4,13 @@
 //! (`runner::SimHandle`): the camera renders the platter angle and lit channels the firmware
 //! reports.
 
+pub mod camera;
 pub mod firmware;
 pub mod motion;
+pub mod render;
 pub mod runner;
+pub mod scene;
+pub mod truth;
 
 pub use firmware::{FirmwareConfig, MoveKind, MoveRecord, SimSnapshot};
 pub use runner::{FaultControl, LinkFaults, SimConfig, SimHandle, SimRig};

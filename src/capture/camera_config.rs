@@ -1,0 +1,160 @@
+//! The rig profile's `[camera]` and `[scene]` sections, which capture owns (the rig driver
+//! ignores them): which camera backend to use and where the camera stands, and the simulated
+//! camera's virtual scene. Both are optional: without them the profile means the simulated
+//! camera at the default placement.
+//!
+//! ```toml
+//! [camera]
+//! backend = "sim"          # sim | gphoto2 | webcam | v4l2
+//! distance_m = 0.6         # camera to turntable centre
+//! elevation_deg = 0.0      # above the plane through the object's centre
+//! vertical_fov_deg = 30.0
+//! # gphoto2 only
+//! gphoto2_program = "gphoto2"
+//! gphoto2_port = "usb:001,004"
+//! shutter_key = "shutterspeed"
+//! iso_key = "iso"
+//! extra_config = ["imageformat=RAW"]
+//! # webcam only: the nokhwa index; v4l2 only: the device node
+//! webcam_index = 0
+//! v4l2_device = "/dev/video0"
+//! ```
+
+use serde::Deserialize;
+
+use super::plan::LabGeometry;
+use crate::sim::scene::SceneConfig;
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraSection {
+    pub backend: String,
+    pub distance_m: f64,
+    pub elevation_deg: f64,
+    pub vertical_fov_deg: f64,
+    pub gphoto2_program: String,
+    pub gphoto2_port: Option<String>,
+    pub shutter_key: String,
+    pub iso_key: String,
+    pub extra_config: Vec<String>,
+    pub webcam_index: u32,
+    pub v4l2_device: String,
+}
+
+impl Default for CameraSection {
+    fn default() -> Self {
+        Self {
+            backend: "sim".into(),
+            distance_m: 0.6,
+            // The simulated profile's light channels are in the camera's horizontal plane, so
+            // theta_d = azimuth / 2 exactly (see rig-profiles/simulated.toml).
+            elevation_deg: 0.0,
+            vertical_fov_deg: 30.0,
+            gphoto2_program: "gphoto2".into(),
+            gphoto2_port: None,
+            shutter_key: "shutterspeed".into(),
+            iso_key: "iso".into(),
+            extra_config: Vec::new(),
+            webcam_index: 0,
+            v4l2_device: "/dev/video0".into(),
+        }
+    }
+}
+
+#[derive(Debug, Default, Deserialize)]
+struct Sections {
+    #[serde(default)]
+    camera: CameraSection,
+    #[serde(default)]
+    scene: SceneConfig,
+}
+
+/// Reads `[camera]` and `[scene]` from the whole profile text; `origin` names it in errors.
+pub fn parse_sections(text: &str, origin: &str) -> Result<(CameraSection, SceneConfig), String> {
+    // Only these two tables are ours: parse them alone so other sections' keys do not matter.
+    let value: toml::Table = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+    let mut ours = toml::Table::new();
+    for key in ["camera", "scene"] {
+        if let Some(v) = value.get(key) {
+            ours.insert(key.to_string(), v.clone());
+        }
+    }
+    let s: Sections = ours
+        .try_into()
+        .map_err(|e: toml::de::Error| format!("{origin}: [camera]/[scene]: {e}"))?;
+    let c = &s.camera;
+    if !["sim", "gphoto2", "webcam", "v4l2"].contains(&c.backend.as_str()) {
+        return Err(format!(
+            "{origin}: camera.backend = {:?}: must be one of sim, gphoto2, webcam, v4l2",
+            c.backend
+        ));
+    }
+    if !(c.distance_m > 0.0 && c.distance_m.is_finite()) {
+        return Err(format!("{origin}: camera.distance_m must be positive"));
+    }
+    if !(c.vertical_fov_deg > 1.0 && c.vertical_fov_deg < 170.0) {
+        return Err(format!(
+            "{origin}: camera.vertical_fov_deg must be in (1, 170)"
+        ));
+    }
+    if !(-89.0..=89.0).contains(&c.elevation_deg) {
+        return Err(format!(
+            "{origin}: camera.elevation_deg must be in [-89, 89]"
+        ));
+    }
+    for (i, kv) in c.extra_config.iter().enumerate() {
+        if !kv.contains('=') {
+            return Err(format!(
+                "{origin}: camera.extra_config[{i}] = {kv:?}: must be key=value"
+            ));
+        }
+    }
+    s.scene.validate().map_err(|e| format!("{origin}: {e}"))?;
+    Ok((s.camera, s.scene))
+}
+
+impl CameraSection {
+    /// The lab geometry: this camera placement and the profile's light channel directions
+    /// `(azimuth_deg, elevation_deg)`.
+    pub fn lab(&self, lights: Vec<(f64, f64)>) -> LabGeometry {
+        LabGeometry {
+            camera_distance_m: self.distance_m,
+            camera_elevation_deg: self.elevation_deg,
+            vertical_fov_deg: self.vertical_fov_deg,
+            lights,
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sections_are_optional_and_other_sections_are_ignored() {
+        let (c, s) = parse_sections("[serial]\nport = \"sim\"\nweird = 1\n", "p.toml").unwrap();
+        assert_eq!(c, CameraSection::default());
+        assert_eq!(s, SceneConfig::default());
+        let (c, s) = parse_sections(
+            "[camera]\nbackend = \"gphoto2\"\nextra_config = [\"imageformat=RAW\"]\n[scene]\nmaterial = \"gold-paint\"\n",
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(c.backend, "gphoto2");
+        assert_eq!(s.material, "gold-paint");
+    }
+
+    #[test]
+    fn mistakes_are_named() {
+        let err = parse_sections("[camera]\nbackend = \"polaroid\"\n", "p.toml").unwrap_err();
+        assert!(
+            err.contains("p.toml") && err.contains("camera.backend"),
+            "{err}"
+        );
+        let err = parse_sections("[camera]\nexposure = 3\n", "p.toml").unwrap_err();
+        assert!(err.contains("exposure"), "{err}");
+        let err = parse_sections("[scene]\nobject_size_m = -1\n", "p.toml").unwrap_err();
+        assert!(err.contains("scene.object_size_m"), "{err}");
+    }
+}

@@ -1,0 +1,609 @@
+//! The session folder: the boundary between capture and the calibrate/reconstruct steps.
+//!
+//! Layout (format version [`FORMAT_VERSION`]):
+//! ```text
+//! DIR/session.json    what the session is: format, plan name, rig and camera, creation time
+//! DIR/plan.toml       the plan, verbatim; a resumed capture re-reads it, so it takes the same shots
+//! DIR/journal.jsonl   one ShotRecord per line, appended and fsynced after its image is on disk
+//! DIR/manifest.json   snapshot: header + every record so far + status, replaced by atomic rename
+//! DIR/ambient/v003_e0.exr, DIR/light/v005_ch1_e2.exr, DIR/calib/sphere_ch0_e0.exr, ...
+//! DIR/sim/            simulated captures only: ground truth and what photogrammetry would give
+//! DIR/.lock           held (flock) while a capture writes, so two never write one folder
+//! ```
+//! Images are linear RGB OpenEXR (32-bit float), in the camera's units times nothing: the
+//! exposure and gain are in the record, so radiance = value / (exposure_secs * gain).
+//!
+//! Crash safety: an image is written to a temporary file, fsynced and renamed into place (then
+//! the directory is fsynced); only then is its record appended to the journal and fsynced. So
+//! every journaled record names a complete image with its checksum, and a kill at any point
+//! loses at most the shot in flight, which a resume takes again (overwriting a stray image).
+//! A torn last journal line (the kill hit the append) is dropped on resume.
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::HashMap;
+use std::fs::{self, File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::error::CaptureError;
+use super::plan::{CapturePlan, PlannedShot, ShotKind, parse_plan};
+
+/// Version of the session folder format; readers refuse other major versions.
+pub const FORMAT_VERSION: u32 = 1;
+
+pub const SESSION_FILE: &str = "session.json";
+pub const PLAN_FILE: &str = "plan.toml";
+pub const JOURNAL_FILE: &str = "journal.jsonl";
+pub const MANIFEST_FILE: &str = "manifest.json";
+pub const LOCK_FILE: &str = ".lock";
+
+/// What the session is (written once when it is created).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SessionHeader {
+    pub format_version: u32,
+    pub tool: String,
+    pub plan_name: String,
+    pub planned_shots: usize,
+    /// Rig profile name or path, as given.
+    pub profile: String,
+    /// Camera backend (e.g. `sim`, `gphoto2`).
+    pub camera_backend: String,
+    pub created_utc: String,
+    /// True for a simulated capture (then `sim/` holds the ground truth).
+    pub simulated: bool,
+}
+
+/// One shot as taken: everything the calibrate and reconstruct steps need about it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShotRecord {
+    pub id: String,
+    pub index: usize,
+    pub kind: ShotKind,
+    pub view: Option<usize>,
+    /// Turntable angle asked for and the angle the turntable reported after settling.
+    pub angle_deg: f64,
+    pub measured_angle_deg: f64,
+    pub channel: Option<usize>,
+    pub level: f64,
+    /// Nominal direction to the light in the lab frame (plan `[lab]`); calibration measures it.
+    pub light_dir_lab: Option<[f64; 3]>,
+    pub exposure_secs: f64,
+    pub gain: f64,
+    pub saturation: f32,
+    pub device: String,
+    pub file: String,
+    pub width: usize,
+    pub height: usize,
+    pub bytes: u64,
+    pub sha256: String,
+    pub time_unix: f64,
+    pub time_utc: String,
+}
+
+/// The snapshot written by atomic rename.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub header: SessionHeader,
+    /// `in_progress`, `complete`.
+    pub status: String,
+    pub shots: Vec<ShotRecord>,
+}
+
+/// Hex SHA-256 of bytes.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex::encode(Sha256::digest(bytes))
+}
+
+/// Seconds since the Unix epoch and the same instant as `YYYY-MM-DDTHH:MM:SS.mmmZ`.
+pub fn now_utc() -> (f64, String) {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0);
+    (t, format_utc(t))
+}
+
+/// Formats Unix seconds as an RFC 3339 UTC timestamp with milliseconds.
+pub fn format_utc(unix_secs: f64) -> String {
+    let millis_total = (unix_secs * 1000.0).round() as i64;
+    let secs = millis_total.div_euclid(1000);
+    let millis = millis_total.rem_euclid(1000);
+    let days = secs.div_euclid(86_400);
+    let sod = secs.rem_euclid(86_400);
+    // Howard Hinnant's civil_from_days.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{millis:03}Z",
+        sod / 3600,
+        (sod / 60) % 60,
+        sod % 60
+    )
+}
+
+fn sync_dir(dir: &Path) -> Result<(), CaptureError> {
+    // Persists a rename; opening a directory read-only and fsyncing it is the POSIX way.
+    let d = File::open(dir).map_err(|e| CaptureError::io("opening the folder to sync", dir, e))?;
+    d.sync_all()
+        .map_err(|e| CaptureError::io("syncing the folder", dir, e))
+}
+
+/// Writes `bytes` to `path` atomically: temporary file beside it, fsync, rename, fsync folder.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CaptureError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    {
+        let mut f = File::create(&tmp).map_err(|e| CaptureError::io("creating", &tmp, e))?;
+        f.write_all(bytes)
+            .map_err(|e| CaptureError::io("writing", &tmp, e))?;
+        f.sync_all()
+            .map_err(|e| CaptureError::io("syncing", &tmp, e))?;
+    }
+    fs::rename(&tmp, path).map_err(|e| CaptureError::io("renaming into place", path, e))?;
+    sync_dir(dir)
+}
+
+/// An open session folder, locked for writing.
+pub struct Session {
+    dir: PathBuf,
+    header: SessionHeader,
+    plan: CapturePlan,
+    shots: Vec<PlannedShot>,
+    records: Vec<ShotRecord>,
+    done: HashMap<String, usize>,
+    journal: File,
+    // Held for the lifetime of the session; the kernel releases it if the process dies.
+    _lock: File,
+}
+
+fn lock_folder(dir: &Path) -> Result<File, CaptureError> {
+    let path = dir.join(LOCK_FILE);
+    let f = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(|e| CaptureError::io("opening the lock file", &path, e))?;
+    match fs4::FileExt::try_lock(&f) {
+        Ok(()) => Ok(f),
+        Err(_) => Err(CaptureError::Session {
+            path: dir.to_path_buf(),
+            reason: "another capture is writing to this folder (its lock is held)".into(),
+        }),
+    }
+}
+
+fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, CaptureError> {
+    let text = fs::read_to_string(path).map_err(|e| CaptureError::io("reading", path, e))?;
+    serde_json::from_str(&text).map_err(|e| CaptureError::Journal {
+        path: path.to_path_buf(),
+        line: e.line(),
+        reason: e.to_string(),
+    })
+}
+
+/// Reads the journal. Returns the records and the byte length of the well-formed prefix: a last
+/// line without its newline, or one that does not parse, is a torn append and is left out. A bad
+/// line anywhere else is an error naming the line.
+pub fn read_journal(path: &Path) -> Result<(Vec<ShotRecord>, u64), CaptureError> {
+    let bytes = match fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), 0)),
+        Err(e) => return Err(CaptureError::io("reading the journal", path, e)),
+    };
+    let mut records = Vec::new();
+    let mut good_len = 0u64;
+    let mut start = 0usize;
+    let mut line_no = 0usize;
+    while start < bytes.len() {
+        line_no += 1;
+        let end = match bytes[start..].iter().position(|&b| b == b'\n') {
+            Some(p) => start + p,
+            None => break, // torn: no newline
+        };
+        let line = &bytes[start..end];
+        let is_last = end + 1 >= bytes.len();
+        match serde_json::from_slice::<ShotRecord>(line) {
+            Ok(r) => {
+                records.push(r);
+                good_len = (end + 1) as u64;
+            }
+            Err(_) if is_last => break,
+            Err(e) => {
+                return Err(CaptureError::Journal {
+                    path: path.to_path_buf(),
+                    line: line_no,
+                    reason: format!("not a shot record: {e}"),
+                });
+            }
+        }
+        start = end + 1;
+    }
+    Ok((records, good_len))
+}
+
+/// Removes folders a killed `create` of `name` left in `parent` (their process is gone).
+fn remove_stale_staging(parent: &Path, name: &str) {
+    let prefix = format!(".{name}.creating-");
+    let Ok(entries) = fs::read_dir(parent) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file_name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let alive = Path::new("/proc").join(pid).exists() && pid != std::process::id().to_string();
+        if !alive {
+            let _ = fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// Removes temporary files left by a killed atomic write.
+fn remove_stray_temporaries(dir: &Path) -> Result<(), CaptureError> {
+    for sub in ["", "ambient", "light", "calib", "sim"] {
+        let d = dir.join(sub);
+        let Ok(entries) = fs::read_dir(&d) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name.starts_with('.') && name.contains(".tmp-") {
+                let p = entry.path();
+                fs::remove_file(&p)
+                    .map_err(|e| CaptureError::io("removing a stray temporary", &p, e))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+impl Session {
+    /// Creates a new session in `dir` (which must not exist or be empty), with `extra` files
+    /// (name, bytes) beside the plan. The folder is built under a temporary name and renamed
+    /// into place, so a kill during creation leaves either no session or a whole one.
+    pub fn create(
+        dir: &Path,
+        plan: &CapturePlan,
+        plan_text: &str,
+        mut header: SessionHeader,
+        extra: &[(&str, &[u8])],
+    ) -> Result<Self, CaptureError> {
+        if dir.exists() {
+            let non_empty = fs::read_dir(dir)
+                .map_err(|e| CaptureError::io("listing", dir, e))?
+                .next()
+                .is_some();
+            if non_empty {
+                return Err(CaptureError::Session {
+                    path: dir.to_path_buf(),
+                    reason: "the folder exists and is not empty; choose a new --out, or continue it with --resume".into(),
+                });
+            }
+        }
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .ok_or_else(|| CaptureError::Session {
+                path: dir.to_path_buf(),
+                reason: "not a folder name".into(),
+            })?;
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        fs::create_dir_all(&parent)
+            .map_err(|e| CaptureError::io("creating the parent folder", &parent, e))?;
+        remove_stale_staging(&parent, &name);
+        let staging = parent.join(format!(".{name}.creating-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&staging);
+        for sub in ["ambient", "light", "calib"] {
+            let d = staging.join(sub);
+            fs::create_dir_all(&d).map_err(|e| CaptureError::io("creating", &d, e))?;
+        }
+        let shots = plan.shots();
+        header.format_version = FORMAT_VERSION;
+        header.plan_name = plan.name.clone();
+        header.planned_shots = shots.len();
+        write_atomic(&staging.join(PLAN_FILE), plan_text.as_bytes())?;
+        for (file, bytes) in extra {
+            write_atomic(&staging.join(file), bytes)?;
+        }
+        let header_json =
+            serde_json::to_vec_pretty(&header).map_err(|e| CaptureError::Session {
+                path: dir.to_path_buf(),
+                reason: e.to_string(),
+            })?;
+        write_atomic(&staging.join(SESSION_FILE), &header_json)?;
+        write_atomic(&staging.join(JOURNAL_FILE), b"")?;
+        // rename(2) replaces an empty directory, so an empty --out folder is fine too.
+        fs::rename(&staging, dir)
+            .map_err(|e| CaptureError::io("moving the new session into place", dir, e))?;
+        sync_dir(&parent)?;
+        let lock = lock_folder(dir)?;
+        let journal_path = dir.join(JOURNAL_FILE);
+        let journal = OpenOptions::new()
+            .append(true)
+            .open(&journal_path)
+            .map_err(|e| CaptureError::io("opening the journal", &journal_path, e))?;
+        let s = Self {
+            dir: dir.to_path_buf(),
+            header,
+            plan: plan.clone(),
+            shots,
+            records: Vec::new(),
+            done: HashMap::new(),
+            journal,
+            _lock: lock,
+        };
+        s.write_snapshot(false)?;
+        Ok(s)
+    }
+
+    /// Opens an existing session to continue it: re-reads its plan and journal, drops a torn
+    /// last journal line and stray temporaries.
+    pub fn resume(dir: &Path) -> Result<Self, CaptureError> {
+        let header_path = dir.join(SESSION_FILE);
+        if !header_path.exists() {
+            return Err(CaptureError::Session {
+                path: dir.to_path_buf(),
+                reason: format!("no {SESSION_FILE}: not a brdf-rig session folder"),
+            });
+        }
+        let lock = lock_folder(dir)?;
+        let header: SessionHeader = read_json(&header_path)?;
+        if header.format_version != FORMAT_VERSION {
+            return Err(CaptureError::Session {
+                path: dir.to_path_buf(),
+                reason: format!(
+                    "format version {} (this tool reads {FORMAT_VERSION})",
+                    header.format_version
+                ),
+            });
+        }
+        let plan_path = dir.join(PLAN_FILE);
+        let plan_text = fs::read_to_string(&plan_path)
+            .map_err(|e| CaptureError::io("reading", &plan_path, e))?;
+        let plan = parse_plan(&plan_text, &plan_path.display().to_string())?;
+        let shots = plan.shots();
+        let journal_path = dir.join(JOURNAL_FILE);
+        let (records, good_len) = read_journal(&journal_path)?;
+        let journal = OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&journal_path)
+            .map_err(|e| CaptureError::io("opening the journal", &journal_path, e))?;
+        journal
+            .set_len(good_len)
+            .map_err(|e| CaptureError::io("dropping a torn journal line", &journal_path, e))?;
+        journal
+            .sync_all()
+            .map_err(|e| CaptureError::io("syncing the journal", &journal_path, e))?;
+        remove_stray_temporaries(dir)?;
+        let mut s = Self {
+            dir: dir.to_path_buf(),
+            header,
+            plan,
+            shots,
+            records: Vec::new(),
+            done: HashMap::new(),
+            journal,
+            _lock: lock,
+        };
+        for r in records {
+            if !s.shots.iter().any(|p| p.id == r.id) {
+                return Err(CaptureError::Session {
+                    path: dir.to_path_buf(),
+                    reason: format!("journal record `{}` is not a shot of the plan", r.id),
+                });
+            }
+            if s.done.contains_key(&r.id) {
+                continue; // a duplicate cannot be written by this tool; keep the first
+            }
+            s.done.insert(r.id.clone(), s.records.len());
+            s.records.push(r);
+        }
+        Ok(s)
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    pub fn header(&self) -> &SessionHeader {
+        &self.header
+    }
+
+    pub fn plan(&self) -> &CapturePlan {
+        &self.plan
+    }
+
+    pub fn planned(&self) -> &[PlannedShot] {
+        &self.shots
+    }
+
+    pub fn records(&self) -> &[ShotRecord] {
+        &self.records
+    }
+
+    pub fn is_done(&self, id: &str) -> bool {
+        self.done.contains_key(id)
+    }
+
+    /// Shots of the plan not yet in the journal, in plan order.
+    pub fn remaining(&self) -> Vec<PlannedShot> {
+        self.shots
+            .iter()
+            .filter(|s| !self.done.contains_key(&s.id))
+            .cloned()
+            .collect()
+    }
+
+    /// Writes an image (atomically) and returns its size and checksum. Does not journal it.
+    pub fn write_image(&self, file: &str, bytes: &[u8]) -> Result<(u64, String), CaptureError> {
+        let path = self.dir.join(file);
+        if let Some(parent) = path.parent() {
+            fs::create_dir_all(parent).map_err(|e| CaptureError::io("creating", parent, e))?;
+        }
+        write_atomic(&path, bytes)?;
+        Ok((bytes.len() as u64, sha256_hex(bytes)))
+    }
+
+    /// Appends a record to the journal and fsyncs it: from here on the shot is taken.
+    pub fn append(&mut self, record: ShotRecord) -> Result<(), CaptureError> {
+        let path = self.dir.join(JOURNAL_FILE);
+        let mut line = serde_json::to_vec(&record).map_err(|e| CaptureError::Session {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        line.push(b'\n');
+        // One write call: a kill can tear it only at the end, which the reader drops.
+        self.journal
+            .write_all(&line)
+            .map_err(|e| CaptureError::io("appending to the journal", &path, e))?;
+        self.journal
+            .sync_data()
+            .map_err(|e| CaptureError::io("syncing the journal", &path, e))?;
+        self.done.insert(record.id.clone(), self.records.len());
+        self.records.push(record);
+        Ok(())
+    }
+
+    pub fn is_complete(&self) -> bool {
+        self.shots.iter().all(|s| self.done.contains_key(&s.id))
+    }
+
+    /// Replaces `manifest.json` atomically with the current state.
+    pub fn write_snapshot(&self, complete: bool) -> Result<(), CaptureError> {
+        let mut shots = self.records.clone();
+        shots.sort_by_key(|r| r.index);
+        let m = Manifest {
+            header: self.header.clone(),
+            status: if complete { "complete" } else { "in_progress" }.into(),
+            shots,
+        };
+        let path = self.dir.join(MANIFEST_FILE);
+        let bytes = serde_json::to_vec_pretty(&m).map_err(|e| CaptureError::Session {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        write_atomic(&path, &bytes)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+    use crate::capture::plan::default_plan;
+
+    fn header() -> SessionHeader {
+        SessionHeader {
+            format_version: 0,
+            tool: "test".into(),
+            plan_name: String::new(),
+            planned_shots: 0,
+            profile: "none".into(),
+            camera_backend: "none".into(),
+            created_utc: format_utc(0.0),
+            simulated: false,
+        }
+    }
+
+    fn record(shot: &PlannedShot, sha: &str) -> ShotRecord {
+        ShotRecord {
+            id: shot.id.clone(),
+            index: shot.index,
+            kind: shot.kind,
+            view: shot.view,
+            angle_deg: shot.angle_deg,
+            measured_angle_deg: shot.angle_deg,
+            channel: shot.channel,
+            level: shot.level,
+            light_dir_lab: None,
+            exposure_secs: shot.exposure_secs,
+            gain: 1.0,
+            saturation: 1.0,
+            device: "test".into(),
+            file: shot.file.clone(),
+            width: 1,
+            height: 1,
+            bytes: 3,
+            sha256: sha.into(),
+            time_unix: 0.0,
+            time_utc: format_utc(0.0),
+        }
+    }
+
+    #[test]
+    fn utc_formatting_matches_known_instants() {
+        assert_eq!(format_utc(0.0), "1970-01-01T00:00:00.000Z");
+        assert_eq!(format_utc(951_782_400.5), "2000-02-29T00:00:00.500Z");
+        assert_eq!(format_utc(1_798_761_599.0), "2026-12-31T23:59:59.000Z");
+    }
+
+    #[test]
+    fn journal_survives_a_torn_append_and_resume_drops_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("s");
+        let plan = default_plan();
+        let mut s = Session::create(&dir, &plan, DEFAULT_TEXT, header(), &[]).unwrap();
+        let shots = s.planned().to_vec();
+        let (_, sha) = s.write_image(&shots[0].file, b"abc").unwrap();
+        s.append(record(&shots[0], &sha)).unwrap();
+        // the folder is locked while open
+        assert!(Session::resume(&dir).is_err());
+        drop(s);
+        // a torn append: half a line, no newline
+        let jp = dir.join(JOURNAL_FILE);
+        let mut f = OpenOptions::new().append(true).open(&jp).unwrap();
+        f.write_all(b"{\"id\":\"ambient/v001").unwrap();
+        drop(f);
+        fs::write(dir.join("ambient/.v001_e0.exr.tmp-1"), b"junk").unwrap();
+        let mut s = Session::resume(&dir).unwrap();
+        assert_eq!(s.records().len(), 1);
+        assert!(s.is_done(&shots[0].id));
+        assert_eq!(s.remaining().len(), shots.len() - 1);
+        assert!(!dir.join("ambient/.v001_e0.exr.tmp-1").exists());
+        s.append(record(&shots[1], &sha)).unwrap();
+        drop(s);
+        let (recs, _) = read_journal(&jp).unwrap();
+        assert_eq!(recs.len(), 2);
+        assert_eq!(recs[1].id, shots[1].id);
+    }
+
+    #[test]
+    fn a_bad_line_in_the_middle_is_an_error_naming_the_line() {
+        let tmp = tempfile::tempdir().unwrap();
+        let p = tmp.path().join("j.jsonl");
+        fs::write(&p, b"not json\n{}\n").unwrap();
+        let err = read_journal(&p).unwrap_err().to_string();
+        assert!(err.contains("line 1"), "{err}");
+    }
+
+    #[test]
+    fn create_refuses_a_non_empty_folder() {
+        let tmp = tempfile::tempdir().unwrap();
+        fs::write(tmp.path().join("x"), b"").unwrap();
+        let err = Session::create(tmp.path(), &default_plan(), DEFAULT_TEXT, header(), &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("--resume"), "{err}");
+    }
+
+    const DEFAULT_TEXT: &str = crate::capture::plan::DEFAULT_PLAN_TOML;
+}

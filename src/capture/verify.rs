@@ -1,0 +1,186 @@
+//! `session verify`: re-reads every image a session lists and checks its size and SHA-256, and
+//! that the journal holds exactly the planned shots. Read-only; works on a session a capture is
+//! still writing (it reads the journal prefix that is complete).
+
+use std::collections::HashSet;
+use std::fmt;
+use std::fs;
+use std::path::Path;
+
+use super::error::CaptureError;
+use super::plan::parse_plan;
+use super::session::{
+    JOURNAL_FILE, MANIFEST_FILE, Manifest, PLAN_FILE, SESSION_FILE, SessionHeader, read_journal,
+    sha256_hex,
+};
+
+/// One problem found.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Problem {
+    Missing {
+        id: String,
+        file: String,
+    },
+    Mismatch {
+        id: String,
+        file: String,
+        expected: String,
+        actual: String,
+    },
+    WrongSize {
+        id: String,
+        file: String,
+        expected: u64,
+        actual: u64,
+    },
+    Duplicate {
+        id: String,
+    },
+    Unplanned {
+        id: String,
+    },
+    SnapshotAhead {
+        id: String,
+    },
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Problem::Missing { id, file } => write!(f, "{file}: missing (shot {id})"),
+            Problem::Mismatch {
+                id,
+                file,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "{file}: checksum mismatch (shot {id}): manifest sha256 {expected}, file {actual}"
+            ),
+            Problem::WrongSize {
+                id,
+                file,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "{file}: size {actual} bytes, manifest says {expected} (shot {id})"
+            ),
+            Problem::Duplicate { id } => write!(f, "shot {id} is journaled more than once"),
+            Problem::Unplanned { id } => write!(f, "shot {id} is not in the session's plan"),
+            Problem::SnapshotAhead { id } => {
+                write!(
+                    f,
+                    "{MANIFEST_FILE} lists shot {id}, which the journal lacks"
+                )
+            }
+        }
+    }
+}
+
+/// The outcome of a verification.
+#[derive(Clone, Debug)]
+pub struct VerifyReport {
+    pub header: SessionHeader,
+    pub planned: usize,
+    pub checked: usize,
+    pub bytes: u64,
+    pub problems: Vec<Problem>,
+    /// Planned shots not yet taken (an interrupted capture; resume it).
+    pub not_taken: Vec<String>,
+}
+
+impl VerifyReport {
+    /// True when every journaled image is intact (the session may still be incomplete).
+    pub fn intact(&self) -> bool {
+        self.problems.is_empty()
+    }
+
+    pub fn complete(&self) -> bool {
+        self.not_taken.is_empty()
+    }
+}
+
+/// Verifies the session in `dir`.
+pub fn verify_session(dir: &Path) -> Result<VerifyReport, CaptureError> {
+    let header_path = dir.join(SESSION_FILE);
+    let text = fs::read_to_string(&header_path)
+        .map_err(|e| CaptureError::io("reading the session header", &header_path, e))?;
+    let header: SessionHeader = serde_json::from_str(&text).map_err(|e| CaptureError::Journal {
+        path: header_path.clone(),
+        line: e.line(),
+        reason: e.to_string(),
+    })?;
+    let plan_path = dir.join(PLAN_FILE);
+    let plan_text = fs::read_to_string(&plan_path)
+        .map_err(|e| CaptureError::io("reading the session's plan", &plan_path, e))?;
+    let plan = parse_plan(&plan_text, &plan_path.display().to_string())?;
+    let planned = plan.shots();
+    let (records, _) = read_journal(&dir.join(JOURNAL_FILE))?;
+    let mut problems = Vec::new();
+    let mut seen = HashSet::new();
+    let planned_ids: HashSet<&str> = planned.iter().map(|s| s.id.as_str()).collect();
+    let mut bytes = 0;
+    for r in &records {
+        if !seen.insert(r.id.clone()) {
+            problems.push(Problem::Duplicate { id: r.id.clone() });
+            continue;
+        }
+        if !planned_ids.contains(r.id.as_str()) {
+            problems.push(Problem::Unplanned { id: r.id.clone() });
+        }
+        let path = dir.join(&r.file);
+        match fs::read(&path) {
+            Err(_) => problems.push(Problem::Missing {
+                id: r.id.clone(),
+                file: r.file.clone(),
+            }),
+            Ok(data) => {
+                bytes += data.len() as u64;
+                let actual = sha256_hex(&data);
+                if data.len() as u64 != r.bytes {
+                    problems.push(Problem::WrongSize {
+                        id: r.id.clone(),
+                        file: r.file.clone(),
+                        expected: r.bytes,
+                        actual: data.len() as u64,
+                    });
+                } else if actual != r.sha256 {
+                    problems.push(Problem::Mismatch {
+                        id: r.id.clone(),
+                        file: r.file.clone(),
+                        expected: r.sha256.clone(),
+                        actual,
+                    });
+                }
+            }
+        }
+    }
+    // The snapshot may lag the journal (a kill between the two) but never lead it.
+    let manifest_path = dir.join(MANIFEST_FILE);
+    if let Ok(text) = fs::read_to_string(&manifest_path) {
+        let m: Manifest = serde_json::from_str(&text).map_err(|e| CaptureError::Journal {
+            path: manifest_path.clone(),
+            line: e.line(),
+            reason: e.to_string(),
+        })?;
+        for s in m.shots {
+            if !seen.contains(&s.id) {
+                problems.push(Problem::SnapshotAhead { id: s.id });
+            }
+        }
+    }
+    let not_taken = planned
+        .iter()
+        .filter(|s| !seen.contains(&s.id))
+        .map(|s| s.id.clone())
+        .collect();
+    Ok(VerifyReport {
+        header,
+        planned: planned.len(),
+        checked: seen.len(),
+        bytes,
+        problems,
+        not_taken,
+    })
+}

@@ -1,0 +1,493 @@
+//! `brdf-rig capture`: a capture session, new (`--out DIR`) or continued (`--resume DIR`).
+//!
+//! Order of checks, so that nothing moves before everything is known to be there: plan and
+//! profile parse, guided mode needs a terminal, the output folder is usable and has room, the rig
+//! answers (a missing port fails here), the plan's channels exist, the camera opens. Only then is
+//! the session folder created and the turntable homed.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::sync::mpsc;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use brdf_rig::capture::camera_config::{CameraSection, parse_sections};
+use brdf_rig::capture::plan::{DEFAULT_PLAN_TOML, LabGeometry, load_plan, parse_plan};
+use brdf_rig::capture::runner::{KillPhase, Progress, RunOptions, stage_instructions};
+use brdf_rig::capture::session::SessionHeader;
+use brdf_rig::capture::{
+    CaptureError, CapturePlan, Operator, Session, ShotRecord, Stage, check_disk_space, run_session,
+};
+use brdf_rig::devices::Camera;
+use brdf_rig::devices::rig as rigdev;
+use brdf_rig::profile::Profile;
+use brdf_rig::sim::render::ObjectScene;
+use brdf_rig::sim::scene::StageState;
+
+use super::rig::RigArgs;
+
+/// Name of the copy of the profile kept in the session folder (a resume uses it).
+const PROFILE_COPY: &str = "profile.toml";
+
+#[derive(Args, Debug)]
+pub struct CaptureArgs {
+    #[command(flatten)]
+    pub rig: RigArgs,
+    /// Capture plan (TOML); default: the built-in plan (capture-plans/default.toml).
+    #[arg(long)]
+    pub plan: Option<PathBuf>,
+    /// New session folder (must not exist, or be empty).
+    #[arg(long, required_unless_present = "resume", conflicts_with = "resume")]
+    pub out: Option<PathBuf>,
+    /// Continue the interrupted session in DIR with the plan and profile it was started with.
+    #[arg(long, value_name = "DIR")]
+    pub resume: Option<PathBuf>,
+    /// No prompts: assume the room light, sphere and white reference are handled (the simulated
+    /// rig's virtual operator does it).
+    #[arg(long)]
+    pub unattended: bool,
+    /// Write manifest.json every N shots (it is also written at every stage change and at the
+    /// end; the journal is written after every shot regardless).
+    #[arg(long, default_value_t = 16)]
+    pub snapshot_every: usize,
+}
+
+/// A person at the rig: prints what to do and waits for Enter. Ctrl-C while waiting stops.
+struct Guided {
+    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    lines: mpsc::Receiver<Option<String>>,
+}
+
+impl Guided {
+    fn new(cancel: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Self {
+        // stdin is read on its own thread so that Ctrl-C can interrupt the wait.
+        let (tx, rx) = mpsc::channel();
+        let _ = std::thread::Builder::new()
+            .name("stdin".into())
+            .spawn(move || {
+                let stdin = std::io::stdin();
+                loop {
+                    let mut line = String::new();
+                    match stdin.read_line(&mut line) {
+                        Ok(0) | Err(_) => {
+                            let _ = tx.send(None);
+                            return;
+                        }
+                        Ok(_) => {
+                            if tx.send(Some(line)).is_err() {
+                                return;
+                            }
+                        }
+                    }
+                }
+            });
+        Self { cancel, lines: rx }
+    }
+}
+
+impl Operator for Guided {
+    fn set_stage(&mut self, from: Option<Stage>, to: Stage) -> Result<(), CaptureError> {
+        let steps = stage_instructions(from, to);
+        if steps.is_empty() {
+            return Ok(());
+        }
+        eprintln!();
+        for s in &steps {
+            eprintln!("  >>> {s}");
+        }
+        eprintln!("  Press Enter when done (Ctrl-C stops; the session can be resumed).");
+        loop {
+            if self.cancel.load(Ordering::SeqCst) {
+                return Err(CaptureError::Setup("stopped by Ctrl-C at a prompt".into()));
+            }
+            match self.lines.recv_timeout(Duration::from_millis(100)) {
+                Ok(Some(_)) => return Ok(()),
+                Ok(None) | Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(CaptureError::Setup(
+                        "standard input closed while waiting for the operator".into(),
+                    ));
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+            }
+        }
+    }
+}
+
+/// Sets the simulated scene's stage after the real operator (or nobody) did their part.
+struct SimStage<'a> {
+    inner: &'a mut dyn Operator,
+    stage: StageState,
+}
+
+impl Operator for SimStage<'_> {
+    fn set_stage(&mut self, from: Option<Stage>, to: Stage) -> Result<(), CaptureError> {
+        self.inner.set_stage(from, to)?;
+        self.stage.set(to);
+        Ok(())
+    }
+}
+
+/// Progress bar with time left; messages go above it.
+struct Bars {
+    bar: ProgressBar,
+}
+
+impl Bars {
+    fn new() -> Self {
+        let bar = ProgressBar::new(0);
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {pos}/{len} shots  {per_sec}  {eta} left  {msg}")
+        {
+            bar.set_style(style);
+        }
+        Self { bar }
+    }
+}
+
+impl Progress for Bars {
+    fn start(&mut self, total: usize, already_done: usize) {
+        self.bar.set_length(total as u64);
+        self.bar.set_position(already_done as u64);
+        self.bar.reset_eta();
+    }
+    fn shot_done(&mut self, record: &ShotRecord) {
+        self.bar.set_message(record.id.clone());
+        self.bar.inc(1);
+    }
+    fn message(&mut self, text: &str) {
+        self.bar.println(format!("  {text}"));
+    }
+    fn finish(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+fn kill_hook() -> anyhow::Result<Option<(usize, KillPhase)>> {
+    let Ok(v) = std::env::var("BRDF_RIG_TEST_KILL_AT") else {
+        return Ok(None);
+    };
+    let (n, phase) = v.split_once(':').unwrap_or((v.as_str(), "after-journal"));
+    let n: usize = n
+        .parse()
+        .with_context(|| format!("BRDF_RIG_TEST_KILL_AT={v}: expected N:phase"))?;
+    let phase = KillPhase::parse(phase).with_context(|| {
+        format!("BRDF_RIG_TEST_KILL_AT={v}: phase is before-image, after-image or after-journal")
+    })?;
+    Ok(Some((n, phase)))
+}
+
+/// Light directions of the profile's channels.
+fn lab_of(profile: &Profile, camera: &CameraSection) -> LabGeometry {
+    camera.lab(
+        profile
+            .light
+            .channels
+            .iter()
+            .map(|c| (c.azimuth_deg, c.elevation_deg))
+            .collect(),
+    )
+}
+
+/// What the simulated camera needs besides the rig.
+struct SimParts<'a> {
+    scene: &'a brdf_rig::sim::scene::SceneConfig,
+    object: Option<std::sync::Arc<ObjectScene>>,
+    stage: &'a StageState,
+}
+
+fn open_camera(
+    camera: &CameraSection,
+    plan: &CapturePlan,
+    lab: &LabGeometry,
+    sim: SimParts<'_>,
+    rig: &rigdev::Rig,
+    session_dir: &Path,
+) -> anyhow::Result<Box<dyn Camera>> {
+    let SimParts {
+        scene,
+        object,
+        stage,
+    } = sim;
+    Ok(match camera.backend.as_str() {
+        "sim" => {
+            let Some(handle) = rig.sim.clone() else {
+                bail!(
+                    "the simulated camera needs the simulated rig (profile [serial] port = \"sim\"); \
+                     set [camera] backend for a real camera"
+                );
+            };
+            let Some(renderer) = object else {
+                bail!("the simulated scene is not loaded");
+            };
+            Box::new(brdf_rig::sim::camera::SimCamera::new(
+                Box::new(handle),
+                stage.clone(),
+                lab.clone(),
+                scene.clone(),
+                plan.camera.width,
+                plan.camera.height,
+                renderer,
+            ))
+        }
+        "gphoto2" => {
+            use brdf_rig::devices::camera_gphoto2::{Gphoto2Camera, Gphoto2Config};
+            let mut cfg = Gphoto2Config::new(session_dir.join(".download"));
+            cfg.program = PathBuf::from(&camera.gphoto2_program);
+            cfg.port = camera.gphoto2_port.clone();
+            cfg.shutter_key = camera.shutter_key.clone();
+            cfg.iso_key = camera.iso_key.clone();
+            cfg.extra_config = camera
+                .extra_config
+                .iter()
+                .filter_map(|kv| kv.split_once('='))
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect();
+            Box::new(Gphoto2Camera::new(cfg))
+        }
+        #[cfg(feature = "webcam")]
+        "webcam" => Box::new(brdf_rig::devices::camera_webcam::WebcamCamera::new(
+            camera.webcam_index,
+        )),
+        #[cfg(feature = "v4l2")]
+        "v4l2" => Box::new(brdf_rig::devices::camera_v4l2::V4l2Camera::new(
+            Path::new(&camera.v4l2_device),
+            plan.camera.width as u32,
+            plan.camera.height as u32,
+        )),
+        other => bail!(
+            "camera backend `{other}` is not compiled into this binary (build with --features webcam or v4l2)"
+        ),
+    })
+}
+
+pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
+    let (result, dir) = execute(args)?;
+    report(result, &dir)
+}
+
+/// Prepares everything and runs the session; the outcome of the run and the session folder.
+pub fn execute(
+    args: CaptureArgs,
+) -> anyhow::Result<(Result<brdf_rig::capture::RunSummary, CaptureError>, PathBuf)> {
+    let resuming = args.resume.is_some();
+    // 1. Plan and profile.
+    let (dir, plan, plan_text, profile) = match (&args.resume, &args.out) {
+        (Some(dir), _) => {
+            let plan_path = dir.join(brdf_rig::capture::session::PLAN_FILE);
+            let plan = load_plan(&plan_path)
+                .with_context(|| format!("resuming {}: is it a session folder?", dir.display()))?;
+            let profile = match &args.rig.profile {
+                Some(p) => Profile::load(p)?,
+                None => Profile::load(&dir.join(PROFILE_COPY))?,
+            };
+            let text = std::fs::read_to_string(&plan_path)
+                .with_context(|| format!("reading {}", plan_path.display()))?;
+            (dir.clone(), plan, text, profile)
+        }
+        (None, Some(out)) => {
+            let (plan, text) = match &args.plan {
+                Some(p) => (
+                    load_plan(p)?,
+                    std::fs::read_to_string(p)
+                        .with_context(|| format!("reading {}", p.display()))?,
+                ),
+                None => (
+                    parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (built in)")?,
+                    DEFAULT_PLAN_TOML.to_string(),
+                ),
+            };
+            (out.clone(), plan, text, args.rig.profile()?)
+        }
+        (None, None) => bail!("give --out DIR for a new capture or --resume DIR"),
+    };
+    let (camera_cfg, scene_cfg) =
+        parse_sections(&profile.source, &profile.origin).map_err(anyhow::Error::msg)?;
+    let lab = lab_of(&profile, &camera_cfg);
+    eprint!("{}", plan.summary(&lab));
+
+    // 2. Guided mode needs someone at a terminal.
+    if !args.unattended && !std::io::stdin().is_terminal() {
+        bail!(
+            "guided mode waits for the operator to press Enter, but standard input is not a terminal; \
+             run it in a terminal, or pass --unattended when nobody needs to act (simulated rig, or a \
+             rig whose room light and targets are already set)"
+        );
+    }
+
+    // 3. The folder and its free space.
+    let remaining = if resuming {
+        let s = Session::resume(&dir)?;
+        let n = s.remaining().len();
+        drop(s);
+        n
+    } else {
+        if dir.exists()
+            && std::fs::read_dir(&dir)
+                .with_context(|| format!("listing {}", dir.display()))?
+                .next()
+                .is_some()
+        {
+            bail!(
+                "{} exists and is not empty; choose a new --out, or continue it with --resume",
+                dir.display()
+            );
+        }
+        plan.shots().len()
+    };
+    check_disk_space(&dir, remaining, plan.camera.width, plan.camera.height)?;
+
+    // 4. Devices, before anything moves.
+    let rig = rigdev::open(&profile, args.rig.port.as_deref()).with_context(|| {
+        format!(
+            "opening the rig of {} (port {}); nothing has moved",
+            profile.origin,
+            args.rig
+                .port
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| profile.serial.port.clone())
+        )
+    })?;
+    {
+        use brdf_rig::devices::Light;
+        plan.check_rig(rig.light.channel_count())
+            .map_err(|e| anyhow::anyhow!("the plan does not fit the rig: {e}"))?;
+    }
+    let stage = StageState::default();
+
+    // 5. The session.
+    let mut session = if resuming {
+        Session::resume(&dir)?
+    } else {
+        let header = SessionHeader {
+            format_version: 0,
+            tool: format!("brdf-rig {}", env!("CARGO_PKG_VERSION")),
+            plan_name: String::new(),
+            planned_shots: 0,
+            profile: profile.origin.clone(),
+            camera_backend: camera_cfg.backend.clone(),
+            created_utc: brdf_rig::capture::session::now_utc().1,
+            simulated: camera_cfg.backend == "sim",
+        };
+        Session::create(
+            &dir,
+            &plan,
+            &plan_text,
+            header,
+            &[(PROFILE_COPY, profile.source.as_bytes())],
+        )?
+    };
+    let object = if camera_cfg.backend == "sim" {
+        Some(std::sync::Arc::new(
+            ObjectScene::load(&scene_cfg).context("loading the simulated scene")?,
+        ))
+    } else {
+        None
+    };
+    let mut camera = open_camera(
+        &camera_cfg,
+        &plan,
+        &lab,
+        SimParts {
+            scene: &scene_cfg,
+            object: object.clone(),
+            stage: &stage,
+        },
+        &rig,
+        &dir,
+    )?;
+    // Deterministic and cheap: written again on resume in case a kill interrupted it.
+    if let Some(object) = &object {
+        brdf_rig::sim::truth::write_ground_truth(&dir, &plan, &lab, object, &scene_cfg)
+            .map_err(anyhow::Error::msg)
+            .context("writing the simulated ground truth (sim/)")?;
+    }
+
+    // 6. Run.
+    let options = RunOptions {
+        kill_hook: kill_hook()?,
+        snapshot_every: args.snapshot_every,
+        lab: Some(lab),
+        angle_range: Some((
+            profile.turntable.min_angle_deg,
+            profile.turntable.max_angle_deg,
+        )),
+        ..RunOptions::default()
+    };
+    let cancel = options.cancel.clone();
+    let _ = ctrlc::set_handler(move || {
+        cancel.store(true, Ordering::SeqCst);
+    });
+    let mut guided;
+    let mut unattended = brdf_rig::capture::Unattended;
+    let base: &mut dyn Operator = if args.unattended {
+        &mut unattended
+    } else {
+        guided = Guided::new(options.cancel.clone());
+        &mut guided
+    };
+    let mut operator = SimStage {
+        inner: base,
+        stage: stage.clone(),
+    };
+    let mut bars = Bars::new();
+    let mut rig = rig;
+    let result = run_session(
+        &mut session,
+        &mut rig.turntable,
+        &mut rig.light,
+        camera.as_mut(),
+        &mut operator,
+        &mut bars,
+        &options,
+    );
+    Ok((result, dir))
+}
+
+fn report(
+    result: Result<brdf_rig::capture::RunSummary, CaptureError>,
+    dir: &Path,
+) -> anyhow::Result<ExitCode> {
+    match result {
+        Ok(summary) => {
+            eprintln!(
+                "capture complete: {} shots in {} ({} taken now in {:.1} s, {:.2} shots/s); verify with `brdf-rig session verify {}`",
+                summary.shots_total,
+                dir.display(),
+                summary.shots_taken,
+                summary.wall.as_secs_f64(),
+                summary.shots_taken as f64 / summary.wall.as_secs_f64().max(1e-9),
+                dir.display()
+            );
+            let per = |d: Duration| 1000.0 * d.as_secs_f64() / summary.shots_taken.max(1) as f64;
+            eprintln!(
+                "  per shot: {:.1} ms wall = devices {:.1} ms (camera {:.1}, settle {:.1}) + storage {:.1} ms + controller {:.2} ms",
+                per(summary.wall),
+                per(summary.device_time),
+                per(summary.camera_time),
+                per(summary.settle_time),
+                per(summary.storage_time),
+                1000.0 * summary.overhead_per_shot().as_secs_f64()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(CaptureError::Interrupted { done, total }) => {
+            eprintln!(
+                "interrupted: {done} of {total} shots are in {}; the light is off. Continue with `brdf-rig capture --resume {}`",
+                dir.display(),
+                dir.display()
+            );
+            Ok(ExitCode::from(130))
+        }
+        Err(e) => Err(anyhow::Error::new(e).context(format!(
+            "capture into {} stopped; the light is off and the session is consistent: continue with `brdf-rig capture --resume {}`",
+            dir.display(),
+            dir.display()
+        ))),
+    }
+}

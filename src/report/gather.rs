@@ -1,0 +1,966 @@
+//! Gathering a report: what a capture session folder and/or a reconstruction output folder hold,
+//! read into [`ReportData`] for the page ([`super::html`]).
+//!
+//! Two steps: [`gather`] reads what the folder holds into [`ReportData`], tolerantly (a piece
+//! that is missing or unreadable becomes [`Avail::No`] with the reason, never an error), and
+//! [`super::html::render_html`] turns that into the page.
+//!
+//! What is read (all optional except that the folder must be one of the two kinds):
+//! - session folder: `manifest.json` (else `journal.jsonl`), `session.json`, the images it lists
+//!   (checksums, a few single-light thumbnails), calibration JSON (`calibration.json`,
+//!   `calib/*.json`).
+//! - reconstruction output: `brdf.binary` (MERL table) and `report.json`, read as untyped JSON so
+//!   any producer's fields show; the keys interpreted are listed in `docs/report.md`
+//!   (`trials`, `chosen_trial`, `components`, `timings`, `warnings`, `calibration`, `truth`,
+//!   `baselines`, `session`), plus any `*.png` renders beside them.
+
+use super::charts::{ChartSpec, Goal, ScatterPoint, Series, line_chart, scatter_pareto};
+use super::images::{EmbeddedImage, png_files, sphere_renders};
+use super::inplane::{self, InPlaneCurve, InPlaneSettings};
+use super::session::{CaptureSummary, summarise_session};
+use crate::brdf::Brdf;
+use crate::brdf::merl::MerlTable;
+use crate::brdf::nbrdf::Nbrdf;
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The reconstruction's MERL table, as the reconstruction step names it.
+pub const BRDF_FILE: &str = "brdf.binary";
+/// The reconstruction's JSON report.
+pub const REPORT_JSON: &str = "report.json";
+/// The session snapshot written by the capture step.
+pub const MANIFEST_FILE: &str = "manifest.json";
+/// The session journal (one shot record per line), used when there is no snapshot.
+pub const JOURNAL_FILE: &str = "journal.jsonl";
+/// What the session is (header), written once by the capture step.
+pub const SESSION_FILE: &str = "session.json";
+
+/// A piece of the report, or why it is missing.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Avail<T> {
+    Yes(T),
+    No(String),
+}
+
+impl<T> Default for Avail<T> {
+    fn default() -> Self {
+        Avail::No("not looked for".into())
+    }
+}
+
+impl<T> Avail<T> {
+    pub fn is_available(&self) -> bool {
+        matches!(self, Avail::Yes(_))
+    }
+
+    pub fn as_option(&self) -> Option<&T> {
+        match self {
+            Avail::Yes(t) => Some(t),
+            Avail::No(_) => None,
+        }
+    }
+}
+
+/// How the report is made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportOptions {
+    pub inplane: InPlaneSettings,
+    /// In-plane plots on a logarithmic f_r axis (specular peaks span decades).
+    pub log_y: bool,
+    /// Further BRDF files to compare in the in-plane plot: (label, path to `.binary` or `.f32`).
+    pub compare: Vec<(String, PathBuf)>,
+    /// Re-read every session image and check its SHA-256 against the manifest.
+    pub verify_checksums: bool,
+    /// At most this many single-light thumbnails from a session.
+    pub max_thumbnails: usize,
+    /// Width and height of each sphere render, pixels.
+    pub sphere_pixels: usize,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        Self {
+            inplane: InPlaneSettings::default(),
+            log_y: true,
+            compare: Vec::new(),
+            verify_checksums: true,
+            max_thumbnails: 6,
+            sphere_pixels: 160,
+        }
+    }
+}
+
+/// One calibration record found (a file or a `report.json` entry).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CalibrationEntry {
+    pub source: String,
+    pub light_dir: Option<[f64; 3]>,
+    pub uncertainty_deg: Option<f64>,
+    pub irradiance: Option<Vec<f64>>,
+    pub irradiance_std_error: Option<Vec<f64>>,
+    /// Everything else, as key/value text.
+    pub other: Vec<(String, String)>,
+}
+
+/// The in-plane plot of the result (and of whatever it is compared with).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BrdfSection {
+    pub file: String,
+    pub description: String,
+    /// Labels of the curves, in chart order.
+    pub labels: Vec<String>,
+    /// One SVG chart per channel (red, green, blue).
+    pub charts: Vec<String>,
+    /// Peak of each curve in each channel (view angle, degrees).
+    pub peaks: Vec<(String, [Option<f64>; 3])>,
+    /// Comparisons that could not be loaded, with why.
+    pub missing: Vec<String>,
+    /// True when any curve is a neural MERL fit (an approximation, not measured data).
+    pub uses_neural_fit: bool,
+}
+
+/// One reconstruction trial from `report.json`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrialRow {
+    pub index: i64,
+    pub similarity: Option<f64>,
+    /// Error against a ground truth, when the producer knew one (simulations).
+    pub error: Option<f64>,
+    /// Other scalar fields, as text.
+    pub other: Vec<(String, String)>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrialsSection {
+    pub rows: Vec<TrialRow>,
+    pub chosen: Option<i64>,
+    /// Similarity by trial (and similarity against error when errors are known).
+    pub charts: Vec<String>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct ComponentsSection {
+    pub k: Option<i64>,
+    /// Validation curve: (k, error).
+    pub curve: Vec<(f64, f64)>,
+    pub chart: Option<String>,
+    pub other: Vec<(String, String)>,
+}
+
+/// Everything the page shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportData {
+    pub title: String,
+    pub dir: String,
+    /// "session folder", "reconstruction output", or both.
+    pub kinds: Vec<String>,
+    pub capture: Avail<CaptureSummary>,
+    pub calibration: Avail<Vec<CalibrationEntry>>,
+    pub brdf: Avail<BrdfSection>,
+    pub spheres: Avail<Vec<EmbeddedImage>>,
+    pub renders: Avail<Vec<EmbeddedImage>>,
+    pub trials: Avail<TrialsSection>,
+    pub components: Avail<ComponentsSection>,
+    pub timing: Avail<Vec<(String, f64)>>,
+    pub warnings: Vec<String>,
+    /// `report.json` keys not shown elsewhere, as key and pretty JSON.
+    pub other_facts: Vec<(String, String)>,
+    /// Where the result's prior came from, as the producer states it (`basis.note`,
+    /// `provenance`): shown beside the result.
+    pub provenance: Vec<String>,
+}
+
+/// Reads what `dir` holds. Fails only when `dir` cannot be listed or is neither a session folder
+/// (`manifest.json`, `journal.jsonl` or `session.json`) nor a reconstruction output
+/// (`brdf.binary` or `report.json`, here or in one subfolder).
+pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::ReportError> {
+    let meta = std::fs::metadata(dir).map_err(|source| super::ReportError::ReadDir {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
+    if !meta.is_dir() {
+        return Err(super::ReportError::NotADir {
+            dir: dir.to_path_buf(),
+        });
+    }
+    let is_session = [MANIFEST_FILE, JOURNAL_FILE, SESSION_FILE]
+        .iter()
+        .any(|f| dir.join(f).is_file());
+    let recon_dir = find_recon_dir(dir)?;
+    if !is_session && recon_dir.is_none() {
+        return Err(super::ReportError::NotAReportDir {
+            dir: dir.to_path_buf(),
+        });
+    }
+    let mut warnings = Vec::new();
+    let mut kinds = Vec::new();
+    if is_session {
+        kinds.push("session folder".to_string());
+    }
+
+    // report.json, untyped.
+    let report: Avail<Value> = match &recon_dir {
+        None => Avail::No("no reconstruction output in this folder".into()),
+        Some(r) => {
+            kinds.push(if r == dir {
+                "reconstruction output".to_string()
+            } else {
+                format!("reconstruction output in {}", r.display())
+            });
+            read_json(&r.join(REPORT_JSON))
+        }
+    };
+    if let Avail::No(why) = &report {
+        if recon_dir.is_some() {
+            warnings.push(format!("report.json: {why}"));
+        }
+    }
+    let rj = report.as_option();
+
+    // Capture: this folder, or the session report.json points to.
+    let session_dir = if is_session {
+        Some(dir.to_path_buf())
+    } else {
+        let base = recon_dir.as_deref().unwrap_or(dir);
+        let named = rj
+            .and_then(|v| v.get("session"))
+            .and_then(Value::as_str)
+            .map(|s| resolve(base, s));
+        // Else the folder of the job, when the capture step wrote the job into its session.
+        let of_job = || {
+            let job = resolve(base, rj?.get("job")?.as_str()?);
+            let parent = job.parent()?;
+            parent
+                .join(MANIFEST_FILE)
+                .is_file()
+                .then(|| parent.to_path_buf())
+        };
+        named.or_else(of_job)
+    };
+    let capture = match &session_dir {
+        Some(s) if s.is_dir() => Avail::Yes(summarise_session(s, opts)),
+        Some(s) => Avail::No(format!(
+            "report.json names the session {}, which is not a folder here",
+            s.display()
+        )),
+        None => Avail::No(
+            "this is a reconstruction output without a session folder (report.json has no \
+             \"session\" path)"
+                .into(),
+        ),
+    };
+
+    let calibration = gather_calibration(session_dir.as_deref(), rj);
+
+    // The result BRDF, the in-plane plot and the spheres.
+    let brdf_path = recon_dir.as_ref().map(|r| r.join(BRDF_FILE));
+    let table: Avail<MerlTable> = match &brdf_path {
+        None => Avail::No("no brdf.binary: the folder holds no reconstruction".into()),
+        Some(p) if !p.is_file() => Avail::No(format!("{} does not exist", p.display())),
+        Some(p) => match MerlTable::read(p) {
+            Ok(t) => Avail::Yes(t),
+            Err(e) => Avail::No(error_chain(&e)),
+        },
+    };
+    let brdf = match (&table, &brdf_path) {
+        (Avail::Yes(t), Some(p)) => {
+            let mut compare = comparisons_from_report(rj, recon_dir.as_deref().unwrap_or(dir));
+            compare.extend(opts.compare.iter().cloned());
+            brdf_section(t, p, &compare, opts)
+        }
+        (Avail::No(why), _) => Avail::No(why.clone()),
+        (_, None) => Avail::No("no brdf.binary".into()),
+    };
+    let spheres = match &table {
+        Avail::Yes(t) => sphere_renders(t, opts.sphere_pixels),
+        Avail::No(why) => Avail::No(why.clone()),
+    };
+    let renders = match &recon_dir {
+        Some(r) => png_files(r),
+        None => Avail::No("no reconstruction output folder".into()),
+    };
+
+    let (trials, components, timing, mut other_facts) = match rj {
+        Some(v) => (
+            trials_section(v),
+            components_section(v),
+            timing_section(v),
+            other_facts(v),
+        ),
+        None => {
+            let why = match &report {
+                Avail::No(w) => format!("report.json: {w}"),
+                Avail::Yes(_) => String::new(),
+            };
+            (
+                Avail::No(why.clone()),
+                Avail::No(why.clone()),
+                Avail::No(why),
+                Vec::new(),
+            )
+        }
+    };
+    if let Some(v) = rj {
+        warnings.extend(strings_at(v, "warnings"));
+    }
+    if let Avail::Yes(c) = &capture {
+        warnings.extend(c.notes.iter().cloned());
+    }
+    other_facts.sort();
+    let title = format!(
+        "brdf-rig report: {}",
+        dir.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| dir.display().to_string())
+    );
+    Ok(ReportData {
+        title,
+        dir: dir.display().to_string(),
+        kinds,
+        capture,
+        calibration,
+        brdf,
+        spheres,
+        renders,
+        trials,
+        components,
+        timing,
+        warnings,
+        other_facts,
+        provenance: rj.map(provenance).unwrap_or_default(),
+    })
+}
+
+/// `dir` itself if it holds `brdf.binary` or `report.json`, else the first subfolder (by name)
+/// that does.
+fn find_recon_dir(dir: &Path) -> Result<Option<PathBuf>, super::ReportError> {
+    let holds = |d: &Path| d.join(BRDF_FILE).is_file() || d.join(REPORT_JSON).is_file();
+    if holds(dir) {
+        return Ok(Some(dir.to_path_buf()));
+    }
+    let entries = std::fs::read_dir(dir).map_err(|source| super::ReportError::ReadDir {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
+    let mut subs: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.is_dir() && holds(p))
+        .collect();
+    subs.sort();
+    Ok(subs.into_iter().next())
+}
+
+pub(super) fn resolve(base: &Path, s: &str) -> PathBuf {
+    let p = PathBuf::from(s);
+    if p.is_absolute() { p } else { base.join(p) }
+}
+
+pub(super) fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut src = e.source();
+    while let Some(c) = src {
+        let _ = write!(s, ": {c}");
+        src = c.source();
+    }
+    s
+}
+
+pub(super) fn read_json(path: &Path) -> Avail<Value> {
+    match std::fs::read(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Avail::No(format!("{} does not exist", path.display()))
+        }
+        Err(e) => Avail::No(format!("{}: cannot read: {e}", path.display())),
+        Ok(bytes) => match serde_json::from_slice(&bytes) {
+            Ok(v) => Avail::Yes(v),
+            Err(e) => Avail::No(format!("{}: not valid JSON: {e}", path.display())),
+        },
+    }
+}
+
+pub(super) fn as_f64_array<const N: usize>(v: Option<&Value>) -> Option<[f64; N]> {
+    let a = v?.as_array()?;
+    if a.len() != N {
+        return None;
+    }
+    let mut out = [0.0; N];
+    for (o, x) in out.iter_mut().zip(a) {
+        *o = x.as_f64()?;
+    }
+    Some(out)
+}
+
+fn as_f64_vec(v: Option<&Value>) -> Option<Vec<f64>> {
+    match v? {
+        Value::Number(n) => n.as_f64().map(|x| vec![x]),
+        Value::Array(a) => a.iter().map(Value::as_f64).collect(),
+        _ => None,
+    }
+}
+
+/// A JSON value as short text (strings without quotes).
+pub(super) fn value_text(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        Value::Number(n) => match n.as_f64() {
+            Some(x) if n.is_f64() => fmt_num(x),
+            _ => n.to_string(),
+        },
+        other => other.to_string(),
+    }
+}
+
+/// Numbers with 4 significant digits, scientific when very large or small.
+pub fn fmt_num(x: f64) -> String {
+    if !x.is_finite() {
+        return x.to_string();
+    }
+    let a = x.abs();
+    if a != 0.0 && !(1e-3..1e6).contains(&a) {
+        return format!("{x:.3e}");
+    }
+    let digits = if a == 0.0 {
+        0
+    } else {
+        (3 - a.log10().floor() as i32).clamp(0, 6) as usize
+    };
+    let s = format!("{x:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+fn strings_at(v: &Value, key: &str) -> Vec<String> {
+    match v.get(key) {
+        Some(Value::Array(a)) => a.iter().map(value_text).collect(),
+        Some(Value::Null) | None => Vec::new(),
+        Some(other) => vec![value_text(other)],
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Calibration
+
+fn calibration_entry(source: String, v: &Value) -> CalibrationEntry {
+    let light_dir = [
+        "light_dir_camera",
+        "light_dir",
+        "direction",
+        "light_dir_lab",
+    ]
+    .iter()
+    .find_map(|k| as_f64_array::<3>(v.get(*k)));
+    let uncertainty_deg = v.get("uncertainty_deg").and_then(Value::as_f64);
+    let irradiance = as_f64_vec(v.get("irradiance"));
+    let irradiance_std_error = as_f64_vec(v.get("irradiance_std_error"));
+    let shown = [
+        "light_dir_camera",
+        "light_dir",
+        "direction",
+        "light_dir_lab",
+        "uncertainty_deg",
+        "irradiance",
+        "irradiance_std_error",
+    ];
+    let other = v
+        .as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !shown.contains(&k.as_str()))
+                .map(|(k, v)| (k.clone(), short_json(v)))
+                .collect()
+        })
+        .unwrap_or_default();
+    CalibrationEntry {
+        source,
+        light_dir,
+        uncertainty_deg,
+        irradiance,
+        irradiance_std_error,
+        other,
+    }
+}
+
+/// JSON as compact text, cut at 300 characters.
+pub(super) fn short_json(v: &Value) -> String {
+    let s = value_text(v);
+    if s.chars().count() > 300 {
+        let cut: String = s.chars().take(300).collect();
+        format!("{cut}...")
+    } else {
+        s
+    }
+}
+
+fn gather_calibration(session: Option<&Path>, rj: Option<&Value>) -> Avail<Vec<CalibrationEntry>> {
+    let mut out = Vec::new();
+    let mut notes = Vec::new();
+    if let Some(c) = rj.and_then(|v| v.get("calibration")) {
+        match c {
+            Value::Array(a) => {
+                for (i, x) in a.iter().enumerate() {
+                    out.push(calibration_entry(
+                        format!("report.json calibration[{i}]"),
+                        x,
+                    ));
+                }
+            }
+            other => out.push(calibration_entry("report.json calibration".into(), other)),
+        }
+    }
+    if let Some(dir) = session {
+        let mut files = vec![dir.join("calibration.json")];
+        if let Ok(rd) = std::fs::read_dir(dir.join("calib")) {
+            let mut js: Vec<PathBuf> = rd
+                .filter_map(Result::ok)
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|e| e == "json"))
+                .collect();
+            js.sort();
+            files.extend(js);
+        }
+        for f in files.iter().filter(|f| f.is_file()) {
+            match read_json(f) {
+                Avail::Yes(Value::Array(a)) => {
+                    for (i, x) in a.iter().enumerate() {
+                        out.push(calibration_entry(format!("{}[{i}]", f.display()), x));
+                    }
+                }
+                Avail::Yes(v) => out.push(calibration_entry(f.display().to_string(), &v)),
+                Avail::No(why) => notes.push(why),
+            }
+        }
+    }
+    if out.is_empty() {
+        let mut why = "no calibration found (looked for report.json \"calibration\", \
+                       calibration.json and calib/*.json in the session)"
+            .to_string();
+        if !notes.is_empty() {
+            let _ = write!(why, "; {}", notes.join("; "));
+        }
+        Avail::No(why)
+    } else {
+        Avail::Yes(out)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The BRDF
+
+/// Loads a BRDF file: `.f32` is a neural MERL fit, anything else a MERL table.
+pub fn load_brdf(path: &Path) -> Result<Box<dyn Brdf>, String> {
+    if path.extension().is_some_and(|e| e == "f32") {
+        Nbrdf::load(path)
+            .map(|n| Box::new(n) as Box<dyn Brdf>)
+            .map_err(|e| error_chain(&e))
+    } else {
+        MerlTable::read(path)
+            .map(|t| Box::new(t) as Box<dyn Brdf>)
+            .map_err(|e| error_chain(&e))
+    }
+}
+
+fn is_neural(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e == "f32")
+}
+
+/// `truth` and `baselines` of report.json: a path string, or an object with `path` (or `file`)
+/// and an optional `label`.
+fn comparisons_from_report(rj: Option<&Value>, base: &Path) -> Vec<(String, PathBuf)> {
+    let Some(v) = rj else {
+        return Vec::new();
+    };
+    let one = |x: &Value, default: &str| -> Option<(String, PathBuf)> {
+        match x {
+            Value::String(s) => Some((default.to_string(), resolve(base, s))),
+            Value::Object(o) => {
+                let p = o
+                    .get("path")
+                    .or_else(|| o.get("file"))
+                    .and_then(Value::as_str)?;
+                let label = o
+                    .get("label")
+                    .or_else(|| o.get("name"))
+                    .map(value_text)
+                    .unwrap_or_else(|| default.to_string());
+                Some((label, resolve(base, p)))
+            }
+            _ => None,
+        }
+    };
+    let mut out = Vec::new();
+    if let Some(t) = v.get("truth").and_then(|t| one(t, "truth")) {
+        out.push(t);
+    }
+    if let Some(Value::Array(a)) = v.get("baselines") {
+        for (i, b) in a.iter().enumerate() {
+            if let Some(x) = one(b, &format!("baseline {}", i + 1)) {
+                out.push(x);
+            }
+        }
+    }
+    out
+}
+
+fn brdf_section(
+    table: &MerlTable,
+    path: &Path,
+    compare: &[(String, PathBuf)],
+    opts: &ReportOptions,
+) -> Avail<BrdfSection> {
+    let mut loaded: Vec<(String, Box<dyn Brdf>)> = Vec::new();
+    let mut missing = Vec::new();
+    let mut uses_neural_fit = false;
+    for (label, p) in compare {
+        match load_brdf(p) {
+            Ok(b) => {
+                let label = if is_neural(p) {
+                    uses_neural_fit = true;
+                    format!("{label} (neural MERL fit, not measured)")
+                } else {
+                    label.clone()
+                };
+                loaded.push((label, b));
+            }
+            Err(e) => missing.push(format!("{label}: {e}")),
+        }
+    }
+    let mut brdfs: Vec<(&str, &dyn Brdf)> = vec![("reconstruction", table)];
+    brdfs.extend(loaded.iter().map(|(l, b)| (l.as_str(), b.as_ref())));
+    let curves: Vec<InPlaneCurve> = inplane::compare(&brdfs, &opts.inplane);
+    let mut charts = Vec::new();
+    for c in 0..3 {
+        match inplane::channel_chart(&curves, c, &opts.inplane, opts.log_y) {
+            Ok(svg) => charts.push(svg),
+            Err(e) => return Avail::No(format!("the in-plane chart could not be drawn: {e}")),
+        }
+    }
+    let peaks = curves
+        .iter()
+        .map(|k| {
+            (
+                k.label.clone(),
+                [
+                    k.peak_alpha_deg(0),
+                    k.peak_alpha_deg(1),
+                    k.peak_alpha_deg(2),
+                ],
+            )
+        })
+        .collect();
+    Avail::Yes(BrdfSection {
+        file: path.display().to_string(),
+        description: inplane::describe(&opts.inplane),
+        labels: curves.iter().map(|k| k.label.clone()).collect(),
+        charts,
+        peaks,
+        missing,
+        uses_neural_fit,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// report.json sections
+
+fn trials_section(v: &Value) -> Avail<TrialsSection> {
+    let Some(arr) = v.get("trials").and_then(Value::as_array) else {
+        return Avail::No("report.json has no \"trials\" list".into());
+    };
+    let rows: Vec<TrialRow> = arr
+        .iter()
+        .enumerate()
+        .map(|(i, t)| match t {
+            Value::Number(n) => TrialRow {
+                index: i as i64,
+                similarity: n.as_f64(),
+                error: None,
+                other: Vec::new(),
+            },
+            _ => TrialRow {
+                index: t.get("index").and_then(Value::as_i64).unwrap_or(i as i64),
+                similarity: t.get("similarity").and_then(Value::as_f64),
+                error: ["error", "relative_error", "error_vs_truth"]
+                    .iter()
+                    .find_map(|k| t.get(*k).and_then(Value::as_f64)),
+                other: t
+                    .as_object()
+                    .map(|o| {
+                        o.iter()
+                            .filter(|(k, x)| {
+                                ![
+                                    "index",
+                                    "similarity",
+                                    "error",
+                                    "relative_error",
+                                    "error_vs_truth",
+                                ]
+                                .contains(&k.as_str())
+                                    && !x.is_array()
+                                    && !x.is_object()
+                            })
+                            .map(|(k, x)| (k.clone(), value_text(x)))
+                            .collect()
+                    })
+                    .unwrap_or_default(),
+            },
+        })
+        .collect();
+    let chosen = ["chosen_trial", "chosen", "best_trial"]
+        .iter()
+        .find_map(|k| v.get(*k).and_then(Value::as_i64));
+    let mut charts = Vec::new();
+    let sims: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|r| r.similarity.map(|s| (r.index as f64, s)))
+        .collect();
+    if !sims.is_empty() {
+        let mut series = vec![Series::new("similarity (eq. 3)", sims.clone())];
+        if let Some(c) = chosen {
+            let pt: Vec<(f64, f64)> = sims.iter().copied().filter(|p| p.0 == c as f64).collect();
+            series.push(Series::new("chosen", pt).with_color([214, 39, 40]));
+        }
+        let spec =
+            ChartSpec::new("Cosine similarity of each trial", "trial", "similarity").size(560, 320);
+        if let Ok(svg) = line_chart(&series, &spec) {
+            charts.push(svg);
+        }
+    }
+    let pairs: Vec<ScatterPoint> = rows
+        .iter()
+        .filter_map(|r| {
+            Some(ScatterPoint::new(
+                format!("#{}", r.index),
+                r.similarity?,
+                r.error?,
+            ))
+        })
+        .collect();
+    if pairs.len() >= 2 {
+        let spec = ChartSpec::new(
+            "Similarity against error (paper Fig. 6)",
+            "similarity",
+            "error vs truth",
+        )
+        .size(560, 360);
+        if let Ok(svg) = scatter_pareto(&pairs, &spec, Goal::Maximise, Goal::Minimise) {
+            charts.push(svg);
+        }
+    }
+    Avail::Yes(TrialsSection {
+        rows,
+        chosen,
+        charts,
+    })
+}
+
+fn components_section(v: &Value) -> Avail<ComponentsSection> {
+    let c = v.get("components");
+    let k = c
+        .and_then(|c| c.get("k").and_then(Value::as_i64).or_else(|| c.as_i64()))
+        .or_else(|| v.get("k").and_then(Value::as_i64));
+    if c.is_none() && k.is_none() {
+        return Avail::No("report.json has neither \"components\" nor \"k\"".into());
+    }
+    let curve: Vec<(f64, f64)> = c
+        .and_then(|c| c.get("curve"))
+        .and_then(Value::as_array)
+        .map(|a| {
+            a.iter()
+                .filter_map(|p| {
+                    Some((
+                        p.get("k")?.as_f64()?,
+                        p.get("error").and_then(Value::as_f64)?,
+                    ))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let chart = (!curve.is_empty())
+        .then(|| {
+            let spec = ChartSpec::new(
+                "Held-out error against the number of components k",
+                "k",
+                "held-out error",
+            )
+            .size(560, 320);
+            line_chart(&[Series::new("validation", curve.clone())], &spec).ok()
+        })
+        .flatten();
+    let other = c
+        .and_then(Value::as_object)
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| k.as_str() != "k" && k.as_str() != "curve")
+                .map(|(k, x)| (k.clone(), short_json(x)))
+                .collect()
+        })
+        .unwrap_or_default();
+    Avail::Yes(ComponentsSection {
+        k,
+        curve,
+        chart,
+        other,
+    })
+}
+
+fn timing_section(v: &Value) -> Avail<Vec<(String, f64)>> {
+    let Some(t) = ["timings", "timing", "timings_secs", "stage_secs"]
+        .iter()
+        .find_map(|k| v.get(*k))
+    else {
+        return Avail::No("report.json has no \"timings\"".into());
+    };
+    let mut out = Vec::new();
+    match t {
+        Value::Object(o) => {
+            for (k, x) in o {
+                if let Some(s) = x.as_f64() {
+                    out.push((k.clone(), s));
+                }
+            }
+        }
+        Value::Array(a) => {
+            for x in a {
+                match x {
+                    Value::Array(p) if p.len() == 2 => {
+                        if let (Some(n), Some(s)) = (p[0].as_str(), p[1].as_f64()) {
+                            out.push((n.to_string(), s));
+                        }
+                    }
+                    Value::Object(o) => {
+                        let name = ["stage", "name", "step"]
+                            .iter()
+                            .find_map(|k| o.get(*k).and_then(Value::as_str));
+                        let secs = ["secs", "seconds", "time_secs", "duration_secs"]
+                            .iter()
+                            .find_map(|k| o.get(*k).and_then(Value::as_f64));
+                        if let (Some(n), Some(s)) = (name, secs) {
+                            out.push((n.to_string(), s));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        _ => {}
+    }
+    if out.is_empty() {
+        Avail::No("report.json \"timings\" has no (stage, seconds) entries".into())
+    } else {
+        Avail::Yes(out)
+    }
+}
+
+/// Provenance statements of `report.json` (`provenance`, `basis.note`).
+fn provenance(v: &Value) -> Vec<String> {
+    [
+        v.get("provenance"),
+        v.get("basis").and_then(|b| b.get("note")),
+    ]
+    .into_iter()
+    .flatten()
+    .map(value_text)
+    .filter(|t| !t.is_empty())
+    .collect()
+}
+
+const INTERPRETED: [&str; 18] = [
+    "provenance",
+    "trials",
+    "chosen_trial",
+    "chosen",
+    "best_trial",
+    "components",
+    "k",
+    "timings",
+    "timing",
+    "timings_secs",
+    "stage_secs",
+    "warnings",
+    "calibration",
+    "truth",
+    "baselines",
+    "session",
+    "brdf",
+    "renders",
+];
+
+fn other_facts(v: &Value) -> Vec<(String, String)> {
+    v.as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !INTERPRETED.contains(&k.as_str()))
+                .map(|(k, x)| {
+                    let text = match x {
+                        Value::Object(_) | Value::Array(_) => {
+                            serde_json::to_string_pretty(x).unwrap_or_else(|_| x.to_string())
+                        }
+                        other => value_text(other),
+                    };
+                    (k.clone(), text)
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn timings_in_each_accepted_shape() {
+        let want = vec![("a".to_string(), 1.5), ("b".to_string(), 2.0)];
+        for v in [
+            json!({"timings": [["a", 1.5], ["b", 2.0]]}),
+            json!({"timings": {"a": 1.5, "b": 2.0}}),
+            json!({"timing": [{"stage": "a", "secs": 1.5}, {"name": "b", "seconds": 2.0}]}),
+        ] {
+            assert_eq!(timing_section(&v), Avail::Yes(want.clone()), "{v}");
+        }
+        assert!(matches!(timing_section(&json!({})), Avail::No(w) if w.contains("timings")));
+        assert!(!timing_section(&json!({"timings": "soon"})).is_available());
+    }
+
+    #[test]
+    fn trials_components_and_other_facts() {
+        let v = json!({
+            "trials": [0.9, 0.95, 0.8], "chosen": 1, "k": 7,
+            "reliable_pixels": 12, "settings": {"eta": 40}
+        });
+        let Avail::Yes(t) = trials_section(&v) else {
+            panic!()
+        };
+        assert_eq!(t.chosen, Some(1));
+        assert_eq!(t.rows[1].similarity, Some(0.95));
+        assert_eq!(t.charts.len(), 1); // no errors known: no Fig. 6 chart
+        let Avail::Yes(c) = components_section(&v) else {
+            panic!()
+        };
+        assert_eq!(c.k, Some(7));
+        let facts = other_facts(&v);
+        assert_eq!(facts.len(), 2);
+        assert!(
+            facts
+                .iter()
+                .any(|(k, x)| k == "reliable_pixels" && x == "12")
+        );
+        assert!(!trials_section(&json!({"trials": 3})).is_available());
+    }
+
+    #[test]
+    fn numbers_are_short() {
+        assert_eq!(fmt_num(0.981), "0.981");
+        assert_eq!(fmt_num(1234.5678), "1235");
+        assert_eq!(fmt_num(12.0), "12");
+        assert_eq!(fmt_num(0.0), "0");
+        assert_eq!(fmt_num(2.5e-5), "2.500e-5");
+        assert_eq!(fmt_num(-0.125), "-0.125");
+    }
+}

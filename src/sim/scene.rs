@@ -1,0 +1,253 @@
+//! The virtual scene the simulated camera photographs: an object (a mesh from `data/meshes` with
+//! a BRDF from `data/merl-nbrdf`, the neural fits that stand in for MERL measurements) on the
+//! turntable, the rig's light channels as far directional lights, room light as uniform ambient
+//! light, and the two calibration targets (black glossy sphere, white reference).
+//!
+//! Frames: the lab frame is the rig profile's (turntable centre at the origin, z up, camera at
+//! azimuth 0 towards +x). The object frame is the lab frame at turntable angle 0; at angle `a`
+//! (degrees, counter-clockwise seen from above) `p_lab = Rz(a) p_object`. Photogrammetry
+//! recovers poses in the object frame, so the camera pose written for view `a` is
+//! `camera_from_object = camera_from_lab * Rz(a)` and a light's direction in the object frame is
+//! `Rz(-a) l_lab`. The mesh is centred on its bounding box, turned z-up and scaled to
+//! `object_size_m` (bounding-box diagonal).
+//!
+//! What only a person does on a real rig (room light, placing the sphere or the white reference)
+//! is the shared [`StageState`], which the capture's operator sets.
+
+use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use crate::capture::plan::{LabGeometry, Stage, Target};
+use crate::geometry::camera::{Intrinsics, Pose};
+
+/// The `[scene]` section of a rig profile (all optional).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneConfig {
+    /// Mesh file (PLY/OBJ); relative paths are relative to the crate's `data/meshes`.
+    pub mesh: String,
+    /// The mesh's up axis: "y" (OBJ/PLY scans, the default) or "z".
+    pub mesh_up: String,
+    /// Material name in `data/merl-nbrdf` (a neural fit, not measured MERL data).
+    pub material: String,
+    /// Bounding-box diagonal of the object on the turntable, metres.
+    pub object_size_m: f64,
+    /// Irradiance of each light channel at level 1, W/m^2 (RGB, white light).
+    pub light_irradiance: f64,
+    /// Radiance of the uniform room light, W sr^-1 m^-2.
+    pub ambient_radiance: f64,
+    /// Radius of the black calibration sphere, metres.
+    pub sphere_radius_m: f64,
+    /// Albedo of the white reference (Lambertian).
+    pub white_albedo: f64,
+    /// Sensor value per unit radiance per second of exposure at gain 1.
+    pub sensitivity: f64,
+    /// Electrons at saturation (sets the shot noise).
+    pub full_well_electrons: f64,
+    /// Read noise, electrons RMS.
+    pub read_noise_electrons: f64,
+    /// Seed of the sensor noise; each shot's noise depends on it and on the shot's state.
+    pub seed: u64,
+}
+
+impl Default for SceneConfig {
+    fn default() -> Self {
+        Self {
+            mesh: "spot_triangulated.obj".into(),
+            mesh_up: "y".into(),
+            material: "blue-acrylic".into(),
+            object_size_m: 0.38,
+            light_irradiance: 10.0,
+            ambient_radiance: 1.0,
+            sphere_radius_m: 0.05,
+            white_albedo: 0.99,
+            sensitivity: 120.0,
+            full_well_electrons: 20_000.0,
+            read_noise_electrons: 4.0,
+            seed: 7,
+        }
+    }
+}
+
+impl SceneConfig {
+    /// The mesh path, resolved against `data/meshes` when relative.
+    pub fn mesh_path(&self) -> PathBuf {
+        let p = PathBuf::from(&self.mesh);
+        if p.is_absolute() {
+            p
+        } else {
+            data_dir().join("meshes").join(p)
+        }
+    }
+
+    pub fn material_path(&self) -> PathBuf {
+        data_dir()
+            .join("merl-nbrdf")
+            .join(format!("{}.f32", self.material))
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("scene.object_size_m", self.object_size_m),
+            ("scene.light_irradiance", self.light_irradiance),
+            ("scene.sphere_radius_m", self.sphere_radius_m),
+            ("scene.white_albedo", self.white_albedo),
+            ("scene.sensitivity", self.sensitivity),
+            ("scene.full_well_electrons", self.full_well_electrons),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{name} = {v}: must be positive"));
+            }
+        }
+        if !(self.ambient_radiance >= 0.0 && self.read_noise_electrons >= 0.0) {
+            return Err(
+                "scene.ambient_radiance and scene.read_noise_electrons must be >= 0".into(),
+            );
+        }
+        if self.mesh_up != "y" && self.mesh_up != "z" {
+            return Err(format!(
+                "scene.mesh_up = {:?}: must be \"y\" or \"z\"",
+                self.mesh_up
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The crate's data folder (meshes, neural MERL fits); `BRDF_RIG_DATA` overrides it.
+pub fn data_dir() -> PathBuf {
+    std::env::var_os("BRDF_RIG_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data"))
+}
+
+/// What stands on the turntable and whether the room light is on, shared between the capture's
+/// operator (who sets it) and the simulated camera (which renders it).
+#[derive(Clone, Debug)]
+pub struct StageState(Arc<Mutex<Stage>>);
+
+impl Default for StageState {
+    fn default() -> Self {
+        Self(Arc::new(Mutex::new(Stage {
+            target: Target::Object,
+            room_light: true,
+        })))
+    }
+}
+
+impl StageState {
+    pub fn get(&self) -> Stage {
+        *self.0.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn set(&self, stage: Stage) {
+        *self.0.lock().unwrap_or_else(|p| p.into_inner()) = stage;
+    }
+}
+
+/// Rotation of the turntable by `angle_deg` about z (object frame to lab frame).
+pub fn lab_from_object(angle_deg: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle_deg.to_radians())
+}
+
+/// The fixed camera: pinhole intrinsics and its pose in the lab frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimCameraRig {
+    pub intrinsics: Intrinsics,
+    pub camera_from_lab: Pose,
+}
+
+impl SimCameraRig {
+    /// A camera of `width x height` at the lab geometry's distance and elevation, looking at the
+    /// turntable centre, with square pixels and the principal point at the image centre.
+    pub fn new(lab: &LabGeometry, width: usize, height: usize) -> Self {
+        let fy = 0.5 * height as f64 / (0.5 * lab.vertical_fov_deg.to_radians()).tan();
+        let intrinsics = Intrinsics::pinhole(
+            width,
+            height,
+            fy,
+            fy,
+            0.5 * width as f64,
+            0.5 * height as f64,
+        );
+        let eye = Point3::from(lab.camera_dir_lab() * lab.camera_distance_m);
+        let camera_from_lab = Pose::look_at(eye, Point3::origin(), Vector3::z());
+        Self {
+            intrinsics,
+            camera_from_lab,
+        }
+    }
+
+    /// The camera pose in the object frame at turntable angle `angle_deg` (what SfM recovers).
+    pub fn camera_from_object(&self, angle_deg: f64) -> Pose {
+        let r = lab_from_object(angle_deg);
+        Pose {
+            rotation: self.camera_from_lab.rotation * r,
+            translation: self.camera_from_lab.translation,
+        }
+    }
+}
+
+/// A light direction (lab frame) carried into the object frame at turntable angle `angle_deg`.
+pub fn light_dir_object(l_lab: &Vector3<f64>, angle_deg: f64) -> Vector3<f64> {
+    lab_from_object(angle_deg).inverse() * l_lab
+}
+
+/// Re-orients a y-up mesh to z-up (x stays, y becomes z, z becomes -y): a proper rotation.
+pub fn y_up_to_z_up() -> Rotation3<f64> {
+    Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    fn lab() -> LabGeometry {
+        LabGeometry {
+            camera_distance_m: 0.6,
+            camera_elevation_deg: 10.0,
+            vertical_fov_deg: 30.0,
+            lights: vec![(60.0, 0.0)],
+        }
+    }
+
+    #[test]
+    fn the_object_centre_projects_to_the_image_centre_at_every_angle() {
+        let rig = SimCameraRig::new(&lab(), 64, 48);
+        for a in [0.0, 37.0, 180.0, 359.0] {
+            let pose = rig.camera_from_object(a);
+            let p = pose.camera_from_world(&Point3::origin());
+            let (x, y) = rig.intrinsics.project(&p).unwrap();
+            assert!((x - 32.0).abs() < 1e-9 && (y - 24.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn turning_the_table_moves_the_camera_the_other_way_in_the_object_frame() {
+        let rig = SimCameraRig::new(&lab(), 64, 48);
+        // at 90 degrees the object's -y axis faces the camera (which sits on lab +x)
+        let c = rig.camera_from_object(90.0).centre();
+        let dir = c.coords.normalize();
+        assert!(dir.y < -0.95, "{dir:?}");
+        // the light turns with the camera: the angle between them is constant
+        let l_lab = lab().light_dir_lab(0).unwrap();
+        for a in [0.0, 45.0, 200.0] {
+            let l = light_dir_object(&l_lab, a);
+            let v = rig.camera_from_object(a).centre().coords.normalize();
+            let v0 = rig.camera_from_lab.centre().coords.normalize();
+            assert!((l.dot(&v) - l_lab.dot(&v0)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn y_up_becomes_z_up() {
+        let r = y_up_to_z_up();
+        let up = r * Vector3::y();
+        assert!((up - Vector3::z()).norm() < 1e-12);
+        assert!((r.matrix().determinant() - 1.0).abs() < 1e-12);
+    }
+}

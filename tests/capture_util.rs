@@ -1,0 +1,64 @@
+//! Shared by the capture tests: a fast simulated rig profile, tiny plans, running the binary.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use crate::util;
+
+/// The built-in simulated profile with a fast turntable and short light warm-up, so tests spend
+/// their time on the capture logic, not on simulated motion.
+pub fn fast_profile(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("rig-profiles/simulated.toml"),
+    )
+    .unwrap()
+    .replace("max_speed_deg_s = 90.0", "max_speed_deg_s = 3600.0")
+    .replace("max_accel_deg_s2 = 180.0", "max_accel_deg_s2 = 36000.0")
+    .replace("warmup_ms = 50", "warmup_ms = 2");
+    let p = dir.join("fast-sim.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A plan of `views` ambient views at 64x48, single-light shots on every third view under all
+/// three channels with a two-step bracket, and both calibration targets.
+pub fn tiny_plan(dir: &Path, views: usize) -> PathBuf {
+    let text = format!(
+        "name = \"tiny\"\n\
+         [camera]\nwidth = 64\nheight = 48\ngain = 1.0\n\
+         [ambient]\nviews = {views}\nexposures_secs = [0.02]\n\
+         [single_light]\nevery = 3\nchannels = [0, 1, 2]\nexposures_secs = [0.004, 0.016]\n\
+         [calibration]\nsphere = true\nwhite = true\n\
+         [settle]\nturntable_millis = 0\nlight_millis = 0\n"
+    );
+    let p = dir.join("tiny-plan.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+pub fn brdf_rig(args: &[&str]) -> Command {
+    let mut c = Command::new(util::bin());
+    c.args(args).stdin(Stdio::null());
+    c.env_remove("BRDF_RIG_TEST_KILL_AT");
+    c.env_remove("BRDF_RIG_PROFILE");
+    c
+}
+
+pub fn run(args: &[&str]) -> Output {
+    brdf_rig(args).output().unwrap()
+}
+
+pub fn text(o: &Output) -> String {
+    format!(
+        "status {:?}\nstdout:\n{}\nstderr:\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
