@@ -11,6 +11,7 @@ pub mod devices;
 pub mod eval;
 pub mod geometry;
 pub mod imageio;
+pub mod pipeline;
 pub mod profile;
 pub mod protocol;
 pub mod reconstruct;

@@ -1,8 +1,6 @@
 //! `brdf-rig calibrate`: light direction from sphere images, irradiance from a white board.
 //! Thin: validates the arguments into a configuration, reads the images, calls `calib`, prints.
-//! Writing the calibration into a capture session folder waits for the session format (see
-//! `docs/calibration.md`); the session step will call `calib::light::calibrate_light` and
-//! `calib::white::calibrate_irradiance` directly.
+//! `brdf-rig calibrate SESSION` (a capture session folder) is in `calibrate_session.rs`.
 
 use anyhow::{Context, Result, bail};
 use brdf_rig::calib::light::{LightError, OutlineInput, SphereShot, calibrate_light};
@@ -14,10 +12,15 @@ use clap::{Args, Subcommand};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
+/// `brdf-rig calibrate SESSION` calibrates a capture session folder; the subcommands measure
+/// images from elsewhere.
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct CalibrateArgs {
     #[command(subcommand)]
-    pub what: CalibrateCommand,
+    pub what: Option<CalibrateCommand>,
+    #[command(flatten)]
+    pub session: super::calibrate_session::SessionArgs,
 }
 
 #[derive(Subcommand, Debug)]
@@ -94,8 +97,9 @@ pub struct WhiteArgs {
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
     match args.what {
-        CalibrateCommand::Sphere(a) => sphere(a),
-        CalibrateCommand::White(a) => white(a),
+        Some(CalibrateCommand::Sphere(a)) => sphere(a),
+        Some(CalibrateCommand::White(a)) => white(a),
+        None => super::calibrate_session::run(args.session),
     }
 }
 

@@ -2,6 +2,8 @@
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
 pub mod calibrate;
+mod calibrate_session;
+mod demo;
 mod merl;
 
 use clap::{Parser, Subcommand};
@@ -37,6 +39,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The whole story on the simulated rig: capture, calibrate, reconstruct, report.
+    Demo(demo::DemoArgs),
     /// Reference firmware for the rig's Arduino Mega 2560.
     Firmware {
         #[command(subcommand)]
@@ -70,6 +74,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
+        Command::Demo(a) => demo::run(a),
         Command::Firmware { command } => firmware::run(command),
         Command::Capture(a) => capture::run(a),
         Command::Cameras(a) => cameras::run(a),

@@ -213,9 +213,13 @@ impl SceneRenderer for ObjectScene {
                 let (sphere, brdf) = self.black_sphere();
                 for l in &req.lights {
                     if let Some(light) = DirectionalLight::new(l.dir_object, [l.irradiance; 3]) {
+                        // A matte grey backdrop (albedo 0.5) behind the sphere, lit by the same
+                        // light, as a lab sets one up: the black sphere's outline then stands
+                        // out all round, not only on its lit side.
+                        let backdrop = [(0.5 * l.irradiance / std::f64::consts::PI) as f32; 3];
                         add(
                             &mut img,
-                            &render_sphere(&sphere, &brdf, &light, k, pose, [0.0; 3]),
+                            &render_sphere(&sphere, &brdf, &light, k, pose, backdrop),
                         );
                     }
                 }

@@ -1,0 +1,6 @@
+//! Orchestration across steps: calibrating a capture session into a reconstruction job, and the
+//! whole simulated story (capture, calibrate, reconstruct, report) behind the README's main
+//! command. An edge: reads and writes session folders; the steps themselves live in their own
+//! modules and know nothing of each other.
+
+pub mod session_calib;

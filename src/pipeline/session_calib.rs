@@ -1,0 +1,447 @@
+//! Calibrating a capture session: from the session folder's bracketed calibration and
+//! single-light shots to linear HDR images, a light direction and an irradiance per light
+//! channel, and the reconstruction job that the `reconstruct` step reads.
+//!
+//! This is an edge: it reads the session (manifest, EXR images, the simulated ground truth when
+//! there is one) and writes `hdr/`, `calibration.json` and `job.toml` into it. The measuring
+//! itself is `crate::calib` (pure); the job format is `crate::reconstruct::job`.
+//!
+//! Conventions:
+//! - Radiance unit: an HDR image holds `value / (exposure_secs * gain)`, the same unit for every
+//!   shot of a session, so the irradiance measured on the white board and the single-light
+//!   images share it and cancel in r = I / (E cos theta_i).
+//! - The camera does not move in the lab, so one light direction per channel (camera axes)
+//!   serves every view; the turntable's rotation reaches the object frame through each view's
+//!   photogrammetry pose.
+//! - The white board stands on the turntable turned to face the bisector of the camera and the
+//!   lit channel (the capture runner turns it so); its normal in camera axes is therefore taken
+//!   as `normalize(l + v)` with `v = (0, 0, -1)` towards the camera.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::calib::hdr::{Exposure, MergeOptions, merge_linear};
+use crate::calib::light::{LightSummary, OutlineInput, SphereShot, calibrate_light};
+use crate::calib::sphere::SphereOptions;
+use crate::calib::white::{BoardRegion, WhiteOptions, calibrate_irradiance};
+use crate::capture::plan::ShotKind;
+use crate::capture::session::{MANIFEST_FILE, Manifest, ShotRecord};
+use crate::geometry::camera::Intrinsics;
+use crate::geometry::colmap;
+use crate::imageio::{ExrPrecision, read_linear, write_exr};
+use crate::reconstruct::job::{Job, LightImageSpec};
+use crate::render::image::LinearImage;
+
+/// What went wrong, naming the file or shot.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionCalibError {
+    #[error("{path}: {reason}")]
+    File { path: PathBuf, reason: String },
+    #[error("session {dir}: {reason}")]
+    Session { dir: PathBuf, reason: String },
+    #[error("channel {channel}: {reason}")]
+    Channel { channel: usize, reason: String },
+}
+
+/// Where to find what photogrammetry gives and the white board's albedo.
+#[derive(Clone, Debug, Default)]
+pub struct SessionCalibOptions {
+    /// COLMAP model folder; default: the simulated capture's `sim/colmap`.
+    pub cameras: Option<PathBuf>,
+    /// Mesh from photogrammetry; default: the simulated capture's `sim/mesh_sfm.ply`.
+    pub mesh: Option<PathBuf>,
+    /// Albedo of the white reference; default: the simulated scene's, else an error.
+    pub white_albedo: Option<f64>,
+}
+
+/// One channel's calibration, as written to `calibration.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChannelCalibration {
+    pub channel: usize,
+    pub light: LightSummary,
+    /// Irradiance per colour channel, in the session's radiance unit.
+    pub irradiance: [f64; 3],
+    pub irradiance_std_error: [f64; 3],
+    /// Spread of the board's radiance over a 3x3 grid of cells (flat-field check).
+    pub flat_field_spread: f64,
+    pub warnings: Vec<String>,
+    /// Simulated sessions only: the angle between the measured and the true light direction,
+    /// and the relative irradiance error (mean over colour channels).
+    pub truth_dir_error_deg: Option<f64>,
+    pub truth_irradiance_error: Option<f64>,
+}
+
+/// The session's calibration.
+#[derive(Clone, Debug, Serialize)]
+pub struct SessionCalibration {
+    pub channels: Vec<ChannelCalibration>,
+    pub light_images: usize,
+    pub job: PathBuf,
+}
+
+/// Groups of shots that form one bracket: (kind, view, channel) -> records.
+type Brackets<'a> = BTreeMap<(u8, Option<usize>, Option<usize>), Vec<&'a ShotRecord>>;
+
+fn kind_key(k: ShotKind) -> u8 {
+    match k {
+        ShotKind::Ambient => 0,
+        ShotKind::SingleLight => 1,
+        ShotKind::Sphere => 2,
+        ShotKind::White => 3,
+    }
+}
+
+fn read_manifest(dir: &Path) -> Result<Manifest, SessionCalibError> {
+    let path = dir.join(MANIFEST_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|e| SessionCalibError::File {
+        path: path.clone(),
+        reason: format!("cannot read the manifest ({e}); is this a capture session folder?"),
+    })?;
+    serde_json::from_str(&text).map_err(|e| SessionCalibError::File {
+        path,
+        reason: format!("malformed manifest: {e}"),
+    })
+}
+
+/// Merges one bracket into an HDR image in the session's radiance unit.
+fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<LinearImage, SessionCalibError> {
+    let mut images = Vec::with_capacity(shots.len());
+    for s in shots {
+        let path = dir.join(&s.file);
+        let img = read_linear(&path, 1.0).map_err(|e| SessionCalibError::File {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        images.push(img);
+    }
+    let first = shots.first().ok_or_else(|| SessionCalibError::Session {
+        dir: dir.into(),
+        reason: "an empty bracket".into(),
+    })?;
+    // value / exposure is what merge_linear gives; dividing by the gain too makes shots with
+    // different gains comparable.
+    let brackets: Vec<Exposure> = images
+        .iter()
+        .zip(shots)
+        .map(|(image, s)| Exposure {
+            image,
+            exposure_secs: s.exposure_secs * s.gain.max(f64::MIN_POSITIVE),
+        })
+        .collect();
+    let noise_floor = first.saturation * 2e-3;
+    let merged = merge_linear(&brackets, &MergeOptions::new(first.saturation, noise_floor))
+        .map_err(|e| SessionCalibError::Session {
+            dir: dir.into(),
+            reason: format!("merging the bracket of {}: {e}", first.id),
+        })?;
+    Ok(merged.image)
+}
+
+/// The simulated ground truth, when the session has one.
+struct Truth {
+    albedo: Option<f64>,
+    /// channel -> (direction towards the light in camera axes, irradiance at level 1)
+    channels: BTreeMap<usize, (Vector3<f64>, f64)>,
+    sensitivity: f64,
+}
+
+fn read_truth(dir: &Path) -> Option<Truth> {
+    let text = std::fs::read_to_string(dir.join("sim/truth.json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let albedo = v["scene"]["white_albedo"].as_f64();
+    let sensitivity = v["sensitivity"].as_f64().unwrap_or(1.0);
+    let mut channels = BTreeMap::new();
+    for c in v["channels"].as_array()? {
+        let ch = c["channel"].as_u64()? as usize;
+        let d = c["light_dir_camera"].as_array()?;
+        let dir = Vector3::new(
+            d.first()?.as_f64()?,
+            d.get(1)?.as_f64()?,
+            d.get(2)?.as_f64()?,
+        );
+        channels.insert(ch, (dir, c["irradiance_w_m2"].as_f64()?));
+    }
+    Some(Truth {
+        albedo,
+        channels,
+        sensitivity,
+    })
+}
+
+/// Calibrates a session and writes `hdr/`, `calibration.json` and `job.toml` into it.
+pub fn calibrate_session(
+    dir: &Path,
+    opts: &SessionCalibOptions,
+    mut progress: impl FnMut(&str),
+) -> Result<SessionCalibration, SessionCalibError> {
+    let manifest = read_manifest(dir)?;
+    if manifest.status != "complete" {
+        progress(&format!(
+            "warning: the session is `{}`; calibrating the shots it has (resume the capture to finish it)",
+            manifest.status
+        ));
+    }
+    let truth = read_truth(dir);
+    let cameras = opts
+        .cameras
+        .clone()
+        .unwrap_or_else(|| dir.join("sim/colmap"));
+    let mesh = opts
+        .mesh
+        .clone()
+        .unwrap_or_else(|| dir.join("sim/mesh_sfm.ply"));
+    let model = colmap::read_model(&cameras).map_err(|e| SessionCalibError::File {
+        path: cameras.clone(),
+        reason: format!("{e} (give the photogrammetry model with --cameras)"),
+    })?;
+    let intr: Intrinsics = *model
+        .cameras
+        .values()
+        .next()
+        .map(|c| &c.intrinsics)
+        .ok_or_else(|| SessionCalibError::File {
+            path: cameras.clone(),
+            reason: "the COLMAP model has no camera".into(),
+        })?;
+    let albedo = opts
+        .white_albedo
+        .or(truth.as_ref().and_then(|t| t.albedo))
+        .ok_or_else(|| SessionCalibError::Session {
+            dir: dir.into(),
+            reason: "the white reference's albedo is unknown: give it with --albedo".into(),
+        })?;
+
+    let mut brackets: Brackets = BTreeMap::new();
+    for s in &manifest.shots {
+        brackets
+            .entry((kind_key(s.kind), s.view, s.channel))
+            .or_default()
+            .push(s);
+    }
+    let hdr_dir = dir.join("hdr");
+    std::fs::create_dir_all(&hdr_dir).map_err(|e| SessionCalibError::File {
+        path: hdr_dir.clone(),
+        reason: e.to_string(),
+    })?;
+
+    // Sphere and white board per channel.
+    let sphere_key = kind_key(ShotKind::Sphere);
+    let white_key = kind_key(ShotKind::White);
+    let mut sphere_imgs: BTreeMap<usize, LinearImage> = BTreeMap::new();
+    let mut white_imgs: BTreeMap<usize, LinearImage> = BTreeMap::new();
+    for ((k, _view, ch), shots) in &brackets {
+        let Some(ch) = ch else { continue };
+        if *k == sphere_key {
+            progress(&format!("merging the sphere bracket of channel {ch}"));
+            sphere_imgs.insert(*ch, merge(dir, shots)?);
+        } else if *k == white_key {
+            progress(&format!(
+                "merging the white-reference bracket of channel {ch}"
+            ));
+            white_imgs.insert(*ch, merge(dir, shots)?);
+        }
+    }
+    if sphere_imgs.is_empty() {
+        return Err(SessionCalibError::Session {
+            dir: dir.into(),
+            reason: "no sphere shots: the plan must have [calibration] sphere = true".into(),
+        });
+    }
+    // The black sphere in a dark room shows only its lit side, so its outline is found in the
+    // brightest-of image over every channel's shot (lit from several sides) when there are
+    // several, which keeps the outline fit away from the terminator.
+    let outline_img = union_max(sphere_imgs.values());
+
+    let mut channels = Vec::new();
+    for (&ch, img) in &sphere_imgs {
+        let sphere_opts = SphereOptions::default();
+        let outline = match &outline_img {
+            Some(o) => OutlineInput::Image(o),
+            None => OutlineInput::FromLightImage,
+        };
+        let light = calibrate_light(
+            &[SphereShot {
+                light: img,
+                outline,
+            }],
+            &intr,
+            &sphere_opts,
+        )
+        .map_err(|e| SessionCalibError::Channel {
+            channel: ch,
+            reason: format!("light direction from the sphere: {e}"),
+        })?;
+        let l = light.dir_camera;
+        let white = white_imgs
+            .get(&ch)
+            .ok_or_else(|| SessionCalibError::Channel {
+                channel: ch,
+                reason: "no white-reference shot for this channel".into(),
+            })?;
+        let normal = (l + Vector3::new(0.0, 0.0, -1.0)).normalize();
+        let irr = calibrate_irradiance(
+            white,
+            [albedo; 3],
+            &l,
+            Some(&normal),
+            &BoardRegion::Detect,
+            // An HDR image has no clip level: a uniform board must not look clipped.
+            &WhiteOptions {
+                saturation: Some(f32::MAX),
+                ..WhiteOptions::default()
+            },
+        )
+        .map_err(|e| SessionCalibError::Channel {
+            channel: ch,
+            reason: format!("irradiance from the white reference: {e}"),
+        })?;
+        let (mut dir_err, mut irr_err) = (None, None);
+        if let Some((t_dir, t_irr)) = truth
+            .as_ref()
+            .and_then(|t| t.channels.get(&ch).map(|(d, e)| (*d, *e * t.sensitivity)))
+        {
+            dir_err = Some(l.angle(&t_dir).to_degrees());
+            let mean = irr.irradiance.iter().sum::<f64>() / 3.0;
+            irr_err = Some((mean - t_irr).abs() / t_irr);
+        }
+        progress(&format!(
+            "channel {ch}: light ({:.4}, {:.4}, {:.4}) +- {:.2} deg, irradiance ({:.4}, {:.4}, {:.4})",
+            l.x,
+            l.y,
+            l.z,
+            light.uncertainty_deg,
+            irr.irradiance[0],
+            irr.irradiance[1],
+            irr.irradiance[2]
+        ));
+        channels.push(ChannelCalibration {
+            channel: ch,
+            light: light.summary(),
+            irradiance: irr.irradiance,
+            irradiance_std_error: irr.std_error,
+            flat_field_spread: irr.flat_field.spread,
+            warnings: irr.warnings.clone(),
+            truth_dir_error_deg: dir_err,
+            truth_irradiance_error: irr_err,
+        });
+    }
+
+    // Single-light images: merge, write, and list in the job.
+    let ambient_names = ambient_names(&manifest);
+    let mut light_images = Vec::new();
+    let single = kind_key(ShotKind::SingleLight);
+    for ((k, view, ch), shots) in &brackets {
+        if *k != single {
+            continue;
+        }
+        let (Some(view), Some(ch)) = (view, ch) else {
+            continue;
+        };
+        let Some(cal) = channels.iter().find(|c| c.channel == *ch) else {
+            return Err(SessionCalibError::Channel {
+                channel: *ch,
+                reason: "single-light shots but no calibration shots for this channel".into(),
+            });
+        };
+        let camera =
+            ambient_names
+                .get(view)
+                .cloned()
+                .ok_or_else(|| SessionCalibError::Session {
+                    dir: dir.into(),
+                    reason: format!("view {view} has single-light shots but no ambient image"),
+                })?;
+        if model.view(&camera).is_none() {
+            return Err(SessionCalibError::File {
+                path: cameras.clone(),
+                reason: format!("the COLMAP model has no image named {camera:?}"),
+            });
+        }
+        let img = merge(dir, shots)?;
+        let file = hdr_dir.join(format!("light_v{view:03}_ch{ch}.exr"));
+        write_exr(&file, &img, ExrPrecision::F32).map_err(|e| SessionCalibError::File {
+            path: file.clone(),
+            reason: e.to_string(),
+        })?;
+        let d = cal.light.dir_camera;
+        light_images.push(LightImageSpec {
+            file,
+            camera,
+            light_dir_camera: Vector3::new(d[0], d[1], d[2]),
+            irradiance: cal.irradiance,
+            mask: None,
+        });
+    }
+    if light_images.is_empty() {
+        return Err(SessionCalibError::Session {
+            dir: dir.into(),
+            reason: "no single-light shots to reconstruct from".into(),
+        });
+    }
+    let n_light = light_images.len();
+    let job_path = dir.join("job.toml");
+    let job = Job {
+        source: job_path.clone(),
+        mesh,
+        cameras,
+        light_images,
+        warnings: Vec::new(),
+    };
+    let text = job.to_toml(dir);
+    crate::imageio::write_atomic(&job_path, text.as_bytes()).map_err(|e| {
+        SessionCalibError::File {
+            path: job_path.clone(),
+            reason: e.to_string(),
+        }
+    })?;
+    let out = SessionCalibration {
+        channels,
+        light_images: n_light,
+        job: job_path,
+    };
+    let json_path = dir.join("calibration.json");
+    let json = serde_json::to_string_pretty(&out).map_err(|e| SessionCalibError::File {
+        path: json_path.clone(),
+        reason: e.to_string(),
+    })?;
+    crate::imageio::write_atomic(&json_path, json.as_bytes()).map_err(|e| {
+        SessionCalibError::File {
+            path: json_path,
+            reason: e.to_string(),
+        }
+    })?;
+    Ok(out)
+}
+
+/// View -> the file name of its first ambient shot (the image's NAME in the COLMAP model).
+fn ambient_names(m: &Manifest) -> BTreeMap<usize, String> {
+    let mut names = BTreeMap::new();
+    for s in &m.shots {
+        if s.kind == ShotKind::Ambient
+            && let Some(v) = s.view
+        {
+            names.entry(v).or_insert_with(|| s.file.clone());
+        }
+    }
+    names
+}
+
+/// Per-pixel maximum over several images of one size; `None` for fewer than two.
+fn union_max<'a>(imgs: impl Iterator<Item = &'a LinearImage>) -> Option<LinearImage> {
+    let imgs: Vec<&LinearImage> = imgs.collect();
+    if imgs.len() < 2 {
+        return None;
+    }
+    let mut out = imgs[0].clone();
+    for img in &imgs[1..] {
+        if img.width() != out.width() || img.height() != out.height() {
+            return None;
+        }
+        for (o, v) in out.data_mut().iter_mut().zip(img.data()) {
+            *o = o.max(*v);
+        }
+    }
+    Some(out)
+}
