@@ -8,6 +8,7 @@ pub mod brdf;
 pub mod calib;
 pub mod capture;
 pub mod devices;
+pub mod eval;
 pub mod geometry;
 pub mod imageio;
 pub mod pipeline;

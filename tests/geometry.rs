@@ -369,54 +369,6 @@ fn an_occluder_casts_its_footprint_as_shadow() {
     assert!(mask.iter().flatten().all(|m| !m));
 }
 
-/// Timing, not correctness: run in release with
-/// `cargo test --release --test tests -- --ignored --nocapture timing_bunny`.
-#[test]
-#[ignore]
-fn timing_bunny_640x480_raster_and_shadow() {
-    let (bunny, _) = load_mesh(&meshes().join("stanford-bunny.obj")).unwrap();
-    let t = std::time::Instant::now();
-    let bvh = Bvh::build(&bunny);
-    let t_build = t.elapsed();
-    let (lo, hi) = bunny.bounds();
-    let c = Point3::from((lo.coords + hi.coords) / 2.0);
-    let eye = c + Vector3::new(0.0, 0.0, 1.0) * (bunny.diagonal() * 1.2);
-    let pose = Pose::look_at(eye, c, Vector3::y());
-    let k = Intrinsics::pinhole(640, 480, 600.0, 600.0, 320.0, 240.0);
-    let runs = 5;
-    let t = std::time::Instant::now();
-    let mut g = rasterise(&bunny, &bvh, &k, &pose, None);
-    for _ in 1..runs {
-        g = rasterise(&bunny, &bvh, &k, &pose, None);
-    }
-    let t_raster = t.elapsed() / runs;
-    let t = std::time::Instant::now();
-    let l = Vector3::new(0.3, 0.8, 0.5).normalize();
-    for _ in 0..runs {
-        std::hint::black_box(shadow_mask(&bunny, &bvh, &g, &eye, &l));
-    }
-    let t_shadow = t.elapsed() / runs;
-    let t = std::time::Instant::now();
-    let curv = principal_curvatures(&bunny);
-    let t_curv = t.elapsed();
-    let t = std::time::Instant::now();
-    let sfm = sfm_like(&bunny, &SfmLikeParams::default());
-    let t_sfm = t.elapsed();
-    std::hint::black_box((&curv, &sfm));
-    println!(
-        "bunny {} tris, {} covered px of 640x480, {} threads: bvh build {:?}, rasterise {:?}, \
-         shadow mask {:?}, curvature {:?}, sfm_like {:?}",
-        bunny.faces().len(),
-        g.covered(),
-        rayon::current_num_threads(),
-        t_build,
-        t_raster,
-        t_shadow,
-        t_curv,
-        t_sfm
-    );
-}
-
 use brdf_rig::geometry::curvature::principal_curvatures;
 
 /// An open cylinder of radius `r` along z, `rings` x `segments` quads over length `len`, each

@@ -13,6 +13,7 @@ mod calib_white;
 mod capture_kill;
 mod capture_sim;
 mod capture_util;
+mod eval;
 mod firmware;
 mod firmware_flash;
 mod firmware_qemu;

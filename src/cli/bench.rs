@@ -19,6 +19,14 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// STATUS round trip and controller overhead per step, over a pty to the simulated firmware.
     Rig(BenchRigArgs),
+    /// The paper's simulation grid: materials x meshes, ablation, baselines, chosen-trial rank.
+    Accuracy(super::bench_accuracy::BenchAccuracyArgs),
+    /// Error against time, one knob at a time (image size, samples, trials, k, basis grid).
+    Speed(super::bench_sweeps::BenchSweepArgs),
+    /// Error under perturbations (normal noise, image noise, clipping, views, light error).
+    Stability(super::bench_sweeps::BenchSweepArgs),
+    /// Rasterisation, shadows, curvature and shading of the bunny at 640x480.
+    Render(super::bench_render::BenchRenderArgs),
     /// Shots per second of whole simulated captures and the controller's overhead per shot.
     Capture(super::bench_capture::BenchCaptureArgs),
     /// Time, peak memory and accuracy of reconstruction on a simulated Bunny scene.
@@ -44,6 +52,10 @@ pub struct BenchRigArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         BenchCommand::Rig(a) => rig(a),
+        BenchCommand::Accuracy(a) => super::bench_accuracy::run(a),
+        BenchCommand::Speed(a) => super::bench_sweeps::speed(a),
+        BenchCommand::Stability(a) => super::bench_sweeps::stability(a),
+        BenchCommand::Render(a) => super::bench_render::run(a),
         BenchCommand::Capture(a) => super::bench_capture::run(a),
         BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
     }

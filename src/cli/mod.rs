@@ -10,8 +10,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 mod bench;
+mod bench_accuracy;
 mod bench_capture;
 mod bench_reconstruct;
+mod bench_render;
+mod bench_sweeps;
 mod cameras;
 mod capture;
 mod firmware;

@@ -1,0 +1,348 @@
+//! Evaluation of the reconstruction on simulated scenes (METHOD.md section 7): the accuracy
+//! grid of the paper (materials x meshes, leave-one-out basis, ablation of the three
+//! assumptions, analytic baselines, rank of the chosen trial), and the speed and stability
+//! sweeps. The `brdf-rig bench accuracy|speed|stability` commands are thin over this module.
+//!
+//! Ground truth is the neural fits of the MERL materials (Sztrajman et al. 2021): smooth
+//! approximations of the MERL measurements, **not measured MERL data**. Every table this module
+//! writes says so.
+//!
+//! Conventions: errors are those of `brdf::metrics` (docs/error-metrics.md), computed over every
+//! `bin_step`-th MERL bin (bins below the horizon skipped); the target material is always left
+//! out of the basis (`BasisSettings::exclude`). A scene is written once (`reconstruct::synthetic`)
+//! and loaded once; perturbations (image noise, clipping, light-direction error) are applied in
+//! memory to the loaded images and light directions before observation, so every variant of a
+//! scene sees the same pixels. An I/O edge: writes scene folders.
+
+pub mod accuracy;
+pub mod sweeps;
+
+use crate::brdf::analytic::{Lambert, LambertGgx, ReflectanceSample};
+use crate::brdf::basis::Basis;
+use crate::brdf::coords::MerlBin;
+use crate::brdf::metrics::{ErrorReport, compare_values};
+use crate::brdf::nbrdf::Nbrdf;
+use crate::brdf::{BinValues, Brdf};
+use crate::geometry::mesh::Mesh;
+use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
+use crate::reconstruct::core::{CoreError, CoreSettings, reconstruct_observations};
+use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
+use crate::reconstruct::observe::{Observation, ObserveSettings, to_local};
+use crate::reconstruct::pipeline::{ReconstructError, Settings, load_scene, observe_scene};
+use crate::reconstruct::synthetic::{SceneSpec, write_scene};
+use crate::reconstruct::{Job, prior::Candidate};
+use nalgebra::{Rotation3, Unit, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// The paper's six target materials (METHOD.md section 7).
+pub const PAPER_MATERIALS: [&str; 6] = [
+    "alum-bronze",
+    "fruitwood-241",
+    "pink-fabric",
+    "blue-acrylic",
+    "pink-fabric2",
+    "green-latex",
+];
+
+/// Failures of an evaluation run.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error("material {0:?} is not among the neural MERL fits")]
+    UnknownMaterial(String),
+    #[error("writing the simulated scene in {dir}: {source}")]
+    Scene {
+        dir: std::path::PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Reconstruct(#[from] ReconstructError),
+    #[error("reconstruction core: {0}")]
+    Core(#[from] CoreError),
+    #[error("basis: {0}")]
+    Basis(#[from] crate::brdf::basis_cache::BasisCacheError),
+}
+
+/// The three errors of docs/error-metrics.md, serialisable.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Errors {
+    pub relative: f64,
+    pub cosine_weighted: f64,
+    pub near_specular: f64,
+}
+
+impl From<ErrorReport> for Errors {
+    fn from(e: ErrorReport) -> Self {
+        Self {
+            relative: e.relative,
+            cosine_weighted: e.cosine_weighted,
+            near_specular: e.near_specular,
+        }
+    }
+}
+
+/// The ground truth tabulated at the evaluation bins once, compared with many candidates.
+pub struct Truth {
+    pub bins: Vec<usize>,
+    pub values: Vec<[f64; 3]>,
+}
+
+impl Truth {
+    /// Every `bin_step`-th MERL bin (the metric skips those below the horizon).
+    pub fn new(brdf: &dyn BinValues, bin_step: usize) -> Self {
+        let bins: Vec<usize> = (0..90 * 90 * 180).step_by(bin_step.max(1)).collect();
+        let values = brdf.values_at(&bins);
+        Self { bins, values }
+    }
+
+    pub fn errors_of(&self, rec: &dyn BinValues) -> Errors {
+        compare_values(&self.bins, &self.values, &rec.values_at(&self.bins)).into()
+    }
+
+    pub fn errors_of_candidate(&self, c: &dyn Candidate) -> Errors {
+        self.errors_of(&CandidateValues(c))
+    }
+}
+
+/// A reconstruction candidate seen as bin values.
+pub struct CandidateValues<'a>(pub &'a dyn Candidate);
+
+impl BinValues for CandidateValues<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        bins.iter().map(|&b| self.0.eval_bin(b)).collect()
+    }
+}
+
+/// An analytic BRDF seen as bin values (evaluated at the bin centres).
+pub struct BrdfValues<'a>(pub &'a dyn Brdf);
+
+impl BinValues for BrdfValues<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        bins.iter()
+            .map(|&b| match MerlBin::from_index(b) {
+                Some(bin) if bin.is_above_horizon() => {
+                    let (wi, wo) = bin.centre().to_directions();
+                    self.0.eval_local(&wi, &wo)
+                }
+                _ => [0.0; 3],
+            })
+            .collect()
+    }
+}
+
+/// Lambert and Lambert+GGX fitted by least squares to the same observed pixels the
+/// reconstruction sees; their errors against the truth.
+pub fn baseline_errors(truth: &Truth, obs: &[Observation]) -> (Option<Errors>, Option<Errors>) {
+    let samples: Vec<ReflectanceSample> = obs
+        .iter()
+        .map(|o| {
+            let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
+            ReflectanceSample {
+                wi,
+                wo,
+                rgb: o.reflectance,
+            }
+        })
+        .collect();
+    let lambert = Lambert::fit(&samples)
+        .ok()
+        .map(|b| truth.errors_of(&BrdfValues(&b)));
+    let ggx = LambertGgx::fit(&samples)
+        .ok()
+        .map(|b| truth.errors_of(&BrdfValues(&b)));
+    (lambert, ggx)
+}
+
+/// Loads a neural MERL fit by name from the loaded set.
+pub fn find_material<'a>(
+    materials: &'a [(String, Nbrdf)],
+    name: &str,
+) -> Result<&'a Nbrdf, EvalError> {
+    materials
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, m)| m)
+        .ok_or_else(|| EvalError::UnknownMaterial(name.to_string()))
+}
+
+/// Writes a simulated scene: `truth_mesh` rendered with `brdf`, the job naming an SfM-like copy.
+pub fn write_case(
+    dir: &Path,
+    truth_mesh: &Mesh,
+    sfm: &SfmLikeParams,
+    brdf: &dyn Brdf,
+    spec: &SceneSpec,
+) -> Result<Job, EvalError> {
+    let job_mesh = sfm_like(truth_mesh, sfm);
+    write_scene(dir, truth_mesh, &job_mesh, brdf, spec).map_err(|source| EvalError::Scene {
+        dir: dir.to_path_buf(),
+        source,
+    })
+}
+
+/// Perturbations applied to a loaded scene before observation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Perturb {
+    /// Gaussian image noise, standard deviation as a fraction of each image's brightest value.
+    pub image_noise: f64,
+    /// Clip each image at this fraction of its brightest value and declare that level saturated
+    /// (the observation step drops clipped pixels); 1.0 = no clipping.
+    pub clip_fraction: f64,
+    /// Light-direction error, degrees: each view's light is turned by this angle about a random
+    /// axis perpendicular to it.
+    pub light_error_deg: f64,
+    /// Use only the first `views` light images (all when `None`).
+    pub views: Option<usize>,
+    pub seed: u64,
+}
+
+impl Default for Perturb {
+    fn default() -> Self {
+        Self {
+            image_noise: 0.0,
+            clip_fraction: 1.0,
+            light_error_deg: 0.0,
+            views: None,
+            seed: 0,
+        }
+    }
+}
+
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    // Box-Muller.
+    let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
+    let u2: f64 = rng.r#gen();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+/// Loads a job, applies `perturb` and observes every light image.
+pub fn observe_case(
+    job: &Job,
+    observe: &ObserveSettings,
+    perturb: &Perturb,
+) -> Result<Vec<Observation>, EvalError> {
+    let settings = Settings {
+        observe: *observe,
+        ..Settings::default()
+    };
+    let mut scene = load_scene(job, &settings)?;
+    if let Some(n) = perturb.views {
+        scene.views.truncate(n.max(1));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(perturb.seed);
+    for view in &mut scene.views {
+        let peak = view.image.data().iter().copied().fold(0.0f32, f32::max);
+        if perturb.image_noise > 0.0 {
+            let sd = perturb.image_noise * f64::from(peak);
+            for v in view.image.data_mut() {
+                *v = (f64::from(*v) + sd * gaussian(&mut rng)).max(0.0) as f32;
+            }
+        }
+        if perturb.clip_fraction < 1.0 {
+            let level = perturb.clip_fraction as f32 * peak;
+            for v in view.image.data_mut() {
+                *v = v.min(level);
+            }
+            view.saturation = Some(f64::from(level));
+        }
+        if perturb.light_error_deg > 0.0 {
+            let l = view.light_world;
+            let helper = if l.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let u = l.cross(&helper).normalize();
+            let w = l.cross(&u);
+            let phi: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+            let axis = Unit::new_normalize(u * phi.cos() + w * phi.sin());
+            view.light_world =
+                Rotation3::from_axis_angle(&axis, perturb.light_error_deg.to_radians()) * l;
+        }
+    }
+    let observed = observe_scene(&scene, observe);
+    Ok(observed.observations)
+}
+
+/// One reconstruction of one scene, scored.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunResult {
+    /// Errors of the chosen trial.
+    pub chosen: Errors,
+    pub chosen_trial: usize,
+    /// Per trial (index order): similarity and error (`None` when the trial failed).
+    pub trials: Vec<(f64, Option<Errors>)>,
+    /// Rank (1 = lowest cosine-weighted error) of the chosen trial among the trials that fitted.
+    pub chosen_rank: usize,
+    pub k: usize,
+    pub observed_pixels: usize,
+    pub reliable_pixels: usize,
+    pub seconds: f64,
+}
+
+/// Runs the reconstruction core on observations and scores every trial against the truth.
+pub fn run_core(
+    truth: &Truth,
+    observations: &[Observation],
+    basis: &Basis,
+    core: &CoreSettings,
+    nielsen: NielsenSettings,
+) -> Result<RunResult, EvalError> {
+    let prior = NielsenPrior {
+        basis,
+        settings: nielsen,
+    };
+    let t = Instant::now();
+    let out = reconstruct_observations(observations, &prior, core, &mut |_| {})?;
+    let seconds = t.elapsed().as_secs_f64();
+    let chosen = truth.errors_of_candidate(out.brdf.as_ref());
+    // The chosen trial's candidate was moved into `out.brdf`; the others are still there.
+    let trials: Vec<(f64, Option<Errors>)> = out
+        .trials
+        .iter()
+        .enumerate()
+        .map(|(i, tr)| {
+            let e = if i == out.chosen_trial {
+                Some(chosen)
+            } else {
+                tr.candidate
+                    .as_ref()
+                    .map(|c| truth.errors_of_candidate(c.as_ref()))
+            };
+            (tr.similarity, e)
+        })
+        .collect();
+    let chosen_rank = 1 + trials
+        .iter()
+        .filter_map(|(_, e)| e.as_ref())
+        .filter(|e| e.cosine_weighted < chosen.cosine_weighted)
+        .count();
+    Ok(RunResult {
+        chosen,
+        chosen_trial: out.chosen_trial,
+        trials,
+        chosen_rank,
+        k: out.components.k,
+        observed_pixels: observations.len(),
+        reliable_pixels: out.reliable_pixels,
+        seconds,
+    })
+}
+
+/// Mean and sample standard deviation.
+pub fn mean_sd(xs: &[f64]) -> (f64, f64) {
+    let n = xs.len() as f64;
+    if xs.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let m = xs.iter().sum::<f64>() / n;
+    let sd = if xs.len() > 1 {
+        (xs.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    } else {
+        0.0
+    };
+    (m, sd)
+}
