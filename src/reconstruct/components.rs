@@ -187,35 +187,9 @@ mod tests {
     use super::super::prior::synthetic::{CosinePrior, phi};
     use super::*;
     use crate::reconstruct::reliable::select_reliable;
-    use nalgebra::{Point3, Vector3};
 
-    /// Pixels with normals spread over a cap, light and view fixed, reflectance = truth(bin).
-    pub fn pixels(truth: impl Fn(usize) -> f64, count: usize) -> Vec<Observation> {
-        let l = Vector3::new(0.5, 0.0, 1.0).normalize();
-        let v = Vector3::z();
-        (0..count)
-            .filter_map(|i| {
-                let a = i as f64 * 2.399;
-                let r = 0.6 * ((i as f64 + 0.5) / count as f64).sqrt();
-                let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
-                let mut o = Observation::new(
-                    0,
-                    i as u32,
-                    0,
-                    Point3::origin(),
-                    n,
-                    l,
-                    v,
-                    0.0,
-                    [1.0; 3],
-                    [1.0; 3],
-                )?;
-                let f = truth(o.bin);
-                o.reflectance = [f, 0.5 * f, 2.0 * f];
-                o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
-                Some(o)
-            })
-            .collect()
+    fn pixels(truth: impl Fn(usize) -> f64, count: usize) -> Vec<Observation> {
+        super::super::prior::synthetic::cap_pixels(truth, count, [1.0, 0.5, 2.0])
     }
 
     #[test]

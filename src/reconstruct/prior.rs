@@ -63,6 +63,41 @@ pub mod synthetic {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;
 
+    /// Test scenes: `count` pixels with normals spread over a cap, light and view fixed, and
+    /// reflectance `truth(bin)` scaled per colour channel by `scale`.
+    pub fn cap_pixels(
+        truth: impl Fn(usize) -> f64,
+        count: usize,
+        scale: [f64; 3],
+    ) -> Vec<crate::reconstruct::observe::Observation> {
+        use nalgebra::{Point3, Vector3};
+        let l = Vector3::new(0.5, 0.0, 1.0).normalize();
+        let v = Vector3::z();
+        (0..count)
+            .filter_map(|i| {
+                let a = i as f64 * 2.399;
+                let r = 0.6 * ((i as f64 + 0.5) / count as f64).sqrt();
+                let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
+                let mut o = crate::reconstruct::observe::Observation::new(
+                    0,
+                    i as u32,
+                    0,
+                    Point3::origin(),
+                    n,
+                    l,
+                    v,
+                    0.0,
+                    [1.0; 3],
+                    [1.0; 3],
+                )?;
+                let f = truth(o.bin);
+                o.reflectance = scale.map(|c| c * f);
+                o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
+                Some(o)
+            })
+            .collect()
+    }
+
     pub struct CosinePrior {
         pub k: usize,
     }
