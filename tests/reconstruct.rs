@@ -4,7 +4,7 @@
 //! from which the target material is always left out. Also: job validation through the binary.
 
 use crate::util;
-use brdf_rig::brdf::analytic::{Lambert, LambertGgx, ReflectanceSample};
+use brdf_rig::brdf::analytic::{Lambert, LambertGgx};
 use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
 use brdf_rig::brdf::merl::MerlTable;
 use brdf_rig::brdf::metrics::{ErrorReport, compare};
@@ -12,7 +12,7 @@ use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
 use brdf_rig::brdf::{BinValues, basis_cache};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::mesh_io::load_mesh;
-use brdf_rig::reconstruct::observe::{Observation, to_local};
+use brdf_rig::reconstruct::observe::Observation;
 use brdf_rig::reconstruct::reliable::ReliableSettings;
 use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
 use brdf_rig::reconstruct::{Job, Settings, reconstruct_with_basis};
@@ -121,17 +121,7 @@ pub fn errors(truth: &dyn BinValues, rec: &dyn BinValues) -> ErrorReport {
 
 /// Baselines fitted to the same observed pixels a user would fit them to.
 pub fn baselines(obs: &[Observation]) -> (MerlTable, MerlTable) {
-    let samples: Vec<ReflectanceSample> = obs
-        .iter()
-        .map(|o| {
-            let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
-            ReflectanceSample {
-                wi,
-                wo,
-                rgb: o.reflectance,
-            }
-        })
-        .collect();
+    let samples = brdf_rig::reconstruct::baselines::reflectance_samples(obs);
     let lambert = Lambert::fit(&samples).unwrap();
     let ggx = LambertGgx::fit(&samples).unwrap();
     (MerlTable::tabulate(&lambert), MerlTable::tabulate(&ggx))

@@ -17,7 +17,7 @@
 pub mod accuracy;
 pub mod sweeps;
 
-use crate::brdf::analytic::{Lambert, LambertGgx, ReflectanceSample};
+use crate::brdf::analytic::{Lambert, LambertGgx};
 use crate::brdf::basis::Basis;
 use crate::brdf::coords::MerlBin;
 use crate::brdf::metrics::{ErrorReport, compare_values};
@@ -27,7 +27,7 @@ use crate::geometry::mesh::Mesh;
 use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use crate::reconstruct::core::{CoreError, CoreSettings, reconstruct_observations};
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
-use crate::reconstruct::observe::{Observation, ObserveSettings, to_local};
+use crate::reconstruct::observe::{Observation, ObserveSettings};
 use crate::reconstruct::pipeline::{ReconstructError, Settings, load_scene, observe_scene};
 use crate::reconstruct::synthetic::{SceneSpec, write_scene};
 use crate::reconstruct::{Job, prior::Candidate};
@@ -136,17 +136,7 @@ impl BinValues for BrdfValues<'_> {
 /// Lambert and Lambert+GGX fitted by least squares to the same observed pixels the
 /// reconstruction sees; their errors against the truth.
 pub fn baseline_errors(truth: &Truth, obs: &[Observation]) -> (Option<Errors>, Option<Errors>) {
-    let samples: Vec<ReflectanceSample> = obs
-        .iter()
-        .map(|o| {
-            let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
-            ReflectanceSample {
-                wi,
-                wo,
-                rgb: o.reflectance,
-            }
-        })
-        .collect();
+    let samples = crate::reconstruct::baselines::reflectance_samples(obs);
     let lambert = Lambert::fit(&samples)
         .ok()
         .map(|b| truth.errors_of(&BrdfValues(&b)));
