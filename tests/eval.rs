@@ -93,3 +93,107 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
     assert_eq!(r.basis_materials, materials.len() - 1);
     assert!(r.variants.iter().all(|(_, x)| x.is_ok()));
 }
+
+/// The small scene of the sweeps (`eval::sweeps`) with the test's coarse basis and few trials.
+fn small_setting() -> brdf_rig::eval::sweeps::Setting {
+    let mut s = brdf_rig::eval::sweeps::base_setting("green-latex");
+    s.scene.width = 96;
+    s.scene.height = 72;
+    s.scene.views = 8;
+    s.stride = GridStride {
+        theta_h: 1,
+        theta_d: 4,
+        phi_d: 6,
+    };
+    s.components = 40;
+    s.core.trials.trials = 4;
+    s.core.trials.samples = 40;
+    s
+}
+
+/// Where the method breaks (docs/evaluation.md, "Stability"), the pipeline must say so itself:
+/// low confidence with a reason, or an error; never a confident wrong answer. The same scene
+/// with all its images is the control: trusted, and accurate.
+#[test]
+fn failure_cases_report_low_confidence_or_an_error() {
+    use brdf_rig::reconstruct::confidence::Level;
+    let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
+    let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let cache = std::env::temp_dir().join("brdf-rig-test-basis");
+    let mut runner =
+        brdf_rig::eval::sweeps::Runner::new(&materials, &spot, &cache, scratch.path(), 5);
+
+    let control = runner.run(&small_setting()).unwrap();
+    let c = control.confidence.as_ref().expect("the control ran");
+    let ec = control.errors.expect("control errors").cosine_weighted;
+    eprintln!("control: E_c {ec:.3}, confidence {:?}", c);
+    assert!(ec < CEILING, "control E_c {ec}");
+    assert!(c.level >= Level::Medium, "{c:?}");
+
+    // One single-light image: a single theta_d, the rest of the domain extrapolated.
+    let mut one = small_setting();
+    one.perturb.views = Some(1);
+    let p = runner.run(&one).unwrap();
+    let c = p.confidence.as_ref().expect("one image still reconstructs");
+    let e1 = p.errors.expect("errors").cosine_weighted;
+    eprintln!("one image: E_c {e1:.3}, confidence {:?}", c);
+    assert_eq!(c.level, Level::Low, "{c:?}");
+    assert!(c.reasons.iter().any(|r| r.contains("theta_d")), "{c:?}");
+    assert!(e1 > ec, "the low-confidence result is also the worse one");
+
+    // Every highlight and most of the object clipped: no usable pixels, an error, no BRDF.
+    let mut clipped = small_setting();
+    clipped.perturb.clip_fraction = 0.02;
+    let p = runner.run(&clipped).unwrap();
+    assert!(p.errors.is_none() && p.confidence.is_none());
+    let why = p.failure.expect("a clear error");
+    assert!(why.contains("no usable pixels"), "{why}");
+}
+
+/// `brdf-rig reconstruct --min-confidence` turns a low-confidence result into exit status 3,
+/// with the results still written and the reasons printed.
+#[test]
+fn reconstruct_cli_exits_3_below_the_required_confidence() {
+    use brdf_rig::eval::write_case;
+    let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
+    let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
+    let brdf = &materials
+        .iter()
+        .find(|(n, _)| n == "green-latex")
+        .unwrap()
+        .1;
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = small_setting();
+    s.scene.views = 1;
+    let job = write_case(&dir.path().join("scene"), &spot, &s.sfm, brdf, &s.scene).unwrap();
+    let out = dir.path().join("out");
+    let cache = std::env::temp_dir().join("brdf-rig-test-basis");
+    let run = std::process::Command::new(util::bin())
+        .arg("reconstruct")
+        .arg(&job.source)
+        .arg("--out")
+        .arg(&out)
+        .args(["--exclude", "green-latex", "--basis-stride", "1,4,6"])
+        .args([
+            "--basis-components",
+            "40",
+            "--trials",
+            "4",
+            "--samples",
+            "40",
+        ])
+        .arg("--basis-cache")
+        .arg(&cache)
+        .args(["--min-confidence", "medium"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("confidence: low"), "{stderr}");
+    assert!(stderr.contains("theta_d"), "{stderr}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["confidence"]["level"], "low");
+    assert!(out.join("brdf.binary").is_file());
+}

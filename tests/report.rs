@@ -125,6 +125,8 @@ fn make_recon(dir: &Path, session: &Path) {
         "timings": [{"stage": "rasterise", "seconds": 1.5}, {"stage": "observe", "seconds": 0.25},
                     {"stage": "trials", "seconds": 3.0}],
         "warnings": ["<script>alert('x')</script> few pixels near the peak"],
+        "confidence": {"level": "medium", "reasons": ["medium: the trials disagree by 20 %"],
+                       "trial_disagreement": 0.2},
         "reliable_pixels": 4321
     });
     std::fs::write(
@@ -243,6 +245,8 @@ fn report_renders_in_headless_chromium() {
     for text in [
         "Chosen trial: <b>#1</b>, cosine similarity <b>0.981</b>",
         "k chosen: <b>6</b>",
+        "Confidence in the result: <b>medium</b>",
+        "the trials disagree by 20 %",
         "all intact",
         "single_light: 2",
         "Provenance: basis built from neural fits &lt;not measured&gt;",

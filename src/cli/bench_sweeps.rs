@@ -11,6 +11,7 @@ use clap::Args;
 use brdf_rig::eval::sweeps::{
     Point, Runner, Setting, Summary, base_setting, speed_settings, stability_settings, summarise,
 };
+use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::report::charts::{
     ChartSpec, Goal, ScatterPoint, Series, line_chart, pareto_front, scatter_pareto,
 };
@@ -25,7 +26,7 @@ pub struct BenchSweepArgs {
     /// Mesh by name (spot, bunny) or path.
     #[arg(long, default_value = "spot")]
     pub mesh: String,
-    /// Seeds per setting (stability only).
+    /// Seeds per setting (SfM-like noise, trials; for stability also image noise and light error).
     #[arg(long, default_value_t = 3)]
     pub seeds: u64,
     /// Materials of the "flat BRDF" sweep (stability only).
@@ -137,9 +138,13 @@ pub fn speed(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
     let ctx = context(&a)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let base = base_setting(&a.material);
-    let points = run_all(&a, speed_settings(&base), &ctx)?;
+    let points = run_all(&a, speed_settings(&base, a.seeds.max(1)), &ctx)?;
     let sums = summarise(&points);
-    let command = format!("cargo run --release -- bench speed {}", common_args(&a));
+    let command = format!(
+        "cargo run --release -- bench speed --seeds {} {}",
+        a.seeds,
+        common_args(&a)
+    );
     let pts: Vec<ScatterPoint> = sums
         .iter()
         .map(|s| ScatterPoint::new(s.label.clone(), s.mean_seconds, s.mean))
@@ -160,18 +165,18 @@ pub fn speed(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
     let front = pareto_front(&xy, Goal::Minimise, Goal::Minimise);
     let mut md = header("Speed against accuracy", &command);
     md += &format!(
-        "Scene: {} on {}, SfM-like mesh, defaults (128x96 px, 11 views, 80 samples, 10 trials, k by validation, basis stride 1,2,2 with 64 components) with one knob changed per row. Time = observation + reconstruction core (rendering the simulated images and reading the cached basis are not counted).\n\n![speed](speed.svg)\n\n",
-        a.material, a.mesh
+        "Scene: {} on {}, SfM-like mesh, defaults (128x96 px, 11 views, 80 samples, 10 trials, k by validation, basis stride 1,2,2 with 64 components) with one knob changed per row; {} seeds per setting (SfM-like noise and trials), means over seeds. Time = observation + reconstruction core (rendering the simulated images and reading the cached basis are not counted).\n\n![speed](speed.svg)\n\n",
+        a.material, a.mesh, a.seeds
     );
-    md +=
-        "| knob | setting | seconds | E_c | E | on the Pareto front |\n|---|---|---|---|---|---|\n";
+    md += "| knob | setting | seconds | E_c mean | E_c sd | E | on the Pareto front |\n|---|---|---|---|---|---|---|\n";
     for (i, s) in sums.iter().enumerate() {
         md += &format!(
-            "| {} | {} | {:.2} | {:.3} | {:.3} | {} |\n",
+            "| {} | {} | {:.2} | {:.3} | {:.3} | {:.3} | {} |\n",
             s.sweep,
             s.label,
             s.mean_seconds,
             s.mean,
+            s.sd,
             s.mean_relative,
             if front.contains(&i) { "yes" } else { "" }
         );
@@ -186,6 +191,31 @@ pub fn speed(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
     )?;
     print!("{md}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// Does the pipeline's own verdict follow the true error? Runs grouped by the level it gave.
+fn confidence_table(points: &[Point]) -> String {
+    let mut s = "## Confidence against the true error\n\nEvery run above, grouped by the confidence the pipeline gave its own result (`reconstruct::confidence`, which never sees the truth).\n\n| confidence | runs | E_c mean | E_c median | E_c max |\n|---|---|---|---|---|\n".to_string();
+    for level in [Level::High, Level::Medium, Level::Low] {
+        let mut ec: Vec<f64> = points
+            .iter()
+            .filter(|p| p.confidence.as_ref().is_some_and(|c| c.level == level))
+            .filter_map(|p| p.errors.map(|e| e.cosine_weighted))
+            .collect();
+        ec.sort_by(f64::total_cmp);
+        if ec.is_empty() {
+            s += &format!("| {level} | 0 | - | - | - |\n");
+            continue;
+        }
+        let mean = ec.iter().sum::<f64>() / ec.len() as f64;
+        s += &format!(
+            "| {level} | {} | {mean:.3} | {:.3} | {:.3} |\n",
+            ec.len(),
+            ec[ec.len() / 2],
+            ec[ec.len() - 1]
+        );
+    }
+    s + "\n"
 }
 
 fn failures(points: &[Point]) -> String {
@@ -253,10 +283,11 @@ pub fn stability(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
             write(a.out.join(&file), &svg)?;
             md += &format!("![{sweep}]({file})\n\n");
         }
-        md += "| setting | runs | failed | E_c mean | E_c sd | E mean | rank of chosen (mean) | seconds |\n|---|---|---|---|---|---|---|---|\n";
+        md += "| setting | runs | failed | E_c mean | E_c sd | E mean | rank of chosen (mean) | seconds | confidence low/medium/high | trial disagreement |\n|---|---|---|---|---|---|---|---|---|---|\n";
         for s in rows {
+            let [lo, me, hi] = s.confidence_counts;
             md += &format!(
-                "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.1} | {:.2} |\n",
+                "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.1} | {:.2} | {lo}/{me}/{hi} | {:.3} |\n",
                 s.label,
                 s.runs,
                 s.failed,
@@ -264,11 +295,13 @@ pub fn stability(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
                 s.sd,
                 s.mean_relative,
                 s.mean_rank,
-                s.mean_seconds
+                s.mean_seconds,
+                s.mean_disagreement
             );
         }
         md += "\n";
     }
+    md += &confidence_table(&points);
     md += &failures(&points);
     write(a.out.join("stability.md"), &md)?;
     write(

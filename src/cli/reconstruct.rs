@@ -3,6 +3,7 @@
 //! `reconstruct::Settings`, the library does the work, progress goes to stderr.
 
 use anyhow::Context;
+use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::{self, Job, Settings};
 use clap::Args as ClapArgs;
 use std::path::PathBuf;
@@ -67,6 +68,19 @@ pub struct Args {
     /// Random seed of the trials.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Exit with status 3 (results still written) when the confidence is below this: low,
+    /// medium or high. Default: never (the confidence is always printed and in report.json).
+    #[arg(long, value_parser = parse_level)]
+    pub min_confidence: Option<Level>,
+}
+
+fn parse_level(s: &str) -> Result<Level, String> {
+    match s {
+        "low" => Ok(Level::Low),
+        "medium" => Ok(Level::Medium),
+        "high" => Ok(Level::High),
+        _ => Err(format!("{s:?}: expected low, medium or high")),
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -129,5 +143,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         output.report.components.k,
         args.out.display()
     );
+    let confidence = &output.report.confidence;
+    eprintln!("confidence: {}", confidence.level);
+    for r in &confidence.reasons {
+        eprintln!("  {r}");
+    }
+    if let Some(min) = args.min_confidence
+        && confidence.level < min
+    {
+        eprintln!(
+            "error: confidence {} is below --min-confidence {min}; the results are written but \
+             should not be trusted",
+            confidence.level
+        );
+        return Ok(ExitCode::from(3));
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -240,8 +240,8 @@ pub fn markdown(
     s += "## Errors: ours (all three assumptions) against the baselines\n\n";
     s += "Cosine-weighted relative error E_c (relative error E, near-specular error E_s). \
           Ratio = baseline E_c / our E_c; the target is >= 2.\n\n";
-    s += "| mesh | material | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | ours E | ours E_s | L+GGX E | L+GGX E_s | k | pixels |\n";
-    s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "| mesh | material | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | ours E | ours E_s | L+GGX E | L+GGX E_s | k | pixels | confidence (trial disagreement) |\n";
+    s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for r in results {
         let all = r.all();
         let ours = all.map(|a| a.chosen);
@@ -252,7 +252,7 @@ pub fn markdown(
             _ => "-".to_string(),
         };
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.mesh,
             r.material,
             opt(ours.as_ref(), |e| e.cosine_weighted),
@@ -265,7 +265,14 @@ pub fn markdown(
             opt(r.lambert_ggx.as_ref(), |e| e.relative),
             opt(r.lambert_ggx.as_ref(), |e| e.near_specular),
             all.map_or("-".to_string(), |a| a.k.to_string()),
-            r.observed_pixels
+            r.observed_pixels,
+            all.map_or("-".to_string(), |a| format!(
+                "{} ({})",
+                a.confidence.level,
+                a.confidence
+                    .trial_disagreement
+                    .map_or("-".to_string(), |d| format!("{d:.2}"))
+            ))
         );
     }
 

@@ -107,6 +107,27 @@ impl Truth {
     }
 }
 
+/// The mean of several candidates, as bin values.
+struct MeanOf<'a>(&'a [&'a dyn Candidate]);
+
+impl BinValues for MeanOf<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let n = self.0.len().max(1) as f64;
+        bins.iter()
+            .map(|&b| {
+                let mut v = [0.0; 3];
+                for c in self.0 {
+                    let f = c.eval_bin(b);
+                    for k in 0..3 {
+                        v[k] += f[k] / n;
+                    }
+                }
+                v
+            })
+            .collect()
+    }
+}
+
 /// A reconstruction candidate seen as bin values.
 pub struct CandidateValues<'a>(pub &'a dyn Candidate);
 
@@ -270,6 +291,10 @@ pub struct RunResult {
     pub k: usize,
     pub observed_pixels: usize,
     pub reliable_pixels: usize,
+    /// Errors of the mean of all fitted trials (a diagnostic: would averaging beat choosing?).
+    pub trial_mean: Option<Errors>,
+    /// What the pipeline said of its own result (no truth involved).
+    pub confidence: crate::reconstruct::confidence::Confidence,
     pub seconds: f64,
 }
 
@@ -305,6 +330,10 @@ pub fn run_core(
             (tr.similarity, e)
         })
         .collect();
+    let fitted: Vec<&dyn Candidate> = std::iter::once(out.brdf.as_ref())
+        .chain(out.trials.iter().filter_map(|t| t.candidate.as_deref()))
+        .collect();
+    let trial_mean = (fitted.len() > 1).then(|| truth.errors_of(&MeanOf(&fitted)));
     let chosen_rank = 1 + trials
         .iter()
         .filter_map(|(_, e)| e.as_ref())
@@ -318,6 +347,8 @@ pub fn run_core(
         k: out.components.k,
         observed_pixels: observations.len(),
         reliable_pixels: out.reliable_pixels,
+        trial_mean,
+        confidence: out.confidence.clone(),
         seconds,
     })
 }

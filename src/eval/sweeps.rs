@@ -50,6 +50,10 @@ pub struct Point {
     pub trials: usize,
     /// Why the run failed, when it did.
     pub failure: Option<String>,
+    /// Errors of the mean of the fitted trials (diagnostic).
+    pub trial_mean: Option<Errors>,
+    /// The pipeline's own verdict on its result.
+    pub confidence: Option<crate::reconstruct::confidence::Confidence>,
     /// Observe + core, seconds.
     pub seconds: f64,
 }
@@ -128,9 +132,16 @@ impl<'a> Runner<'a> {
         let result = observe_case(job, &ObserveSettings::default(), &s.perturb)
             .and_then(|obs| run_core(truth, &obs, basis, &s.core, NielsenSettings::default()));
         let seconds = t.elapsed().as_secs_f64();
-        let (errors, chosen_rank, trials, failure) = match result {
-            Ok(r) => (Some(r.chosen), Some(r.chosen_rank), r.trials.len(), None),
-            Err(e) => (None, None, 0, Some(e.to_string())),
+        let (errors, chosen_rank, trials, failure, confidence, trial_mean) = match result {
+            Ok(r) => (
+                Some(r.chosen),
+                Some(r.chosen_rank),
+                r.trials.len(),
+                None,
+                Some(r.confidence),
+                r.trial_mean,
+            ),
+            Err(e) => (None, None, 0, Some(e.to_string()), None, None),
         };
         Ok(Point {
             sweep: s.sweep.clone(),
@@ -142,6 +153,8 @@ impl<'a> Runner<'a> {
             chosen_rank,
             trials,
             failure,
+            trial_mean,
+            confidence,
             seconds,
         })
     }
@@ -166,8 +179,20 @@ pub fn base_setting(material: &str) -> Setting {
     }
 }
 
-/// The speed sweep: image scale, samples, trials, components k, basis resolution.
-pub fn speed_settings(base: &Setting) -> Vec<Setting> {
+/// The speed sweep: image scale, samples, trials, components k, basis resolution; each setting
+/// with `seeds` seeds (SfM-like noise and trials), as one seed is too noisy to rank settings.
+pub fn speed_settings(base: &Setting, seeds: u64) -> Vec<Setting> {
+    let mut out = Vec::new();
+    for seed in 0..seeds.max(1) {
+        let mut b = base.clone();
+        b.sfm.seed = base.sfm.seed + seed;
+        b.core.trials.seed = base.core.trials.seed + seed;
+        out.extend(speed_settings_one(&b));
+    }
+    out
+}
+
+fn speed_settings_one(base: &Setting) -> Vec<Setting> {
     let mut out = Vec::new();
     let mut push = |sweep: &str, value: f64, label: String, f: &dyn Fn(&mut Setting)| {
         let mut s = base.clone();
@@ -287,6 +312,10 @@ pub struct Summary {
     pub mean_relative: f64,
     pub mean_rank: f64,
     pub mean_seconds: f64,
+    /// Runs the pipeline itself called low / medium / high confidence.
+    pub confidence_counts: [usize; 3],
+    /// Mean trial disagreement (the confidence indicator closest to the error).
+    pub mean_disagreement: f64,
 }
 
 pub fn summarise(points: &[Point]) -> Vec<Summary> {
@@ -318,6 +347,14 @@ pub fn summarise(points: &[Point]) -> Vec<Summary> {
                 .filter_map(|p| p.chosen_rank.map(|r| r as f64))
                 .collect();
             let secs: Vec<f64> = ps.iter().map(|p| p.seconds).collect();
+            let mut confidence_counts = [0usize; 3];
+            for c in ps.iter().filter_map(|p| p.confidence.as_ref()) {
+                confidence_counts[c.level as usize] += 1;
+            }
+            let dis: Vec<f64> = ps
+                .iter()
+                .filter_map(|p| p.confidence.as_ref().and_then(|c| c.trial_disagreement))
+                .collect();
             let (mean, sd) = mean_sd(&ec);
             Summary {
                 sweep,
@@ -330,6 +367,8 @@ pub fn summarise(points: &[Point]) -> Vec<Summary> {
                 mean_relative: mean_sd(&er).0,
                 mean_rank: mean_sd(&rk).0,
                 mean_seconds: mean_sd(&secs).0,
+                confidence_counts,
+                mean_disagreement: mean_sd(&dis).0,
             }
         })
         .collect()

@@ -4,6 +4,7 @@
 //! Pure: no I/O; the caller supplies the observations and the prior.
 
 use super::components::{ComponentChoice, ComponentSettings, choose_components};
+use super::confidence::{Confidence, ConfidenceSettings, assess};
 use super::observe::Observation;
 use super::prior::{Candidate, Prior};
 use super::reliable::{ReliableSettings, select_reliable};
@@ -21,6 +22,8 @@ pub struct CoreSettings {
     pub fixed_components: Option<usize>,
     /// Ridge weight used with `fixed_components` (validation chooses its own otherwise).
     pub fixed_eta: f64,
+    /// Where the result is called medium or low confidence.
+    pub confidence: ConfidenceSettings,
 }
 
 impl Default for CoreSettings {
@@ -31,6 +34,7 @@ impl Default for CoreSettings {
             components: ComponentSettings::default(),
             fixed_components: None,
             fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
+            confidence: ConfidenceSettings::default(),
         }
     }
 }
@@ -55,6 +59,8 @@ pub struct CoreOutput {
     pub reliable_pixels: usize,
     pub dropped_by_curvature: usize,
     pub curvature_threshold: Option<f64>,
+    /// How far the result can be trusted (never from a ground truth).
+    pub confidence: Confidence,
     /// (stage, seconds)
     pub timings: Vec<(String, f64)>,
 }
@@ -124,6 +130,31 @@ pub fn reconstruct_observations(
         .take()
         .ok_or(CoreError::AllTrialsFailed)?;
     timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = Instant::now();
+    progress("confidence (trial agreement, coverage)");
+    let others: Vec<&dyn Candidate> = trials
+        .iter()
+        .filter_map(|tr| tr.candidate.as_deref())
+        .collect();
+    let used: Vec<&Observation> = reliable
+        .pixels
+        .iter()
+        .chain(reliable.brightest.as_ref())
+        .collect();
+    let held_out = components
+        .curve
+        .iter()
+        .find(|p| p.k == components.k && p.eta == components.eta)
+        .and_then(|p| p.error);
+    let confidence = assess(
+        brdf.as_ref(),
+        &others,
+        &used,
+        held_out,
+        &settings.confidence,
+    );
+    timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
     Ok(CoreOutput {
         brdf,
         trials,
@@ -132,6 +163,7 @@ pub fn reconstruct_observations(
         reliable_pixels: reliable.pixels.len() + usize::from(reliable.brightest.is_some()),
         dropped_by_curvature: reliable.dropped_by_curvature,
         curvature_threshold: reliable.curvature_threshold,
+        confidence,
         timings,
     })
 }

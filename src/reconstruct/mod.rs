@@ -18,6 +18,7 @@
 
 pub mod baselines;
 pub mod components;
+pub mod confidence;
 pub mod core;
 pub mod job;
 pub mod nielsen;

@@ -67,6 +67,8 @@ pub struct Report {
     pub components: ComponentChoice,
     pub trials: Vec<Trial>,
     pub chosen_trial: usize,
+    /// How far the result can be trusted, and why not (`reconstruct::confidence`).
+    pub confidence: super::confidence::Confidence,
     pub timings: Vec<StageTiming>,
     pub peak_memory_bytes: Option<u64>,
     pub warnings: Vec<String>,
@@ -126,6 +128,7 @@ impl Report {
                 })
                 .collect(),
             chosen_trial: core.chosen_trial,
+            confidence: core.confidence.clone(),
             timings: timings
                 .into_iter()
                 .map(|(stage, seconds)| StageTiming { stage, seconds })

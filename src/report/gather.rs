@@ -164,6 +164,8 @@ pub struct ReportData {
     pub components: Avail<ComponentsSection>,
     pub timing: Avail<Vec<(String, f64)>>,
     pub warnings: Vec<String>,
+    /// The reconstruction's own verdict (`report.json` `confidence`): level and reasons.
+    pub confidence: Option<(String, Vec<String>)>,
     /// `report.json` keys not shown elsewhere, as key and pretty JSON.
     pub other_facts: Vec<(String, String)>,
     /// Where the result's prior came from, as the producer states it (`basis.note`,
@@ -327,6 +329,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         components,
         timing,
         warnings,
+        confidence: rj.and_then(confidence),
         other_facts,
         provenance: rj.map(provenance).unwrap_or_default(),
     })
@@ -868,8 +871,16 @@ fn provenance(v: &Value) -> Vec<String> {
     .collect()
 }
 
-const INTERPRETED: [&str; 18] = [
+/// `confidence.level` and `confidence.reasons` of report.json.
+fn confidence(v: &Value) -> Option<(String, Vec<String>)> {
+    let c = v.get("confidence")?;
+    let level = c.get("level")?.as_str()?.to_string();
+    Some((level, strings_at(c, "reasons")))
+}
+
+const INTERPRETED: [&str; 19] = [
     "provenance",
+    "confidence",
     "trials",
     "chosen_trial",
     "chosen",

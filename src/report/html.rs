@@ -32,7 +32,7 @@ color:#222}h1{font-size:1.5em}h2{border-bottom:1px solid #ccc;padding-bottom:.2e
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ddd;padding:.2em .6em;\
 text-align:left;vertical-align:top}th{background:#f4f4f4}.na{color:#a33;font-style:italic}\
 .note{background:#fff8e0;border-left:4px solid #e0b000;padding:.4em .8em}\
-.warn li{color:#8a4b00}figure{display:inline-block;margin:.4em;vertical-align:top}\
+.warn li{color:#8a4b00}.conf-low{background:#fdd;padding:.3em}.conf-medium{background:#ffe9b3;padding:.3em}.conf-high{background:#dfd;padding:.3em}figure{display:inline-block;margin:.4em;vertical-align:top}\
 figcaption{font-size:.8em;max-width:320px}.charts{display:flex;flex-wrap:wrap;gap:.5em}\
 .charts figure{margin:0}.charts svg{max-width:100%;height:auto}\
 pre{background:#f7f7f7;padding:.5em;overflow:auto;max-height:20em}.chosen{background:#e8f4e8}\
@@ -100,6 +100,25 @@ pub fn render_html(data: &ReportData) -> String {
         escape(&data.dir),
         escape(&data.kinds.join(", "))
     );
+    if let Some((level, reasons)) = &data.confidence {
+        let _ = write!(
+            h,
+            "<p id=\"confidence\" class=\"conf-{}\">Confidence in the result: <b>{}</b>",
+            escape(level),
+            escape(level)
+        );
+        if reasons.is_empty() {
+            h.push_str(
+                " (trials agree, the fit explains held-back pixels, theta_d well covered).</p>",
+            );
+        } else {
+            h.push_str("</p><ul class=\"warn\">");
+            for r in reasons {
+                let _ = write!(h, "<li>{}</li>", escape(r));
+            }
+            h.push_str("</ul>");
+        }
+    }
     section_capture(&mut h, &data.capture);
     section_calibration(&mut h, &data.calibration);
     section_brdf(&mut h, data);

@@ -1,0 +1,343 @@
+//! How far a reconstruction can be trusted, judged only from what the pipeline saw (never from a
+//! ground truth), so an operator gets "low confidence" instead of a confident wrong answer.
+//!
+//! Four indicators, each with its own reason when it fails:
+//! - **trial disagreement**: the median, over the other trials, of the cosine-weighted relative
+//!   difference between their BRDF and the chosen one over the whole MERL domain (the metric of
+//!   `brdf::metrics`, with the chosen trial in place of the truth). Trials fit different random
+//!   pixel subsets; where the pixels constrain the BRDF they agree, where the basis extrapolates
+//!   they do not. This is the indicator that follows the true error most closely
+//!   (docs/evaluation.md, section "Confidence").
+//! - **held-out error**: the relative error on the held-back pixels at the chosen number of
+//!   components (`components::held_out_error`): the fit does not even explain what was seen.
+//! - **theta_d span**: the 10th to 90th percentile range of `theta_d` over the reliable pixels.
+//!   One fixed light on a turntable sees a single `theta_d` (METHOD.md section 1), so the rest of
+//!   the domain is extrapolated.
+//! - **unseen energy**: the share of the result's cosine-weighted energy
+//!   (`sum (c f)^2`, `c` the basis cosine map) that falls in (theta_h, theta_d) cells of 10 x 10
+//!   MERL bins where no pixel was observed: how much of what is reported was never seen.
+//!
+//! The thresholds are the `ConfidenceSettings` defaults, chosen from the stability and accuracy
+//! benchmarks (docs/evaluation.md). Pure computation: no files, no printing.
+
+use super::observe::Observation;
+use super::prior::Candidate;
+use crate::brdf::basis::cos_map;
+use crate::brdf::coords::{MERL_BINS, MerlBin, THETA_D_BINS, THETA_H_BINS};
+use crate::brdf::metrics::compare_values;
+use serde::Serialize;
+
+/// Overall verdict.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Level {
+    Low,
+    Medium,
+    High,
+}
+
+impl std::fmt::Display for Level {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Level::Low => "low",
+            Level::Medium => "medium",
+            Level::High => "high",
+        })
+    }
+}
+
+/// Where each indicator turns a result to medium and to low confidence.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct ConfidenceSettings {
+    pub disagreement_medium: f64,
+    pub disagreement_low: f64,
+    pub held_out_medium: f64,
+    pub held_out_low: f64,
+    pub theta_d_span_medium_deg: f64,
+    pub theta_d_span_low_deg: f64,
+    pub unseen_energy_medium: f64,
+    pub unseen_energy_low: f64,
+    /// Every how many MERL bins the domain-wide comparisons look (a prime, so the sample does not
+    /// alias with the 180-bin phi_d rows).
+    pub bin_step: usize,
+}
+
+impl Default for ConfidenceSettings {
+    fn default() -> Self {
+        Self {
+            disagreement_medium: 0.15,
+            disagreement_low: 0.35,
+            held_out_medium: 0.2,
+            held_out_low: 0.4,
+            theta_d_span_medium_deg: 20.0,
+            theta_d_span_low_deg: 8.0,
+            unseen_energy_medium: 0.35,
+            unseen_energy_low: 0.55,
+            bin_step: 97,
+        }
+    }
+}
+
+/// The verdict and the indicators behind it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Confidence {
+    pub level: Level,
+    /// One sentence per indicator that lowered the level.
+    pub reasons: Vec<String>,
+    /// Median cosine-weighted relative difference between the chosen trial and the others;
+    /// `None` with fewer than two successful trials.
+    pub trial_disagreement: Option<f64>,
+    /// Relative error on the held-back pixels at the chosen k; `None` when k was fixed.
+    pub held_out_error: Option<f64>,
+    /// 10th-90th percentile range of theta_d over the reliable pixels, degrees.
+    pub theta_d_span_deg: f64,
+    /// Share of the result's cosine-weighted energy in never-observed (theta_h, theta_d) cells.
+    pub unseen_energy: f64,
+}
+
+/// Cells of `CELL x CELL` (theta_h, theta_d) bins.
+const CELL: usize = 10;
+
+/// Judges a result: `chosen` is the reported BRDF, `others` the other trials' candidates,
+/// `reliable` the pixels the fit used, `held_out_error` the validation error at the chosen k.
+pub fn assess(
+    chosen: &dyn Candidate,
+    others: &[&dyn Candidate],
+    reliable: &[&Observation],
+    held_out_error: Option<f64>,
+    settings: &ConfidenceSettings,
+) -> Confidence {
+    let bins: Vec<usize> = (0..MERL_BINS)
+        .step_by(settings.bin_step.max(1))
+        .filter(|&b| MerlBin::from_index(b).is_some_and(|m| m.is_above_horizon()))
+        .collect();
+    let reference: Vec<[f64; 3]> = bins.iter().map(|&b| chosen.eval_bin(b)).collect();
+
+    let mut diffs: Vec<f64> = others
+        .iter()
+        .map(|c| {
+            let vals: Vec<[f64; 3]> = bins.iter().map(|&b| c.eval_bin(b)).collect();
+            compare_values(&bins, &reference, &vals).cosine_weighted
+        })
+        .filter(|d| d.is_finite())
+        .collect();
+    let trial_disagreement = median(&mut diffs);
+
+    let mut theta_d: Vec<f64> = reliable
+        .iter()
+        .map(|o| o.angles.theta_d.to_degrees())
+        .collect();
+    let theta_d_span_deg = percentile(&mut theta_d, 0.9) - percentile(&mut theta_d, 0.1);
+
+    let unseen_energy = unseen_energy(&bins, &reference, reliable);
+
+    let mut level = Level::High;
+    let mut reasons = Vec::new();
+    let mut judge = |value: f64, medium: bool, low: bool, text: String| {
+        if !value.is_finite() {
+            return;
+        }
+        let l = if low {
+            Level::Low
+        } else if medium {
+            Level::Medium
+        } else {
+            return;
+        };
+        level = level.min(l);
+        reasons.push(format!("{l}: {text}"));
+    };
+    if let Some(d) = trial_disagreement {
+        judge(
+            d,
+            d > settings.disagreement_medium,
+            d > settings.disagreement_low,
+            format!(
+                "the trials disagree by {:.0} % (median cosine-weighted difference from the \
+                 chosen one): the pixels do not pin the BRDF down",
+                100.0 * d
+            ),
+        );
+    }
+    if let Some(h) = held_out_error {
+        judge(
+            h,
+            h > settings.held_out_medium,
+            h > settings.held_out_low,
+            format!(
+                "the fit misses the held-back pixels by {:.0} %: the images disagree with one \
+                 BRDF (wrong light direction or irradiance, a textured or anisotropic surface?)",
+                100.0 * h
+            ),
+        );
+    }
+    judge(
+        theta_d_span_deg,
+        theta_d_span_deg < settings.theta_d_span_medium_deg,
+        theta_d_span_deg < settings.theta_d_span_low_deg,
+        format!(
+            "the pixels cover theta_d over only {theta_d_span_deg:.0} degrees: the rest of the \
+             domain is extrapolated (use more light positions, METHOD.md section 1)"
+        ),
+    );
+    judge(
+        unseen_energy,
+        unseen_energy > settings.unseen_energy_medium,
+        unseen_energy > settings.unseen_energy_low,
+        format!(
+            "{:.0} % of the result's cosine-weighted energy lies where no pixel was observed",
+            100.0 * unseen_energy
+        ),
+    );
+    Confidence {
+        level,
+        reasons,
+        trial_disagreement,
+        held_out_error,
+        theta_d_span_deg,
+        unseen_energy,
+    }
+}
+
+fn unseen_energy(bins: &[usize], values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {
+    let (ch, cd) = (THETA_H_BINS.div_ceil(CELL), THETA_D_BINS.div_ceil(CELL));
+    let mut seen = vec![false; ch * cd];
+    for o in reliable {
+        if let Some(b) = MerlBin::from_index(o.bin) {
+            seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] = true;
+        }
+    }
+    let (mut total, mut unseen) = (0.0, 0.0);
+    for (&bin, v) in bins.iter().zip(values) {
+        let Some(b) = MerlBin::from_index(bin) else {
+            continue;
+        };
+        let w = cos_map(bin);
+        let e: f64 = v
+            .iter()
+            .map(|x| (w * x).powi(2))
+            .filter(|e| e.is_finite())
+            .sum();
+        total += e;
+        if !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] {
+            unseen += e;
+        }
+    }
+    if total > 0.0 { unseen / total } else { 1.0 }
+}
+
+fn median(xs: &mut [f64]) -> Option<f64> {
+    if xs.is_empty() {
+        return None;
+    }
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    Some(if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    })
+}
+
+/// Nearest-rank percentile (`q` in [0, 1]); NaN for no values.
+fn percentile(xs: &mut [f64], q: f64) -> f64 {
+    if xs.is_empty() {
+        return f64::NAN;
+    }
+    xs.sort_by(f64::total_cmp);
+    let i = ((xs.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    xs[i]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::coords::HalfDiff;
+    use nalgebra::{Point3, Vector3};
+
+    struct Const(f64);
+    impl Candidate for Const {
+        fn eval_bin(&self, _bin: usize) -> [f64; 3] {
+            [self.0; 3]
+        }
+    }
+
+    fn obs(theta_h_deg: f64, theta_d_deg: f64) -> Observation {
+        let angles = HalfDiff {
+            theta_h: theta_h_deg.to_radians(),
+            phi_h: 0.0,
+            theta_d: theta_d_deg.to_radians(),
+            phi_d: 1.0,
+        };
+        let bin = angles.merl_bin().index();
+        Observation {
+            image: 0,
+            x: 0,
+            y: 0,
+            position: Point3::origin(),
+            normal: Vector3::z(),
+            light: Vector3::z(),
+            view: Vector3::z(),
+            mean_curvature: 0.0,
+            radiance: [1.0; 3],
+            irradiance: [1.0; 3],
+            reflectance: [1.0; 3],
+            cos_theta_i: 1.0,
+            cos_theta_o: 1.0,
+            n_dot_h: 1.0,
+            angles,
+            bin,
+        }
+    }
+
+    #[test]
+    fn agreeing_trials_over_a_wide_domain_are_trusted() {
+        let obs: Vec<Observation> = (0..90)
+            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
+            .collect();
+        let refs: Vec<&Observation> = obs.iter().collect();
+        let (a, b) = (Const(0.3), Const(0.31));
+        let c = assess(&a, &[&b], &refs, Some(0.05), &ConfidenceSettings::default());
+        assert_eq!(c.level, Level::High, "{c:?}");
+        assert!(c.reasons.is_empty());
+        assert!((c.trial_disagreement.unwrap_or(1.0) - 1.0 / 30.0).abs() < 1e-9);
+        assert!(c.unseen_energy < 0.01, "{}", c.unseen_energy);
+        assert!(c.theta_d_span_deg > 60.0);
+    }
+
+    #[test]
+    fn one_theta_d_and_disagreeing_trials_are_low_confidence_with_reasons() {
+        let obs: Vec<Observation> = (0..40).map(|h| obs(h as f64, 30.0)).collect();
+        let refs: Vec<&Observation> = obs.iter().collect();
+        let (a, b, c2) = (Const(0.3), Const(0.6), Const(0.1));
+        let c = assess(
+            &a,
+            &[&b, &c2],
+            &refs,
+            Some(0.7),
+            &ConfidenceSettings::default(),
+        );
+        assert_eq!(c.level, Level::Low);
+        assert_eq!(c.reasons.len(), 4, "{:?}", c.reasons);
+        assert!(c.theta_d_span_deg < 1.5);
+        assert!(c.unseen_energy > 0.8, "{}", c.unseen_energy);
+        assert!(c.reasons.iter().any(|r| r.contains("theta_d")));
+    }
+
+    #[test]
+    fn a_single_trial_has_no_disagreement_figure() {
+        let obs: Vec<Observation> = (0..90)
+            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
+            .collect();
+        let refs: Vec<&Observation> = obs.iter().collect();
+        let c = assess(
+            &Const(0.2),
+            &[],
+            &refs,
+            None,
+            &ConfidenceSettings::default(),
+        );
+        assert_eq!(c.trial_disagreement, None);
+        assert_eq!(c.level, Level::High);
+    }
+}
