@@ -61,6 +61,9 @@ pub struct BenchAccuracyArgs {
     /// Target materials (neural MERL fit names); default: the paper's six.
     #[arg(long, value_delimiter = ',')]
     pub materials: Vec<String>,
+    /// Seeds per scene (SfM-like noise and the trials' pixel draws).
+    #[arg(long, default_value_t = 1)]
+    pub seeds: u64,
     /// Run only "all three assumptions" (no ablation).
     #[arg(long)]
     pub no_ablation: bool,
@@ -242,12 +245,16 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         sfm_noise_rel: 0.05,
         variants,
         bin_step: a.common.bin_step,
+        seeds: a.seeds.max(1),
     };
     let mut command = format!(
         "cargo run --release -- bench accuracy --materials {} {}",
         materials.join(","),
         a.common.command_args()
     );
+    if a.seeds > 1 {
+        command += &format!(" --seeds {}", a.seeds);
+    }
     if a.no_ablation {
         command += " --no-ablation";
     }

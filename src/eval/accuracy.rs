@@ -98,6 +98,8 @@ pub struct AccuracySpec {
     pub sfm_noise_rel: f64,
     pub variants: Vec<Variant>,
     pub bin_step: usize,
+    /// Seeds per scene (each moves the SfM-like noise and the trials' pixel draws).
+    pub seeds: u64,
 }
 
 /// One scene: a material on a mesh.
@@ -105,6 +107,7 @@ pub struct AccuracySpec {
 pub struct SceneResult {
     pub material: String,
     pub mesh: String,
+    pub seed: u64,
     pub observed_pixels: usize,
     /// Materials in the basis used, and whether the target was among them (must be false).
     pub basis_materials: usize,
@@ -148,13 +151,17 @@ pub fn run(
             t.elapsed().as_secs_f64()
         ));
         let truth = Truth::new(truth_brdf, spec.bin_step);
-        for (mesh_name, mesh) in &spec.meshes {
+        for ((mesh_name, mesh), seed) in spec
+            .meshes
+            .iter()
+            .flat_map(|m| (0..spec.seeds.max(1)).map(move |s| (m, s)))
+        {
             let t = Instant::now();
-            let dir = scratch.join(format!("{mesh_name}-{name}"));
+            let dir = scratch.join(format!("{mesh_name}-{name}-{seed}"));
             let sfm = SfmLikeParams {
                 iterations: spec.sfm_iterations,
                 noise_rel: spec.sfm_noise_rel,
-                seed: 7,
+                seed: 7 + seed,
                 ..SfmLikeParams::default()
             };
             let scene = SceneSpec {
@@ -163,7 +170,9 @@ pub fn run(
                 height: spec.height,
                 ..SceneSpec::default()
             };
-            progress(&format!("{name} on {mesh_name}: rendering the scene"));
+            progress(&format!(
+                "{name} on {mesh_name}, seed {seed}: rendering the scene"
+            ));
             let job = write_case(&dir, mesh, &sfm, truth_brdf, &scene)?;
             let obs = observe_case(&job, &ObserveSettings::default(), &Perturb::default())?;
             let (lambert, lambert_ggx) = baseline_errors(&truth, &obs);
@@ -171,6 +180,7 @@ pub fn run(
             for v in &spec.variants {
                 progress(&format!("{name} on {mesh_name}: {}", v.label()));
                 let mut core = spec.core.clone();
+                core.trials.seed += seed;
                 v.apply(&mut core.reliable);
                 let r =
                     run_core(&truth, &obs, &basis, &core, spec.nielsen).map_err(|e| e.to_string());
@@ -179,6 +189,7 @@ pub fn run(
             let r = SceneResult {
                 material: name.clone(),
                 mesh: mesh_name.clone(),
+                seed,
                 observed_pixels: obs.len(),
                 basis_materials: basis.materials().len(),
                 target_in_basis: basis.materials().iter().any(|m| m == name),
@@ -200,6 +211,72 @@ fn f3(x: f64) -> String {
     } else {
         "-".to_string()
     }
+}
+
+/// The material, with the seed when the grid has several.
+fn scene_label(spec: &AccuracySpec, r: &SceneResult) -> String {
+    if spec.seeds > 1 {
+        format!("{} (seed {})", r.material, r.seed)
+    } else {
+        r.material.clone()
+    }
+}
+
+/// Per (mesh, material): means over seeds of ours and the baselines, and the confidence given.
+fn means_over_seeds(results: &[SceneResult]) -> String {
+    let mut keys: Vec<(&str, &str)> = Vec::new();
+    for r in results {
+        if !keys.contains(&(r.mesh.as_str(), r.material.as_str())) {
+            keys.push((r.mesh.as_str(), r.material.as_str()));
+        }
+    }
+    let mut s = "\n## Means over seeds\n\nE_c mean +- sd over the seeds; the ratios are of the means \
+                 (a Lambert+GGX mean above 1.5 means its least-squares fit diverged in some seed); \
+                 confidence = how often the pipeline called its result low / medium / high.\n\n\
+                 | mesh | material | seeds | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | confidence low/medium/high |\n\
+                 |---|---|---|---|---|---|---|---|---|\n"
+        .to_string();
+    for (mesh, material) in keys {
+        let rs: Vec<&SceneResult> = results
+            .iter()
+            .filter(|r| r.mesh == mesh && r.material == material)
+            .collect();
+        let ours: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.all().map(|a| a.chosen.cosine_weighted))
+            .collect();
+        let lam: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.lambert.map(|e| e.cosine_weighted))
+            .collect();
+        let ggx: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.lambert_ggx.map(|e| e.cosine_weighted))
+            .collect();
+        let mut conf = [0usize; 3];
+        for r in &rs {
+            if let Some(a) = r.all() {
+                conf[a.confidence.level as usize] += 1;
+            }
+        }
+        let (m, sd) = super::mean_sd(&ours);
+        let (ml, _) = super::mean_sd(&lam);
+        let (mg, _) = super::mean_sd(&ggx);
+        s += &format!(
+            "| {mesh} | {material} | {} | {} +- {} | {} | {} | {} | {} | {}/{}/{} |\n",
+            rs.len(),
+            f3(m),
+            f3(sd),
+            f3(ml),
+            f3(mg),
+            f3(ml / m),
+            f3(mg / m),
+            conf[0],
+            conf[1],
+            conf[2]
+        );
+    }
+    s
 }
 
 fn opt(e: Option<&Errors>, f: impl Fn(&Errors) -> f64) -> String {
@@ -240,8 +317,8 @@ pub fn markdown(
     s += "## Errors: ours (all three assumptions) against the baselines\n\n";
     s += "Cosine-weighted relative error E_c (relative error E, near-specular error E_s). \
           Ratio = baseline E_c / our E_c; the target is >= 2.\n\n";
-    s += "| mesh | material | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | ours E | ours E_s | L+GGX E | L+GGX E_s | k | pixels | confidence (trial disagreement) |\n";
-    s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "| mesh | material | seed | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | ours E | ours E_s | L+GGX E | L+GGX E_s | k | pixels | confidence (trial disagreement) |\n";
+    s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for r in results {
         let all = r.all();
         let ours = all.map(|a| a.chosen);
@@ -252,9 +329,10 @@ pub fn markdown(
             _ => "-".to_string(),
         };
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.mesh,
             r.material,
+            r.seed,
             opt(ours.as_ref(), |e| e.cosine_weighted),
             opt(r.lambert.as_ref(), |e| e.cosine_weighted),
             opt(r.lambert_ggx.as_ref(), |e| e.cosine_weighted),
@@ -276,6 +354,10 @@ pub fn markdown(
         );
     }
 
+    if spec.seeds > 1 {
+        s += &means_over_seeds(results);
+    }
+
     if spec.variants.len() > 1 {
         s += "\n## Ablation (paper Fig. 5): cosine-weighted error of the chosen trial\n\n";
         s += "Relative error in brackets. A failed run shows its reason.\n\n| mesh | material |";
@@ -288,7 +370,7 @@ pub fn markdown(
         }
         s += "\n";
         for r in results {
-            s += &format!("| {} | {} |", r.mesh, r.material);
+            s += &format!("| {} | {} |", r.mesh, scene_label(spec, r));
             for (_, res) in &r.variants {
                 match res {
                     Ok(a) => {
@@ -339,7 +421,7 @@ pub fn markdown(
             s += &format!(
                 "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 r.mesh,
-                r.material,
+                scene_label(spec, r),
                 a.chosen_trial,
                 a.chosen_rank,
                 es.len(),
@@ -354,7 +436,12 @@ pub fn markdown(
     );
     s += "\n## Time per scene\n\n| mesh | material | seconds (render + observe + all variants) |\n|---|---|---|\n";
     for r in results {
-        s += &format!("| {} | {} | {:.1} |\n", r.mesh, r.material, r.seconds);
+        s += &format!(
+            "| {} | {} | {:.1} |\n",
+            r.mesh,
+            scene_label(spec, r),
+            r.seconds
+        );
     }
     s
 }
