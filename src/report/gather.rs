@@ -499,6 +499,33 @@ pub(super) fn short_json(v: &Value) -> String {
     }
 }
 
+/// A `calibration.json` channel record with its `light` object's fields lifted to the top
+/// (`light.dir_camera` becomes `light_dir_camera`), so [`calibration_entry`] finds them.
+fn flatten_channel(ch: &Value) -> Value {
+    let mut flat = serde_json::Map::new();
+    if let Some(o) = ch.as_object() {
+        for (k, v) in o {
+            match (k.as_str(), v) {
+                ("light", Value::Object(l)) => {
+                    for (lk, lv) in l {
+                        let key = if lk == "dir_camera" {
+                            "light_dir_camera".to_string()
+                        } else {
+                            lk.clone()
+                        };
+                        flat.insert(key, lv.clone());
+                    }
+                }
+                ("channel", _) => {}
+                _ => {
+                    flat.insert(k.clone(), v.clone());
+                }
+            }
+        }
+    }
+    Value::Object(flat)
+}
+
 fn gather_calibration(session: Option<&Path>, rj: Option<&Value>) -> Avail<Vec<CalibrationEntry>> {
     let mut out = Vec::new();
     let mut notes = Vec::new();
@@ -531,6 +558,19 @@ fn gather_calibration(session: Option<&Path>, rj: Option<&Value>) -> Avail<Vec<C
                 Avail::Yes(Value::Array(a)) => {
                     for (i, x) in a.iter().enumerate() {
                         out.push(calibration_entry(format!("{}[{i}]", f.display()), x));
+                    }
+                }
+                // `brdf-rig calibrate SESSION`: one record per light channel
+                Avail::Yes(v) if v.get("channels").is_some_and(Value::is_array) => {
+                    for (i, ch) in v["channels"].as_array().into_iter().flatten().enumerate() {
+                        let n = ch
+                            .get("channel")
+                            .and_then(Value::as_i64)
+                            .unwrap_or(i as i64);
+                        out.push(calibration_entry(
+                            format!("{} channel {n}", f.display()),
+                            &flatten_channel(ch),
+                        ));
                     }
                 }
                 Avail::Yes(v) => out.push(calibration_entry(f.display().to_string(), &v)),
@@ -963,6 +1003,32 @@ mod tests {
                 .any(|(k, x)| k == "reliable_pixels" && x == "12")
         );
         assert!(!trials_section(&json!({"trials": 3})).is_available());
+    }
+
+    #[test]
+    fn session_calibration_is_one_entry_per_channel() {
+        let dir = tempfile::tempdir().unwrap();
+        let cal = json!({
+            "channels": [
+                {"channel": 0, "light": {"dir_camera": [0.3, 0.0, -0.95], "uncertainty_deg": 0.6,
+                 "images": 1}, "irradiance": [1200.0, 1200.0, 1200.0],
+                 "irradiance_std_error": [0.07, 0.07, 0.07], "flat_field_spread": 0.0003},
+                {"channel": 2, "light": {"dir_camera": [0.96, 0.0, 0.27], "uncertainty_deg": 0.7},
+                 "irradiance": [1100.0, 1100.0, 1100.0]}
+            ],
+            "light_images": 9
+        });
+        std::fs::write(dir.path().join("calibration.json"), cal.to_string()).unwrap();
+        let Avail::Yes(es) = gather_calibration(Some(dir.path()), None) else {
+            panic!()
+        };
+        assert_eq!(es.len(), 2);
+        assert!(es[1].source.ends_with("calibration.json channel 2"));
+        assert_eq!(es[0].light_dir, Some([0.3, 0.0, -0.95]));
+        assert_eq!(es[1].uncertainty_deg, Some(0.7));
+        assert_eq!(es[0].irradiance, Some(vec![1200.0; 3]));
+        assert!(es[0].other.iter().any(|(k, _)| k == "flat_field_spread"));
+        assert!(!es[0].other.iter().any(|(k, _)| k == "light"));
     }
 
     #[test]
