@@ -121,7 +121,7 @@ pub fn assess(
         })
         .filter(|d| d.is_finite())
         .collect();
-    let trial_disagreement = median(&mut diffs);
+    let trial_disagreement = crate::calib::robust::median(&mut diffs);
 
     let mut theta_d: Vec<f64> = reliable
         .iter()
@@ -224,19 +224,6 @@ fn unseen_energy(bins: &[usize], values: &[[f64; 3]], reliable: &[&Observation])
         }
     }
     if total > 0.0 { unseen / total } else { 1.0 }
-}
-
-fn median(xs: &mut [f64]) -> Option<f64> {
-    if xs.is_empty() {
-        return None;
-    }
-    xs.sort_by(f64::total_cmp);
-    let n = xs.len();
-    Some(if n % 2 == 1 {
-        xs[n / 2]
-    } else {
-        0.5 * (xs[n / 2 - 1] + xs[n / 2])
-    })
 }
 
 /// Nearest-rank percentile (`q` in [0, 1]); NaN for no values.
