@@ -25,7 +25,7 @@
 //! it is the half-level crossing; unlike the crossing it does not move when the lens and the
 //! pixel area blur an edge that is not a symmetric step. A glossy dielectric sphere's rim fades
 //! into the backdrop it mirrors at grazing angles (Fresnel), which moves that edge inwards by
-//! 0.4 to 1 pixel (2.3 % of the radius at 19 px, 1.2 % at 75 px, for `f0 = 0.04`: several degrees
+//! 0.4 to 1 pixel (2.4 % of the radius at 19 px, 1.4 % at 75 px, for `f0 = 0.04`: degrees
 //! of light direction near the rim); it is corrected in closed form
 //! ([`SphereOutline::corrected_for_fresnel_rim`]).
 //!
