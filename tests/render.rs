@@ -423,10 +423,12 @@ fn sphere_casts_a_shadow_on_the_board_in_an_analytic_scene() {
         SceneObject {
             shape: &board,
             brdf: &white,
+            coat_f0: None,
         },
         SceneObject {
             shape: &sphere,
             brdf: &black,
+            coat_f0: None,
         },
     ];
     let img = render_analytic(&objs, &light, &k, &pose, [0.0; 3]);

@@ -7,6 +7,7 @@
 mod brdf;
 mod calib_cli;
 mod calib_hdr;
+mod calib_session;
 mod calib_sphere;
 mod calib_synth;
 mod calib_white;

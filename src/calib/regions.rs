@@ -268,35 +268,59 @@ pub fn open_mask(mask: &[bool], w: usize, h: usize, k: usize) -> Vec<bool> {
     if k == 0 {
         return mask.to_vec();
     }
-    // erosion: every pixel of the window set; dilation: any. Separable, with prefix counts.
-    let pass = |m: &[bool], all: bool| -> Vec<bool> {
-        let mut rows = vec![false; w * h];
-        for y in 0..h {
-            let mut pre = vec![0usize; w + 1];
-            for x in 0..w {
-                pre[x + 1] = pre[x] + m[y * w + x] as usize;
-            }
-            for x in 0..w {
-                let (a, b) = (x.saturating_sub(k), (x + k + 1).min(w));
-                let n = pre[b] - pre[a];
-                rows[y * w + x] = if all { n == 2 * k + 1 } else { n > 0 };
-            }
-        }
-        let mut out = vec![false; w * h];
-        for x in 0..w {
-            let mut pre = vec![0usize; h + 1];
-            for y in 0..h {
-                pre[y + 1] = pre[y] + rows[y * w + x] as usize;
-            }
-            for y in 0..h {
-                let (a, b) = (y.saturating_sub(k), (y + k + 1).min(h));
-                let n = pre[b] - pre[a];
-                out[y * w + x] = if all { n == 2 * k + 1 } else { n > 0 };
-            }
-        }
-        out
+    let eroded = morph(mask, w, h, k, Morph::Erode { outside_set: false });
+    morph(&eroded, w, h, k, Morph::Dilate)
+}
+
+/// Morphological closing with a `(2k+1)` square: fills notches and gaps narrower than `2k+1`
+/// pixels (a bright highlight that reaches a dark sphere's rim bites such a notch into it).
+/// Outside the image counts as set for the erosion, so a region near the frame does not grow
+/// towards it.
+pub fn close_mask(mask: &[bool], w: usize, h: usize, k: usize) -> Vec<bool> {
+    if k == 0 {
+        return mask.to_vec();
+    }
+    let dilated = morph(mask, w, h, k, Morph::Dilate);
+    morph(&dilated, w, h, k, Morph::Erode { outside_set: true })
+}
+
+#[derive(Clone, Copy)]
+enum Morph {
+    Dilate,
+    Erode { outside_set: bool },
+}
+
+/// One separable pass with a `(2k+1)` square, with prefix counts: erosion keeps a pixel when the
+/// whole window is set, dilation when any of it is.
+fn morph(m: &[bool], w: usize, h: usize, k: usize, op: Morph) -> Vec<bool> {
+    let keep = |n: usize, in_image: usize| match op {
+        Morph::Dilate => n > 0,
+        Morph::Erode { outside_set: false } => n == 2 * k + 1,
+        Morph::Erode { outside_set: true } => n == in_image,
     };
-    pass(&pass(mask, true), false)
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        let mut pre = vec![0usize; w + 1];
+        for x in 0..w {
+            pre[x + 1] = pre[x] + m[y * w + x] as usize;
+        }
+        for x in 0..w {
+            let (a, b) = (x.saturating_sub(k), (x + k + 1).min(w));
+            rows[y * w + x] = keep(pre[b] - pre[a], b - a);
+        }
+    }
+    let mut out = vec![false; w * h];
+    for x in 0..w {
+        let mut pre = vec![0usize; h + 1];
+        for y in 0..h {
+            pre[y + 1] = pre[y] + rows[y * w + x] as usize;
+        }
+        for y in 0..h {
+            let (a, b) = (y.saturating_sub(k), (y + k + 1).min(h));
+            out[y * w + x] = keep(pre[b] - pre[a], b - a);
+        }
+    }
+    out
 }
 
 /// Algebraic (Kasa) circle fit to points: `(cx, cy, r)`; `None` when degenerate.

@@ -20,11 +20,19 @@
 //!
 //! Edge points: a threshold (Otsu) finds the sphere as the largest round region darker (or
 //! brighter) than its surround, a circle fit to its border pixels seeds radial intensity
-//! profiles, and each profile's crossing of the level half way between the local inside and
-//! outside levels is the sub-pixel edge (exact for an anti-aliased straight step edge). A glossy
-//! dielectric sphere's rim fades into the backdrop it mirrors at grazing angles (Fresnel), which
-//! shrinks that edge by ~0.9 % of the radius for `f0 = 0.04`, about 0.5 degree of light
-//! direction; it is corrected in closed form ([`SphereOutline::corrected_for_fresnel_rim`]).
+//! profiles, and each profile's *area edge* is the sub-pixel edge: where a sharp step between the
+//! local inside and outside levels would hold the same light as the profile. For a blurred step
+//! it is the half-level crossing; unlike the crossing it does not move when the lens and the
+//! pixel area blur an edge that is not a symmetric step. A glossy dielectric sphere's rim fades
+//! into the backdrop it mirrors at grazing angles (Fresnel), which moves that edge inwards by
+//! 0.4 to 1 pixel (2.4 % of the radius at 19 px, 1.4 % at 75 px, for `f0 = 0.04`: degrees
+//! of light direction near the rim); it is corrected in closed form
+//! ([`SphereOutline::corrected_for_fresnel_rim`]).
+//!
+//! Highlight position: the half-peak region chooses the highlight; its lobe is then followed down
+//! to a few percent of the peak above the sphere's own radiance (estimated per ring around the
+//! centre, so the brightening rim does not count), every pixel weighted by that excess. Its
+//! tails carry the sub-pixel position a half-peak cut would throw away.
 //! Depends on `geometry::camera` and `render::image` only; pure, no I/O.
 
 use super::regions::{self, Plane, saturation_level};
@@ -100,9 +108,39 @@ impl Default for SphereOptions {
     }
 }
 
-/// `n.v` on the sphere where Schlick's Fresnel reflectance is one half, for `f0 < 0.5`.
-pub fn half_fresnel_cos(f0: f64) -> Option<f64> {
-    (f0.is_finite() && (0.0..0.5).contains(&f0)).then(|| 1.0 - ((0.5 - f0) / (1.0 - f0)).powf(0.2))
+/// How far (pixels) inside the true outline the area edge of a glossy dielectric sphere's rim
+/// lies, for a sphere of `radius_px` and Fresnel reflectance `f0 < 0.5` at normal incidence (see
+/// [`SphereOutline::corrected_for_fresnel_rim`]): the integral over the edge window of
+/// `(F(d) - F_in) / (1 - F_in)`, with `d` the depth inside the outline, `n.v = sqrt(1 - (1 -
+/// d/R)^2)` there (the sphere seen from afar), and `F_in` the reflectance at the middle of the
+/// inside window (its median, `F` falling with depth), the windows centred on the detected edge.
+pub fn rim_edge_offset_px(radius_px: f64, f0: f64) -> Option<f64> {
+    if !(f0.is_finite() && (0.0..0.5).contains(&f0) && radius_px > 1.0) {
+        return None;
+    }
+    let fresnel = |d: f64| {
+        let t = 1.0 - (d / radius_px).min(1.0);
+        let cos = (1.0 - t * t).max(0.0).sqrt();
+        f0 + (1.0 - f0) * (1.0 - cos).powi(5)
+    };
+    // The windows are centred on the detected edge, `delta` inside the true one: the outside
+    // stretch (EDGE_WINDOW - delta) is all backdrop, so the area edge condition reads
+    // delta = integral over depths [0, delta + EDGE_WINDOW] of (F - F_in) / (1 - F_in).
+    const STEPS: usize = 3000;
+    let mut delta = 0.0;
+    for _ in 0..30 {
+        let f_in = fresnel(delta + 1.5 * EDGE_WINDOW);
+        let span = delta + EDGE_WINDOW;
+        let h = span / STEPS as f64;
+        let next: f64 = (0..STEPS)
+            .map(|i| (fresnel((i as f64 + 0.5) * h) - f_in) / (1.0 - f_in) * h)
+            .sum();
+        if (next - delta).abs() < 1e-9 {
+            return Some(next);
+        }
+        delta = next;
+    }
+    Some(delta)
 }
 
 /// Where an outline came from.
@@ -242,21 +280,21 @@ impl SphereOutline {
 
     /// The outline of the sphere itself from the apparent outline of a glossy dielectric one.
     ///
-    /// Near the silhouette a glossy sphere mirrors what lies just behind it, with a Fresnel
-    /// reflectance rising to 1 at grazing angles, so its rim fades into the backdrop and the
-    /// half-level edge sits where the reflectance is 1/2: radiance `(1 - F) I + F B` equals
-    /// `(I + B) / 2` exactly when `F = 1/2`, whatever the sphere's own level `I` and the backdrop's
-    /// `B`. With Schlick's `F = f0 + (1 - f0)(1 - n.v)^5` that is `n.v = c*`, and a ray at angle
-    /// `beta` from the centre direction meets the sphere where `sin(theta) = sin(beta) / sin(alpha)`;
-    /// so the true `sin(alpha) = sin(alpha_apparent) / sqrt(1 - c*^2)` (0.94 % larger for
-    /// `f0 = 0.04`, independent of the sphere's size in pixels). No change for `f0 >= 0.5` (a
-    /// metal's rim does not cross the half level).
+    /// Near the silhouette a glossy sphere mirrors what lies just behind it, with Schlick's
+    /// Fresnel reflectance `F = f0 + (1 - f0)(1 - n.v)^5` rising to 1 at grazing angles, so its
+    /// rim fades into the backdrop. Across the rim the radiance is `I + F (B - I)` for the
+    /// sphere's own level `I` and the backdrop's `B`; normalised between the profile's inside
+    /// level (the same expression at the inside window, `F_in`) and `B` it is
+    /// `(F - F_in) / (1 - F_in)` whatever `I` and `B` are. The detected edge (the area edge, see
+    /// `subpixel_edges`) therefore lies [`rim_edge_offset_px`] inside the true one, a function of
+    /// the radius in pixels and `f0` only; that many pixels are added back to the radius. No
+    /// change for `f0 >= 0.5` (a metal, whose rim is not a fade to the backdrop).
     pub fn corrected_for_fresnel_rim(&self, f0: f64, intr: &Intrinsics) -> Self {
-        let Some(c) = half_fresnel_cos(f0) else {
+        let Some(delta) = rim_edge_offset_px(self.radius_px, f0) else {
             return self.clone();
         };
-        let sin_a = (self.angular_radius_rad.sin() / (1.0 - c * c).sqrt()).min(0.999_999);
-        let alpha = sin_a.asin();
+        let scale = (self.radius_px + delta) / self.radius_px;
+        let alpha = (self.angular_radius_rad.tan() * scale).atan();
         Self {
             angular_radius_rad: alpha,
             radius_px: alpha.tan() * 0.5 * (intr.fx + intr.fy),
@@ -365,10 +403,12 @@ pub fn detect_outline(
             if (comp.pixels.len() as f64) < min_area {
                 continue;
             }
-            // cut off a stand or post narrower than about 0.6 of the region's radius
+            // close notches a highlight at the rim bites into the region, then cut off a stand
+            // or post narrower than about 0.6 of the region's radius
             let filled = regions::filled_mask(&comp, w, h);
             let k = ((comp.pixels.len() as f64 / PI).sqrt() * 0.3).round() as usize;
-            let opened = regions::open_mask(&filled, w, h, k.max(1));
+            let closed = regions::close_mask(&filled, w, h, k.max(1));
+            let opened = regions::open_mask(&closed, w, h, k.max(1));
             for part in regions::components(&opened, w, h) {
                 if (part.pixels.len() as f64) < min_area {
                     continue;
@@ -527,70 +567,110 @@ fn round_candidate(
     })
 }
 
-/// Sub-pixel edge points along radial profiles around a candidate circle.
+/// Half-width (pixels) of the stretch of a radial profile over which the edge's light is summed;
+/// the inside and outside levels come from the next 3 pixels on either side.
+const EDGE_WINDOW: f64 = 3.0;
+
+/// Sub-pixel edge points along radial profiles around a candidate circle. Each profile is read
+/// twice: around the seed circle, then with its level windows re-centred on the edge found, so
+/// the windows sit at the same depths whatever the seed's error (the rim correction assumes so).
 fn subpixel_edges(lum: &Plane, c: &Candidate, sat: Option<f32>) -> Vec<(f64, f64)> {
-    const HALF: f64 = 6.0;
-    const STEP: f64 = 0.1;
     let n_angles = ((2.0 * PI * c.r).round() as usize).clamp(64, 1440);
-    let ns = (2.0 * HALF / STEP).round() as usize + 1;
-    // per profile: samples, inside level, outside level
-    let mut profiles: Vec<(f64, f64, Vec<f64>, f64, f64)> = Vec::with_capacity(n_angles);
-    'angle: for k in 0..n_angles {
+    // per profile: direction, samples, inside level, outside level
+    let mut profiles = Vec::with_capacity(n_angles);
+    for k in 0..n_angles {
         let a = k as f64 * 2.0 * PI / n_angles as f64;
         let (ux, uy) = (a.cos(), a.sin());
-        let mut samples = Vec::with_capacity(ns);
-        for j in 0..ns {
-            let s = c.r - HALF + j as f64 * STEP;
-            let Some(v) = regions::bilinear(lum, c.cx + s * ux, c.cy + s * uy) else {
-                continue 'angle;
-            };
-            if sat.is_some_and(|s| v >= 0.98 * s as f64) {
-                continue 'angle;
-            }
-            samples.push(v);
+        if let Some(p) = read_profile(lum, c.cx, c.cy, ux, uy, c.r, sat) {
+            profiles.push((ux, uy, p));
         }
-        let inner: Vec<f64> = samples[..=(3.0 / STEP) as usize].to_vec();
-        let outer: Vec<f64> = samples[ns - 1 - (3.0 / STEP) as usize..].to_vec();
-        let (Some(li), Some(lo)) = (
-            super::robust::median(&mut inner.clone()),
-            super::robust::median(&mut outer.clone()),
-        ) else {
-            continue;
-        };
-        profiles.push((ux, uy, samples, li, lo));
     }
-    let mut contrasts: Vec<f64> = profiles.iter().map(|p| p.4 - p.3).collect();
+    let mut contrasts: Vec<f64> = profiles.iter().map(|p| p.2.outside - p.2.inside).collect();
     let Some(global) = super::robust::median(&mut contrasts) else {
         return Vec::new();
     };
-    let mut points = Vec::new();
-    for (ux, uy, samples, li, lo) in profiles {
-        let contrast = lo - li;
-        if contrast * global <= 0.0 || contrast.abs() < 0.3 * global.abs() {
-            continue;
-        }
+    let usable = |p: &Profile| {
+        let contrast = p.outside - p.inside;
         // something much brighter than both sides (a highlight at the rim) spoils the profile
-        let top = li.max(lo) + contrast.abs();
-        if samples.iter().any(|&v| v > top) {
+        let top = p.inside.max(p.outside) + contrast.abs();
+        contrast * global > 0.0
+            && contrast.abs() >= 0.3 * global.abs()
+            && !p.samples.iter().any(|&v| v > top)
+    };
+    let mut points = Vec::new();
+    for (ux, uy, first) in profiles {
+        if !usable(&first) {
             continue;
         }
-        let mid = 0.5 * (li + lo);
-        let mut best: Option<f64> = None;
-        for j in 0..samples.len() - 1 {
-            let (a, b) = (samples[j] - mid, samples[j + 1] - mid);
-            if a == 0.0 || a * b < 0.0 {
-                let t = if a == 0.0 { 0.0 } else { a / (a - b) };
-                let s = c.r - HALF + (j as f64 + t) * STEP;
-                if best.is_none_or(|bs| (s - c.r).abs() < (bs - c.r).abs()) {
-                    best = Some(s);
-                }
-            }
-        }
-        if let Some(s) = best {
-            points.push((c.cx + s * ux, c.cy + s * uy));
+        let r1 = c.r + first.area_offset();
+        let Some(second) = read_profile(lum, c.cx, c.cy, ux, uy, r1, sat) else {
+            continue;
+        };
+        let offset = second.area_offset();
+        if usable(&second) && offset.abs() < 1.0 {
+            points.push((c.cx + (r1 + offset) * ux, c.cy + (r1 + offset) * uy));
         }
     }
     points
+}
+
+/// Samples of a radial profile every `PROFILE_STEP` px over `radius +- PROFILE_HALF`, with the
+/// inside and outside levels (medians of the outer 3 px at either end).
+struct Profile {
+    samples: Vec<f64>,
+    inside: f64,
+    outside: f64,
+}
+
+const PROFILE_HALF: f64 = 6.0;
+const PROFILE_STEP: f64 = 0.1;
+
+fn read_profile(
+    lum: &Plane,
+    cx: f64,
+    cy: f64,
+    ux: f64,
+    uy: f64,
+    radius: f64,
+    sat: Option<f32>,
+) -> Option<Profile> {
+    let ns = (2.0 * PROFILE_HALF / PROFILE_STEP).round() as usize + 1;
+    let mut samples = Vec::with_capacity(ns);
+    for j in 0..ns {
+        let s = radius - PROFILE_HALF + j as f64 * PROFILE_STEP;
+        let v = regions::bilinear(lum, cx + s * ux, cy + s * uy)?;
+        if sat.is_some_and(|s| v >= 0.98 * s as f64) {
+            return None;
+        }
+        samples.push(v);
+    }
+    let k = ((PROFILE_HALF - EDGE_WINDOW) / PROFILE_STEP).round() as usize;
+    let inside = super::robust::median(&mut samples[..=k].to_vec())?;
+    let outside = super::robust::median(&mut samples[ns - 1 - k..].to_vec())?;
+    Some(Profile {
+        samples,
+        inside,
+        outside,
+    })
+}
+
+impl Profile {
+    /// The area edge relative to the profile's middle (positive: outwards): where a sharp step
+    /// between the two levels would hold the same light as the profile over the edge window. A
+    /// lens blur or the pixel's area moves light across the edge but keeps its total, so this
+    /// edge does not move with them, unlike a level crossing on a profile that is not a
+    /// symmetric step (the Fresnel rim of a glossy sphere).
+    fn area_offset(&self) -> f64 {
+        let contrast = self.outside - self.inside;
+        let first = ((PROFILE_HALF - EDGE_WINDOW) / PROFILE_STEP).round() as usize;
+        let last = ((PROFILE_HALF + EDGE_WINDOW) / PROFILE_STEP).round() as usize;
+        let u = |j: usize| (self.samples[j] - self.inside) / contrast;
+        let area: f64 = (first..last)
+            .map(|j| 0.5 * (u(j) + u(j + 1)) * PROFILE_STEP)
+            .sum();
+        // u = 0 inside, 1 outside: a step at offset e leaves area EDGE_WINDOW - e
+        EDGE_WINDOW - area
+    }
 }
 
 /// The specular highlight on the sphere.
@@ -693,40 +773,170 @@ pub fn find_highlight(
         .ok_or_else(|| SphereError::NoHighlight {
             reason: "no bright region is centred on the sphere".into(),
         })?;
-    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-    let mut n_sum = Vector3::zeros();
-    let mut saturated = 0;
+    // The half-peak region picks *which* highlight; its position comes from the whole lobe:
+    // the region grown down to a few percent of its peak over the sphere's own radiance, each
+    // pixel weighted by its excess. The tails carry the sub-pixel position, and any weight that
+    // is a function of the brightness alone (clipping included) keeps the mean on the mirror
+    // normal of an isotropic lobe.
+    let background = radial_background(&eff, outline, intr, w, h);
+    let excess = |i: usize| background[i].map(|b| f64::from(eff[i]) - b);
+    let peak_excess = best
+        .pixels
+        .iter()
+        .filter_map(|&i| excess(i))
+        .fold(0.0f64, f64::max);
+    let excess_all: Vec<f64> = (0..w * h).filter_map(excess).collect();
+    let noise = super::robust::mad_sigma(&excess_all, 0.0).unwrap_or(0.0);
+    let low = (LOBE_FRACTION * peak_excess).max(5.0 * noise);
+    let lobe = grow_region(&best.pixels, w, h, |i| excess(i).is_some_and(|e| e >= low));
+    // per lobe pixel: position, sphere normal, normal-space area (1 / n.v), excess, clipped
+    type LobePixel = (f64, f64, Vector3<f64>, f64, f64, bool);
+    let mut px: Vec<LobePixel> = Vec::with_capacity(lobe.len());
     let mut peak_region = f32::MIN;
-    for &i in &best.pixels {
+    for &i in &lobe {
         let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
-        let wgt = (eff[i] as f64 - thr).max(1e-12);
-        sx += wgt * x;
-        sy += wgt * y;
-        sw += wgt;
-        if sat.is_some_and(|s| maxc.data[i] >= s) {
-            saturated += 1;
-        }
         peak_region = peak_region.max(eff[i]);
         let ray = intr.ray(x, y);
-        if let Some((_, n)) = outline.intersect(&ray) {
-            // a pixel covers normal-space area proportional to 1 / (n.v)
-            let cos = n.dot(&-ray).max(0.05);
-            n_sum += n * (wgt / cos);
+        let e = excess(i).unwrap_or(0.0).max(1e-12);
+        let clipped = sat.is_some_and(|s| maxc.data[i] >= s);
+        match outline.intersect(&ray) {
+            Some((_, n)) => px.push((x, y, n, 1.0 / n.dot(&-ray).max(0.05), e, clipped)),
+            None => px.push((x, y, Vector3::zeros(), 0.0, e, clipped)),
         }
     }
-    let (x, y) = (sx / sw, sy / sw);
+    let saturated = px.iter().filter(|p| p.5).count();
+    let sw: f64 = px.iter().map(|p| p.4).sum();
+    let (x, y) = (
+        px.iter().map(|p| p.4 * p.0).sum::<f64>() / sw,
+        px.iter().map(|p| p.4 * p.1).sum::<f64>() / sw,
+    );
+    let mean_normal = |weight: &dyn Fn(&LobePixel) -> f64| {
+        px.iter()
+            .fold(Vector3::zeros(), |acc, p| acc + p.2 * (weight(p) * p.3))
+    };
+    let n_sum = mean_normal(&|p| p.4);
     if n_sum.norm() == 0.0 {
         return Err(SphereError::NoHighlight {
             reason: format!("the bright region at ({x:.1}, {y:.1}) px misses the sphere"),
         });
     }
+    // The highlight's radiance is the lobe times the light's cosine n.l, which leans it towards
+    // the light; divided by n.l (from the first estimate) it is the lobe alone. A clipped pixel
+    // only bounds its lobe value from below, so every value is capped at the smallest such bound:
+    // the weight is then a function of the lobe value alone, clipping or not.
+    let first = n_sum.normalize();
+    let v = -(outline.centre_in_radii() + first).normalize();
+    let l = reflect(&first, &v).normalize();
+    let cos_l = |p: &LobePixel| p.2.dot(&l).max(0.05);
+    let cap = px
+        .iter()
+        .filter(|p| p.5)
+        .map(|p| p.4 / cos_l(p))
+        .fold(f64::INFINITY, f64::min);
+    let n_sum = mean_normal(&|p| (p.4 / cos_l(p)).min(cap));
     Ok(Highlight {
         centroid_px: [x, y],
         normal: n_sum.normalize(),
-        pixels: best.pixels.len(),
+        pixels: lobe.len(),
         saturated_pixels: saturated,
         peak: peak_region,
     })
+}
+
+/// How far down its peak (over the sphere's own radiance) the highlight's lobe is followed.
+const LOBE_FRACTION: f64 = 0.02;
+
+/// The sphere's own radiance without highlights, per pixel (`None` off the sphere): a low
+/// quantile of the pixels at the same distance from the outline's centre. What a glossy sphere
+/// shows besides the highlight (the mirrored backdrop brightening towards the rim, a dim diffuse
+/// base) changes mostly with that distance, and a highlight covers only part of each ring.
+fn radial_background(
+    eff: &[f32],
+    outline: &SphereOutline,
+    intr: &Intrinsics,
+    w: usize,
+    h: usize,
+) -> Vec<Option<f64>> {
+    const MIN_PER_RING: usize = 16;
+    let cos_a = outline.angular_radius_rad.cos();
+    let rings = outline.radius_px.ceil().max(1.0) as usize;
+    // ring index of each sphere pixel by the angle of its ray from the centre direction
+    let mut ring_of = vec![None; w * h];
+    let mut members: Vec<Vec<f64>> = vec![Vec::new(); rings];
+    for y in 0..h {
+        for x in 0..w {
+            let ray = intr.ray(x as f64 + 0.5, y as f64 + 0.5);
+            let c = ray.dot(&outline.centre_dir);
+            if c <= cos_a {
+                continue;
+            }
+            let frac = c.clamp(-1.0, 1.0).acos() / outline.angular_radius_rad;
+            let r = ((frac * rings as f64) as usize).min(rings - 1);
+            ring_of[y * w + x] = Some(r);
+            members[r].push(f64::from(eff[y * w + x]));
+        }
+    }
+    // rings near the centre hold few pixels: pool them outwards until each has enough
+    let mut level = vec![None; rings];
+    let mut pool: Vec<f64> = Vec::new();
+    let mut pending = Vec::new();
+    for (r, m) in members.iter().enumerate() {
+        pool.extend_from_slice(m);
+        pending.push(r);
+        if pool.len() >= MIN_PER_RING || r + 1 == rings {
+            let q = low_quantile(&mut pool);
+            for p in pending.drain(..) {
+                level[p] = q;
+            }
+            pool.clear();
+        }
+    }
+    ring_of.iter().map(|r| r.and_then(|r| level[r])).collect()
+}
+
+/// The first quartile: robust to bright outliers covering up to three quarters of the values.
+fn low_quantile(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    Some(values[(values.len() - 1) / 4])
+}
+
+/// Pixels 4-connected to `seeds` through pixels where `keep` holds (the seeds always count).
+fn grow_region(seeds: &[usize], w: usize, h: usize, keep: impl Fn(usize) -> bool) -> Vec<usize> {
+    let mut seen = vec![false; w * h];
+    let mut stack: Vec<usize> = Vec::new();
+    for &i in seeds {
+        if !seen[i] {
+            seen[i] = true;
+            stack.push(i);
+        }
+    }
+    let mut out = Vec::new();
+    while let Some(i) = stack.pop() {
+        out.push(i);
+        let (x, y) = (i % w, i / w);
+        let mut visit = |j: usize| {
+            if !seen[j] && keep(j) {
+                seen[j] = true;
+                stack.push(j);
+            }
+        };
+        if x > 0 {
+            visit(i - 1);
+        }
+        if x + 1 < w {
+            visit(i + 1);
+        }
+        if y > 0 {
+            visit(i - w);
+        }
+        if y + 1 < h {
+            visit(i + w);
+        }
+    }
+    out
 }
 
 /// Connected regions of `eff >= thr`: component, weighted centroid (pixel coordinates) and
@@ -838,28 +1048,72 @@ mod tests {
         assert!((n + d).norm() < 1e-12);
     }
 
+    /// The rim offset against the rim profile of a true sphere seen in perspective: the radiance
+    /// along an image radius from ray-sphere intersections, reduced to its area edge as
+    /// `subpixel_edges` does (level windows 3 to 6 px either side of the edge). Spheres 5 to 12
+    /// radii away, as a light probe is: the offset assumes the sphere seen from afar.
     #[test]
-    fn fresnel_half_point_and_rim_correction() {
-        let c = half_fresnel_cos(0.04).unwrap();
-        let f = 0.04 + 0.96 * (1.0 - c).powi(5);
-        assert!((f - 0.5).abs() < 1e-12);
-        assert!(half_fresnel_cos(0.6).is_none());
-        // the ray at the apparent edge meets the true sphere where n.v = c
-        let intr = Intrinsics::pinhole(320, 240, 300.0, 300.0, 160.0, 120.0);
-        let apparent = SphereOutline {
-            centre_dir: Vector3::z(),
-            angular_radius_rad: 0.2,
-            centre_px: [160.0, 120.0],
-            radius_px: 60.0,
-            edge_points: 100,
-            rms_residual_rad: 0.0,
-            source: OutlineSource::Detected,
-        };
-        let truth = apparent.corrected_for_fresnel_rim(0.04, &intr);
-        assert!(truth.angular_radius_rad > apparent.angular_radius_rad);
-        let ray = tangent_ray(&apparent, 0.7);
-        let (_, n) = truth.intersect(&ray).unwrap();
-        assert!((n.dot(&-ray) - c).abs() < 1e-9, "{} vs {c}", n.dot(&-ray));
+    fn rim_offset_matches_the_area_edge_of_a_perspective_fresnel_profile() {
+        let f0 = 0.04;
+        assert!(rim_edge_offset_px(40.0, 0.6).is_none());
+        for (f, dist) in [(224.0, 12.0), (448.0, 12.0), (900.0, 12.0), (600.0, 5.0)] {
+            let intr = Intrinsics::pinhole(2000, 2000, f, f, 1000.0, 1000.0);
+            let centre = Vector3::new(0.0, 0.0, dist);
+            let alpha = (1.0f64 / dist).asin();
+            let r_true = alpha.tan() * f;
+            let radiance = |rho: f64| {
+                let ray = intr.ray(1000.0 + rho, 1000.0);
+                let b = ray.dot(&centre);
+                let disc = b * b - (centre.norm_squared() - 1.0);
+                if disc < 0.0 {
+                    return 1.0; // the backdrop
+                }
+                let n = (ray * (b - disc.sqrt()) - centre).normalize();
+                let cos = n.dot(&-ray).max(0.0);
+                let fr = f0 + (1.0 - f0) * (1.0 - cos).powi(5);
+                0.01 + fr * (1.0 - 0.01)
+            };
+            let level = |from: f64, to: f64| {
+                let mut v: Vec<f64> = (0..=300)
+                    .map(|i| radiance(from + (to - from) * i as f64 / 300.0))
+                    .collect();
+                crate::calib::robust::median(&mut v).unwrap()
+            };
+            // windows re-centred on the edge found, as the detector's second reading does
+            let mut edge = r_true;
+            for _ in 0..20 {
+                let (li, lo) = (level(edge - 6.0, edge - 3.0), level(edge + 3.0, edge + 6.0));
+                let steps = 60_000;
+                let h = 6.0 / steps as f64;
+                let area: f64 = (0..steps)
+                    .map(|i| (radiance(edge - 3.0 + (i as f64 + 0.5) * h) - li) / (lo - li) * h)
+                    .sum();
+                edge += 3.0 - area;
+            }
+            let depth = r_true - edge; // how far inside the true outline the area edge lies
+            let want = rim_edge_offset_px(r_true, f0).unwrap();
+            assert!(
+                (depth - want).abs() < 0.02,
+                "radius {r_true:.1} px: edge {depth:.4} px inside, predicted {want:.4}"
+            );
+            // and the correction restores the radius from the apparent outline
+            let apparent_alpha = ((r_true - depth) / f).atan();
+            let apparent = SphereOutline {
+                centre_dir: Vector3::z(),
+                angular_radius_rad: apparent_alpha,
+                centre_px: [1000.0, 1000.0],
+                radius_px: r_true - depth,
+                edge_points: 100,
+                rms_residual_rad: 0.0,
+                source: OutlineSource::Detected,
+            };
+            let fixed = apparent.corrected_for_fresnel_rim(f0, &intr);
+            assert!(
+                (fixed.radius_px - r_true).abs() < 0.02,
+                "{} vs {r_true}",
+                fixed.radius_px
+            );
+        }
     }
 
     #[test]

@@ -13,9 +13,14 @@
 //! - The camera does not move in the lab, so one light direction per channel (camera axes)
 //!   serves every view; the turntable's rotation reaches the object frame through each view's
 //!   photogrammetry pose.
-//! - The white board stands on the turntable turned to face the bisector of the camera and the
-//!   lit channel (the capture runner turns it so); its normal in camera axes is therefore taken
-//!   as `normalize(l + v)` with `v = (0, 0, -1)` towards the camera.
+//! - The white board stands at the turntable centre facing the camera at turntable angle 0 and
+//!   turns with the table (the capture runner turns it by half the channel's azimuth). Its normal
+//!   in camera axes is `(0, 0, -1)` turned about the turntable axis by the white shot's measured
+//!   angle; the axis in camera axes is the rotation axis between the photogrammetry poses of the
+//!   ambient views (`turntable_axis_camera`), so it holds for a tilted camera and for lights at
+//!   any elevation. Without two views at different angles the board is assumed to face the
+//!   bisector of light and camera, `normalize(l + v)`, which is right only for a light at the
+//!   camera's elevation.
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -254,6 +259,13 @@ pub fn calibrate_session(
     // several, which keeps the outline fit away from the terminator.
     let outline_img = union_max(sphere_imgs.values());
 
+    let axis = turntable_axis_camera(&manifest, &model);
+    if axis.is_none() {
+        progress(
+            "warning: fewer than two ambient views at different angles in the photogrammetry \
+             model: the white reference is assumed to face the bisector of light and camera",
+        );
+    }
     let mut channels = Vec::new();
     for (&ch, img) in &sphere_imgs {
         let sphere_opts = SphereOptions::default();
@@ -280,7 +292,17 @@ pub fn calibrate_session(
                 channel: ch,
                 reason: "no white-reference shot for this channel".into(),
             })?;
-        let normal = (l + Vector3::new(0.0, 0.0, -1.0)).normalize();
+        let white_angle = brackets
+            .get(&(white_key, None, Some(ch)))
+            .and_then(|shots| shots.first())
+            .map(|s| s.measured_angle_deg);
+        let normal = match (axis, white_angle) {
+            (Some(axis), Some(a)) => {
+                nalgebra::UnitQuaternion::from_axis_angle(&axis, a.to_radians())
+                    * Vector3::new(0.0, 0.0, -1.0)
+            }
+            _ => (l + Vector3::new(0.0, 0.0, -1.0)).normalize(),
+        };
         let irr = calibrate_irradiance(
             white,
             [albedo; 3],
@@ -413,6 +435,43 @@ pub fn calibrate_session(
         }
     })?;
     Ok(out)
+}
+
+/// The turntable's axis in camera axes, from the photogrammetry poses of the ambient views: the
+/// camera stands still while the table turns, so `R_i R_j^T` (camera from object) is a rotation
+/// about that axis by the difference of the views' measured angles, which also fixes the axis's
+/// sign. Averaged over the pairs with the first view whose angles differ by 10 to 170 degrees.
+fn turntable_axis_camera(
+    manifest: &Manifest,
+    model: &colmap::ColmapModel,
+) -> Option<nalgebra::Unit<Vector3<f64>>> {
+    let mut views: Vec<(f64, nalgebra::UnitQuaternion<f64>)> = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for s in &manifest.shots {
+        if s.kind == ShotKind::Ambient
+            && let Some(v) = s.view
+            && seen.insert(v)
+            && let Some((_, pose)) = model.view(&s.file)
+        {
+            views.push((s.measured_angle_deg, pose.rotation));
+        }
+    }
+    let (a0, r0) = *views.first()?;
+    let mut sum = Vector3::zeros();
+    for (a, r) in &views[1..] {
+        let turn = (a - a0 + 180.0).rem_euclid(360.0) - 180.0;
+        if !(10.0..=170.0).contains(&turn.abs()) {
+            continue;
+        }
+        let (axis, angle) = (r * r0.inverse()).axis_angle()?;
+        // axis_angle returns a positive angle; the measured turn says which way the axis points
+        sum += if (angle > 0.0) == (turn > 0.0) {
+            axis.into_inner()
+        } else {
+            -axis.into_inner()
+        };
+    }
+    (sum.norm() > 0.0).then(|| nalgebra::Unit::new_normalize(sum))
 }
 
 /// View -> the file name of its first ambient shot (the image's NAME in the COLMAP model).

@@ -55,7 +55,11 @@ pub fn render_board(
     background: [f32; 3],
 ) -> LinearImage {
     render_analytic(
-        &[SceneObject { shape: board, brdf }],
+        &[SceneObject {
+            shape: board,
+            brdf,
+            coat_f0: None,
+        }],
         light,
         k,
         pose,

@@ -61,6 +61,7 @@ pub fn render_sphere(
         &[SceneObject {
             shape: sphere,
             brdf,
+            coat_f0: None,
         }],
         light,
         k,

@@ -5,9 +5,16 @@
 //!
 //! The calibration targets: a black glossy sphere (a dim Lambertian base plus a narrow
 //! normalised Blinn-Phong lobe, so the highlight is small and bright, as on a polished black
-//! ball) and a white Lambertian board of the configured albedo facing the camera. Both sit at the
-//! turntable centre. The room light lights only the object (calibration shots are taken with
-//! the room light off).
+//! ball, under a smooth coat that mirrors the lit backdrop near the rim with Fresnel reflectance
+//! `scene.sphere_coat_f0`) and a white Lambertian board of the configured albedo facing the
+//! camera. Both sit at the turntable centre. The room light lights only the object (calibration
+//! shots are taken with the room light off).
+//!
+//! The targets are imaged as a real camera images them (`render::analytic::CameraOptics`): each
+//! pixel integrates over its area (`scene.pixel_samples` rays per side) after a Gaussian lens blur
+//! (`scene.psf_sigma_px`). The highlight is about a pixel wide at 160x120; sampled at pixel
+//! centres only it would snap to the pixel grid, which no camera does. The object itself is still
+//! one ray per pixel (`render::shade`).
 
 use nalgebra::{Point3, Vector3};
 use std::sync::Arc;
@@ -20,11 +27,12 @@ use crate::capture::plan::Target;
 use crate::geometry::bvh::Bvh;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io::load_mesh;
-use crate::render::board::{Board, render_board};
+use crate::render::analytic::{CameraOptics, SceneObject, render_analytic_with};
+use crate::render::board::Board;
 use crate::render::image::LinearImage;
 use crate::render::light::{DirectionalLight, UniformEnvironment};
 use crate::render::shade::{ShadeOptions, render_mesh};
-use crate::render::sphere::{Sphere, render_sphere};
+use crate::render::sphere::Sphere;
 
 /// Why the scene could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -179,6 +187,10 @@ impl SceneRenderer for ObjectScene {
         let k = &req.intrinsics;
         let pose = &req.camera_from_object;
         let mut img = LinearImage::new(k.width, k.height);
+        let optics = CameraOptics {
+            samples_per_side: self.config.pixel_samples,
+            psf_sigma_px: self.config.psf_sigma_px,
+        };
         match req.stage.target {
             Target::Object => {
                 if req.ambient_radiance > 0.0 {
@@ -217,9 +229,14 @@ impl SceneRenderer for ObjectScene {
                         // light, as a lab sets one up: the black sphere's outline then stands
                         // out all round, not only on its lit side.
                         let backdrop = [(0.5 * l.irradiance / std::f64::consts::PI) as f32; 3];
+                        let obj = SceneObject {
+                            shape: &sphere,
+                            brdf: &brdf,
+                            coat_f0: Some(self.config.sphere_coat_f0),
+                        };
                         add(
                             &mut img,
-                            &render_sphere(&sphere, &brdf, &light, k, pose, backdrop),
+                            &render_analytic_with(&[obj], &light, k, pose, backdrop, &optics),
                         );
                     }
                 }
@@ -229,9 +246,14 @@ impl SceneRenderer for ObjectScene {
                 let brdf = Lambertian([self.config.white_albedo; 3]);
                 for l in &req.lights {
                     if let Some(light) = DirectionalLight::new(l.dir_object, [l.irradiance; 3]) {
+                        let obj = SceneObject {
+                            shape: &board,
+                            brdf: &brdf,
+                            coat_f0: None,
+                        };
                         add(
                             &mut img,
-                            &render_board(&board, &brdf, &light, k, pose, [0.0; 3]),
+                            &render_analytic_with(&[obj], &light, k, pose, [0.0; 3], &optics),
                         );
                     }
                 }

@@ -40,8 +40,17 @@ pub struct SceneConfig {
     pub ambient_radiance: f64,
     /// Radius of the black calibration sphere, metres.
     pub sphere_radius_m: f64,
+    /// Normal-incidence Fresnel reflectance of the black sphere's glossy coat (0.04: plastic or
+    /// glass); near its rim the sphere mirrors the lit backdrop behind it, as a real one does.
+    pub sphere_coat_f0: f64,
     /// Albedo of the white reference (Lambertian).
     pub white_albedo: f64,
+    /// Rays per pixel side over which the sensor integrates each pixel of the calibration
+    /// targets (the sphere, the white reference); 1 = one ray through the pixel centre.
+    pub pixel_samples: usize,
+    /// Standard deviation of the lens's Gaussian point-spread function, pixels, for the
+    /// calibration targets (0 = a perfectly sharp lens).
+    pub psf_sigma_px: f64,
     /// Sensor value per unit radiance per second of exposure at gain 1.
     pub sensitivity: f64,
     /// Electrons at saturation (sets the shot noise).
@@ -62,7 +71,10 @@ impl Default for SceneConfig {
             light_irradiance: 10.0,
             ambient_radiance: 1.0,
             sphere_radius_m: 0.05,
+            sphere_coat_f0: 0.04,
             white_albedo: 0.99,
+            pixel_samples: 4,
+            psf_sigma_px: 0.5,
             sensitivity: 120.0,
             full_well_electrons: 20_000.0,
             read_noise_electrons: 4.0,
@@ -106,6 +118,24 @@ impl SceneConfig {
             return Err(
                 "scene.ambient_radiance and scene.read_noise_electrons must be >= 0".into(),
             );
+        }
+        if !(1..=16).contains(&self.pixel_samples) {
+            return Err(format!(
+                "scene.pixel_samples = {}: must be 1 to 16",
+                self.pixel_samples
+            ));
+        }
+        if !(0.0..=5.0).contains(&self.psf_sigma_px) {
+            return Err(format!(
+                "scene.psf_sigma_px = {}: must be 0 to 5 pixels",
+                self.psf_sigma_px
+            ));
+        }
+        if !(0.0..1.0).contains(&self.sphere_coat_f0) {
+            return Err(format!(
+                "scene.sphere_coat_f0 = {}: must be in [0, 1)",
+                self.sphere_coat_f0
+            ));
         }
         if self.mesh_up != "y" && self.mesh_up != "z" {
             return Err(format!(
