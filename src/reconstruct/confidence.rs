@@ -165,8 +165,9 @@ pub fn assess(
             h > settings.held_out_medium,
             h > settings.held_out_low,
             format!(
-                "the fit misses the held-back pixels by {:.0} %: the images disagree with one \
-                 BRDF (wrong light direction or irradiance, a textured or anisotropic surface?)",
+                "the fit misses the held-back pixels by {:.0} %: no single BRDF seen through this \
+                 mesh explains the images (normals too coarse for a narrow highlight, a wrong \
+                 light direction or irradiance, a textured or anisotropic surface?)",
                 100.0 * h
             ),
         );
