@@ -8,7 +8,11 @@
 //!   `clip(cos theta_i cos theta_o, 0.01, 1)`: errors weighted as they appear in images, so the
 //!   grazing bins, where f_r is large but little light arrives, do not dominate;
 //! - `near_specular`: `relative` restricted to `theta_h` (bin centre) below
-//!   [`NEAR_SPECULAR_THETA_H_DEG`] = 10 degrees.
+//!   [`NEAR_SPECULAR_THETA_H_DEG`] = 10 degrees;
+//! - `cosine_weighted_off_peak`: `cosine_weighted` restricted to `theta_h` at or above
+//!   [`OFF_PEAK_THETA_H_DEG`] = 2 degrees. For a mirror-like material nearly all of
+//!   `cosine_weighted` sits in the sub-degree peak (docs/evaluation.md, "Why the shiny materials
+//!   fail"); this one says whether the rest of the BRDF is right.
 //!
 //! Values are f_r in 1/sr. Pure: no files; must not depend on how the BRDFs were made (basis,
 //! network, fits): it sees values at bins only.
@@ -20,12 +24,16 @@ use super::coords::MerlBin;
 /// The `theta_h` bound of the near-specular domain, degrees.
 pub const NEAR_SPECULAR_THETA_H_DEG: f64 = 10.0;
 
+/// The `theta_h` bound below which `cosine_weighted_off_peak` does not look, degrees.
+pub const OFF_PEAK_THETA_H_DEG: f64 = 2.0;
+
 /// The three errors, and how many bins each was computed over.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorReport {
     pub relative: f64,
     pub cosine_weighted: f64,
     pub near_specular: f64,
+    pub cosine_weighted_off_peak: f64,
     pub bins: usize,
     pub near_specular_bins: usize,
 }
@@ -55,7 +63,9 @@ impl Acc {
 /// Errors of `rec` against `truth`, both given at `bins` (same order).
 pub fn compare_values(bins: &[usize], truth: &[[f64; 3]], rec: &[[f64; 3]]) -> ErrorReport {
     let limit = NEAR_SPECULAR_THETA_H_DEG.to_radians();
+    let off_peak = OFF_PEAK_THETA_H_DEG.to_radians();
     let (mut rel, mut cos, mut spec) = (Acc::default(), Acc::default(), Acc::default());
+    let mut cos_off = Acc::default();
     let (mut n, mut n_spec) = (0, 0);
     for ((&bin, t), r) in bins.iter().zip(truth).zip(rec) {
         let Some(b) = MerlBin::from_index(bin) else {
@@ -67,6 +77,9 @@ pub fn compare_values(bins: &[usize], truth: &[[f64; 3]], rec: &[[f64; 3]]) -> E
         n += 1;
         rel.add(1.0, t, r);
         cos.add(cos_map(bin), t, r);
+        if b.centre().theta_h >= off_peak {
+            cos_off.add(cos_map(bin), t, r);
+        }
         if b.centre().theta_h < limit {
             n_spec += 1;
             spec.add(1.0, t, r);
@@ -76,6 +89,7 @@ pub fn compare_values(bins: &[usize], truth: &[[f64; 3]], rec: &[[f64; 3]]) -> E
         relative: rel.ratio(),
         cosine_weighted: cos.ratio(),
         near_specular: spec.ratio(),
+        cosine_weighted_off_peak: cos_off.ratio(),
         bins: n,
         near_specular_bins: n_spec,
     }
@@ -104,6 +118,23 @@ mod tests {
         assert!((e.relative - 0.1).abs() < 1e-12);
         assert!((e.cosine_weighted - 0.1).abs() < 1e-12);
         assert!((e.near_specular - 0.1).abs() < 1e-12);
+        assert!((e.cosine_weighted_off_peak - 0.1).abs() < 1e-12);
+        // An error confined to the sub-2-degree peak is invisible off the peak.
+        let peaked: Vec<[f64; 3]> = bins
+            .iter()
+            .zip(&truth)
+            .map(|(&b, t)| {
+                let m = MerlBin::from_index(b).expect("bin");
+                if m.centre().theta_h < OFF_PEAK_THETA_H_DEG.to_radians() {
+                    t.map(|x| 3.0 * x)
+                } else {
+                    *t
+                }
+            })
+            .collect();
+        let p = compare_values(&bins, &truth, &peaked);
+        assert!(p.cosine_weighted > 0.1);
+        assert_eq!(p.cosine_weighted_off_peak, 0.0);
         assert!(e.bins > 0 && e.near_specular_bins > 0 && e.near_specular_bins < e.bins);
         assert_eq!(compare_values(&bins, &truth, &truth).relative, 0.0);
         // An error only in one grazing bin (tiny cosine map) counts less when weighted.

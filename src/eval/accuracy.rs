@@ -232,9 +232,10 @@ fn means_over_seeds(results: &[SceneResult]) -> String {
     }
     let mut s = "\n## Means over seeds\n\nE_c mean +- sd over the seeds; the ratios are of the means \
                  (a Lambert+GGX mean above 1.5 means its least-squares fit diverged in some seed); \
+                 off-peak = E_c over theta_h >= 2 degrees, all but the specular peak, means; \
                  confidence = how often the pipeline called its result low / medium / high.\n\n\
-                 | mesh | material | seeds | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | confidence low/medium/high |\n\
-                 |---|---|---|---|---|---|---|---|---|\n"
+                 | mesh | material | seeds | ours E_c | Lambert E_c | Lambert+GGX E_c | ratio Lambert | ratio L+GGX | ours E_c off-peak | L+GGX E_c off-peak | confidence low/medium/high |\n\
+                 |---|---|---|---|---|---|---|---|---|---|---|\n"
         .to_string();
     for (mesh, material) in keys {
         let rs: Vec<&SceneResult> = results
@@ -253,6 +254,14 @@ fn means_over_seeds(results: &[SceneResult]) -> String {
             .iter()
             .filter_map(|r| r.lambert_ggx.map(|e| e.cosine_weighted))
             .collect();
+        let ours_off: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.all().map(|a| a.chosen.cosine_weighted_off_peak))
+            .collect();
+        let ggx_off: Vec<f64> = rs
+            .iter()
+            .filter_map(|r| r.lambert_ggx.map(|e| e.cosine_weighted_off_peak))
+            .collect();
         let mut conf = [0usize; 3];
         for r in &rs {
             if let Some(a) = r.all() {
@@ -263,7 +272,7 @@ fn means_over_seeds(results: &[SceneResult]) -> String {
         let (ml, _) = super::mean_sd(&lam);
         let (mg, _) = super::mean_sd(&ggx);
         s += &format!(
-            "| {mesh} | {material} | {} | {} +- {} | {} | {} | {} | {} | {}/{}/{} |\n",
+            "| {mesh} | {material} | {} | {} +- {} | {} | {} | {} | {} | {} | {} | {}/{}/{} |\n",
             rs.len(),
             f3(m),
             f3(sd),
@@ -271,6 +280,8 @@ fn means_over_seeds(results: &[SceneResult]) -> String {
             f3(mg),
             f3(ml / m),
             f3(mg / m),
+            f3(super::mean_sd(&ours_off).0),
+            f3(super::mean_sd(&ggx_off).0),
             conf[0],
             conf[1],
             conf[2]

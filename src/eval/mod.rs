@@ -72,6 +72,8 @@ pub struct Errors {
     pub relative: f64,
     pub cosine_weighted: f64,
     pub near_specular: f64,
+    /// `cosine_weighted` over theta_h >= 2 degrees (everything but the peak).
+    pub cosine_weighted_off_peak: f64,
 }
 
 impl From<ErrorReport> for Errors {
@@ -80,6 +82,7 @@ impl From<ErrorReport> for Errors {
             relative: e.relative,
             cosine_weighted: e.cosine_weighted,
             near_specular: e.near_specular,
+            cosine_weighted_off_peak: e.cosine_weighted_off_peak,
         }
     }
 }
