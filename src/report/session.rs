@@ -24,7 +24,7 @@ pub struct CaptureSummary {
     pub by_kind: BTreeMap<String, usize>,
     /// Distinct turntable angles asked for, degrees, sorted.
     pub angles_deg: Vec<f64>,
-    /// Largest |measured - asked| turntable angle, degrees.
+    /// Largest |measured - asked| turntable angle, degrees, modulo a full turn.
     pub max_angle_error_deg: Option<f64>,
     /// Light channel -> (shots, nominal lab direction if recorded).
     pub channels: BTreeMap<i64, (usize, Option<[f64; 3]>)>,
@@ -74,7 +74,9 @@ pub fn summarise_session(dir: &Path, opts: &ReportOptions) -> CaptureSummary {
                 angles.push(a);
             }
             if let Some(m) = r.get("measured_angle_deg").and_then(Value::as_f64) {
-                let e = (m - a).abs();
+                // turntable angles are equal modulo a turn (a sweep may end at 360 for 0)
+                let e = (m - a).rem_euclid(360.0);
+                let e = e.min(360.0 - e);
                 s.max_angle_error_deg = Some(s.max_angle_error_deg.map_or(e, |x: f64| x.max(e)));
             }
         }
@@ -270,5 +272,30 @@ fn thumbnails(dir: &Path, shots: &[Value], max: usize) -> Avail<Vec<EmbeddedImag
         ))
     } else {
         Avail::Yes(out)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sweep_ending_at_360_is_not_an_angle_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let lines = [
+            r#"{"id":"a","kind":"ambient","angle_deg":0.0,"measured_angle_deg":360.0}"#,
+            r#"{"id":"b","kind":"ambient","angle_deg":10.0,"measured_angle_deg":10.25}"#,
+            r#"{"id":"c","kind":"ambient","angle_deg":350.0,"measured_angle_deg":-10.0}"#,
+        ];
+        std::fs::write(dir.path().join(JOURNAL_FILE), lines.join("\n")).unwrap();
+        let opts = ReportOptions {
+            verify_checksums: false,
+            ..ReportOptions::default()
+        };
+        let s = summarise_session(dir.path(), &opts);
+        assert_eq!(s.shots, 3);
+        let e = s.max_angle_error_deg.unwrap();
+        assert!((e - 0.25).abs() < 1e-9, "{e}");
     }
 }
