@@ -294,6 +294,9 @@ pub struct RunResult {
     pub k: usize,
     pub observed_pixels: usize,
     pub reliable_pixels: usize,
+    /// Errors of the trial with the lowest relative pixel error over all observations (a
+    /// diagnostic: would a scale-sensitive choice beat eq. 3's cosine similarity?).
+    pub pixel_choice: Option<Errors>,
     /// Errors of the mean of all fitted trials (a diagnostic: would averaging beat choosing?).
     pub trial_mean: Option<Errors>,
     /// What the pipeline said of its own result (no truth involved).
@@ -337,6 +340,17 @@ pub fn run_core(
         .chain(out.trials.iter().filter_map(|t| t.candidate.as_deref()))
         .collect();
     let trial_mean = (fitted.len() > 1).then(|| truth.errors_of(&MeanOf(&fitted)));
+    let pixel_choice = fitted
+        .iter()
+        .map(|c| {
+            (
+                crate::reconstruct::components::held_out_error(*c, observations),
+                c,
+            )
+        })
+        .filter(|(e, _)| e.is_finite())
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, c)| truth.errors_of_candidate(*c));
     let chosen_rank = 1 + trials
         .iter()
         .filter_map(|(_, e)| e.as_ref())
@@ -351,6 +365,7 @@ pub fn run_core(
         observed_pixels: observations.len(),
         reliable_pixels: out.reliable_pixels,
         trial_mean,
+        pixel_choice,
         confidence: out.confidence.clone(),
         seconds,
     })
