@@ -136,23 +136,16 @@ fn sync_dir(dir: &Path) -> Result<(), CaptureError> {
         .map_err(|e| CaptureError::io("syncing the folder", dir, e))
 }
 
-/// Writes `bytes` to `path` atomically: temporary file beside it, fsync, rename, fsync folder.
+/// Writes `bytes` to `path` atomically: temporary file beside it (`.NAME.tmp-XXXXXX`, which
+/// [`remove_stray_temporaries`] recognises), fsync, rename (`imageio::write_atomic`), then an fsync
+/// of the folder that, unlike there, must succeed: a session never reports a shot it could lose.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CaptureError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    {
-        let mut f = File::create(&tmp).map_err(|e| CaptureError::io("creating", &tmp, e))?;
-        f.write_all(bytes)
-            .map_err(|e| CaptureError::io("writing", &tmp, e))?;
-        f.sync_all()
-            .map_err(|e| CaptureError::io("syncing", &tmp, e))?;
+    crate::imageio::write_atomic(path, bytes)
+        .map_err(|e| CaptureError::io("writing atomically", path, e))?;
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => sync_dir(d),
+        _ => sync_dir(Path::new(".")),
     }
-    fs::rename(&tmp, path).map_err(|e| CaptureError::io("renaming into place", path, e))?;
-    sync_dir(dir)
 }
 
 /// An open session folder, locked for writing.
