@@ -169,8 +169,11 @@ fn read_shots(dir: &Path, notes: &mut Vec<String>) -> (Option<Value>, Option<Str
     (header, status, shots)
 }
 
-/// Re-reads each listed file and compares its size and SHA-256 with the record.
-// TODO(capture): use `capture::verify` once the capture module is in main.
+/// Re-reads each listed file and compares its size and SHA-256 with the record. Deliberately not
+/// `capture::verify::verify_session`: that one is the strict check (`brdf-rig session verify`:
+/// plan, header and journal must all parse, duplicates and unplanned shots are errors), while a
+/// report must still say what it can of a partial or hand-copied folder (a manifest alone, a torn
+/// journal), so it checks whatever records it found.
 fn verify_checksums(dir: &Path, shots: &[Value]) -> ChecksumStatus {
     let mut st = ChecksumStatus::default();
     for r in shots {
