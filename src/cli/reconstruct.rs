@@ -4,6 +4,7 @@
 
 use anyhow::Context;
 use brdf_rig::reconstruct::confidence::Level;
+use brdf_rig::reconstruct::core::TrialChoice;
 use brdf_rig::reconstruct::{self, Job, Settings};
 use clap::Args as ClapArgs;
 use std::path::PathBuf;
@@ -65,6 +66,10 @@ pub struct Args {
     /// Components kept in the basis.
     #[arg(long, default_value_t = 80)]
     pub basis_components: usize,
+    /// How the reported trial is chosen: `similarity` (the paper's eq. 3, cosine similarity with
+    /// the images) or `pixel-error` (lowest relative error over every observed pixel).
+    #[arg(long, value_parser = parse_choice, default_value = "similarity")]
+    pub choose: TrialChoice,
     /// Random seed of the trials.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -72,6 +77,14 @@ pub struct Args {
     /// medium or high. Default: never (the confidence is always printed and in report.json).
     #[arg(long, value_parser = parse_level)]
     pub min_confidence: Option<Level>,
+}
+
+fn parse_choice(s: &str) -> Result<TrialChoice, String> {
+    match s {
+        "similarity" => Ok(TrialChoice::Similarity),
+        "pixel-error" => Ok(TrialChoice::PixelError),
+        _ => Err(format!("{s:?}: expected similarity or pixel-error")),
+    }
 }
 
 fn parse_level(s: &str) -> Result<Level, String> {
@@ -95,6 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.trials.seed = args.seed;
     settings.core.fixed_components = args.components;
     settings.core.fixed_eta = args.eta;
+    settings.core.choose = args.choose;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;

@@ -52,6 +52,8 @@ pub struct Point {
     pub failure: Option<String>,
     /// Errors of the mean of the fitted trials (diagnostic).
     pub trial_mean: Option<Errors>,
+    /// Errors of the trial with the lowest pixel error (diagnostic).
+    pub pixel_choice: Option<Errors>,
     /// The pipeline's own verdict on its result.
     pub confidence: Option<crate::reconstruct::confidence::Confidence>,
     /// Observe + core, seconds.
@@ -132,17 +134,19 @@ impl<'a> Runner<'a> {
         let result = observe_case(job, &ObserveSettings::default(), &s.perturb)
             .and_then(|obs| run_core(truth, &obs, basis, &s.core, NielsenSettings::default()));
         let seconds = t.elapsed().as_secs_f64();
-        let (errors, chosen_rank, trials, failure, confidence, trial_mean) = match result {
-            Ok(r) => (
-                Some(r.chosen),
-                Some(r.chosen_rank),
-                r.trials.len(),
-                None,
-                Some(r.confidence),
-                r.trial_mean,
-            ),
-            Err(e) => (None, None, 0, Some(e.to_string()), None, None),
-        };
+        let (errors, chosen_rank, trials, failure, confidence, trial_mean, pixel_choice) =
+            match result {
+                Ok(r) => (
+                    Some(r.chosen),
+                    Some(r.chosen_rank),
+                    r.trials.len(),
+                    None,
+                    Some(r.confidence),
+                    r.trial_mean,
+                    r.pixel_choice,
+                ),
+                Err(e) => (None, None, 0, Some(e.to_string()), None, None, None),
+            };
         Ok(Point {
             sweep: s.sweep.clone(),
             value: s.value,
@@ -154,6 +158,7 @@ impl<'a> Runner<'a> {
             trials,
             failure,
             trial_mean,
+            pixel_choice,
             confidence,
             seconds,
         })

@@ -12,6 +12,19 @@ use super::trials::{Trial, TrialSettings, best_trial, run_trials};
 use serde::Serialize;
 use std::time::Instant;
 
+/// How the reported trial is chosen among the fitted ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TrialChoice {
+    /// The paper's eq. 3: highest cosine similarity between captured and rendered pixels
+    /// (blind to the candidate's overall scale).
+    Similarity,
+    /// Lowest relative error of `f cos theta_i` against the observed reflectance over every
+    /// observed pixel (`components::held_out_error`; scale-sensitive). Measured against eq. 3 in
+    /// docs/evaluation.md section 1.
+    PixelError,
+}
+
 /// Settings of the steps after observation.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CoreSettings {
@@ -24,6 +37,8 @@ pub struct CoreSettings {
     pub fixed_eta: f64,
     /// Where the result is called medium or low confidence.
     pub confidence: ConfidenceSettings,
+    /// How the reported trial is chosen.
+    pub choose: TrialChoice,
 }
 
 impl Default for CoreSettings {
@@ -35,6 +50,7 @@ impl Default for CoreSettings {
             fixed_components: None,
             fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
             confidence: ConfidenceSettings::default(),
+            choose: TrialChoice::Similarity,
         }
     }
 }
@@ -124,7 +140,20 @@ pub fn reconstruct_observations(
         components.k,
         components.eta,
     );
-    let chosen = best_trial(&trials).ok_or(CoreError::AllTrialsFailed)?;
+    let chosen = match settings.choose {
+        TrialChoice::Similarity => best_trial(&trials),
+        TrialChoice::PixelError => trials
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let c = t.candidate.as_deref()?;
+                let e = super::components::held_out_error(c, observations);
+                e.is_finite().then_some((i, e))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map(|(i, _)| i),
+    }
+    .ok_or(CoreError::AllTrialsFailed)?;
     let brdf = trials[chosen]
         .candidate
         .take()
@@ -166,4 +195,65 @@ pub fn reconstruct_observations(
         confidence,
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::components::held_out_error;
+    use super::super::prior::synthetic::{CosinePrior, cap_pixels};
+    use super::*;
+
+    /// Noisy pixels, so the trials (different pixel subsets) differ.
+    fn scene() -> Vec<Observation> {
+        let mut obs = cap_pixels(|b| 0.2 + 0.05 * ((b % 7) as f64), 400, [1.0, 0.8, 0.6]);
+        for (i, o) in obs.iter_mut().enumerate() {
+            let wobble = 1.0 + 0.3 * ((i * 37 % 11) as f64 / 10.0 - 0.5);
+            o.reflectance = o.reflectance.map(|r| r * wobble);
+            o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
+        }
+        obs
+    }
+
+    fn run(choose: TrialChoice) -> (CoreOutput, Vec<Observation>) {
+        let obs = scene();
+        let mut settings = CoreSettings {
+            choose,
+            fixed_components: Some(3),
+            ..CoreSettings::default()
+        };
+        settings.trials.trials = 6;
+        settings.trials.samples = 6;
+        let out = reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+            .expect("reconstructs");
+        (out, obs)
+    }
+
+    #[test]
+    fn pixel_error_choice_reports_the_trial_that_explains_the_pixels_best() {
+        let (out, obs) = run(TrialChoice::PixelError);
+        let chosen = held_out_error(out.brdf.as_ref(), &obs);
+        let others: Vec<f64> = out
+            .trials
+            .iter()
+            .filter_map(|t| t.candidate.as_deref())
+            .map(|c| held_out_error(c, &obs))
+            .collect();
+        assert_eq!(others.len(), 5, "every other trial fitted");
+        assert!(
+            others.iter().all(|&e| chosen <= e),
+            "{chosen} vs {others:?}"
+        );
+        assert!(others.iter().any(|&e| e > chosen), "the trials differ");
+    }
+
+    #[test]
+    fn similarity_choice_reports_the_most_similar_trial() {
+        let (out, _) = run(TrialChoice::Similarity);
+        let best = out
+            .trials
+            .iter()
+            .map(|t| t.similarity)
+            .fold(f64::MIN, f64::max);
+        assert_eq!(out.trials[out.chosen_trial].similarity, best);
+    }
 }
