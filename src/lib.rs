@@ -7,6 +7,7 @@
 pub mod brdf;
 pub mod calib;
 pub mod capture;
+pub mod data;
 pub mod devices;
 pub mod eval;
 pub mod geometry;

@@ -215,9 +215,9 @@ impl Nbrdf {
     }
 }
 
-/// The folder of `<material>.f32` files shipped with the crate.
+/// The folder of `<material>.f32` files shipped with the crate (`crate::data::data_dir`).
 pub fn default_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/merl-nbrdf")
+    crate::data::data_dir().join("merl-nbrdf")
 }
 
 /// Loads every `<material>.f32` in `dir`, sorted by material name.

@@ -108,7 +108,7 @@ pub fn parse_stride(s: &str) -> anyhow::Result<GridStride> {
 
 /// A mesh by short name (`spot`, `bunny`) or path.
 pub fn load_named_mesh(name: &str) -> anyhow::Result<(String, Mesh)> {
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/meshes");
+    let data = brdf_rig::data::data_dir().join("meshes");
     let path = match name {
         "spot" => data.join("spot_triangulated.obj"),
         "bunny" => data.join("stanford-bunny.obj"),

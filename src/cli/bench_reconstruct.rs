@@ -123,9 +123,10 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         a.basis_stride.len() == 3 && a.study_size.len() == 2,
         "--basis-stride takes three numbers and --study-size two"
     );
-    let mesh_path = a.mesh.clone().unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/meshes/stanford-bunny.obj")
-    });
+    let mesh_path = a
+        .mesh
+        .clone()
+        .unwrap_or_else(|| brdf_rig::data::data_dir().join("meshes/stanford-bunny.obj"));
     let mats = load_dir(&default_dir())?;
     let truth_of = |name: &str| -> anyhow::Result<&Nbrdf> {
         match mats.iter().find(|(n, _)| n == name) {

@@ -147,12 +147,7 @@ impl SceneConfig {
     }
 }
 
-/// The crate's data folder (meshes, neural MERL fits); `BRDF_RIG_DATA` overrides it.
-pub fn data_dir() -> PathBuf {
-    std::env::var_os("BRDF_RIG_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data"))
-}
+pub use crate::data::data_dir;
 
 /// What stands on the turntable and whether the room light is on, shared between the capture's
 /// operator (who sets it) and the simulated camera (which renders it).
