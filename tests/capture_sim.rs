@@ -300,3 +300,97 @@ fn ctrl_c_stops_cleanly_and_the_session_resumes() {
     let report = verify_session(&out).unwrap();
     assert!(report.intact() && report.complete());
 }
+
+/// Guided mode on a real terminal (a pty as standard input): the capture prints what the
+/// operator must do, waits for Enter before going on (no shot is taken while it waits), and with
+/// Enter at every prompt finishes the whole plan.
+#[test]
+fn guided_capture_on_a_terminal_waits_for_enter_at_each_prompt() {
+    use std::io::{BufRead, BufReader, Write};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let profile = fast_profile(tmp.path());
+    let plan = tiny_plan(tmp.path(), 6);
+    let out = tmp.path().join("session");
+    let (mut master, slave) = brdf_rig::sim::runner::pty_pair().unwrap();
+    let tty = serialport::SerialPort::name(&slave).expect("the pty's path");
+    let stdin = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&tty)
+        .unwrap();
+    let mut child = crate::capture_util::brdf_rig(&[
+        "capture",
+        "--profile",
+        s(&profile),
+        "--plan",
+        s(&plan),
+        "--out",
+        s(&out),
+    ])
+    .stdin(Stdio::from(stdin))
+    .stdout(Stdio::null())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stderr = child.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let journal_lines = || {
+        std::fs::read_to_string(out.join("journal.jsonl"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0)
+    };
+    let start = Instant::now();
+    let (mut prompts, mut steps, mut log) = (0, Vec::new(), String::new());
+    while start.elapsed() < Duration::from_secs(120) {
+        match rx.recv_timeout(Duration::from_millis(200)) {
+            Ok(line) => {
+                log += &line;
+                log.push('\n');
+                if let Some(step) = line.trim().strip_prefix(">>> ") {
+                    steps.push(step.to_string());
+                }
+                if line.contains("Press Enter") {
+                    prompts += 1;
+                    if prompts == 1 {
+                        // nothing moves on while the operator has not confirmed
+                        let before = journal_lines();
+                        std::thread::sleep(Duration::from_millis(1500));
+                        assert_eq!(journal_lines(), before, "a shot was taken during a prompt");
+                        assert!(child.try_wait().unwrap().is_none(), "{log}");
+                    }
+                    master.write_all(b"\n").unwrap();
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{log}");
+    // object + room light, sphere, white reference, lights off: several distinct prompts
+    assert!(prompts >= 3, "{prompts} prompts\n{log}");
+    assert!(
+        steps.iter().any(|s| s.contains("black glossy sphere")),
+        "{steps:?}"
+    );
+    assert!(
+        steps.iter().any(|s| s.contains("white reference")),
+        "{steps:?}"
+    );
+    let v = run(&["session", "verify", s(&out)]);
+    assert!(v.status.success(), "{}", text(&v));
+}
