@@ -421,7 +421,8 @@ impl SimFirmware {
             }
             Request::MoveAbs { angle } => self.move_to(id, MoveKind::Abs, angle as i64, now_us),
             Request::MoveRel { delta } => {
-                let to = self.reported_at(now_us) as i64 + delta as i64;
+                // PROTOCOL.md: relative to the last target, not the step-rounded position
+                let to = self.target as i64 + delta as i64;
                 self.move_to(id, MoveKind::Rel, to, now_us)
             }
             Request::Stop => {
@@ -642,6 +643,33 @@ mod tests {
         let s = status(&mut fw, 9, 3501 * MS);
         assert!(!s.moving && s.angle == -90_000);
         assert_eq!(fw.moves().len(), 2);
+    }
+
+    #[test]
+    fn move_rel_adds_to_the_last_target_also_after_a_stop() {
+        let mut fw = SimFirmware::new(
+            FirmwareConfig {
+                power_on_angle: 0,
+                ..fast()
+            },
+            0,
+        );
+        ask(&mut fw, 1, Request::Home, 0);
+        fw.advance(MS);
+        assert_eq!(
+            ask(&mut fw, 2, Request::MoveAbs { angle: 90_000 }, 10 * MS),
+            Reply::Ack
+        );
+        assert_eq!(ask(&mut fw, 3, Request::Stop, 400 * MS), Reply::Ack);
+        let s = status(&mut fw, 4, 3000 * MS);
+        assert!(!s.moving && s.target < 90_000, "{s:?}");
+        let rest = s.target;
+        assert_eq!(
+            ask(&mut fw, 5, Request::MoveRel { delta: 1000 }, 3001 * MS),
+            Reply::Ack
+        );
+        let s = status(&mut fw, 6, 6000 * MS);
+        assert_eq!((s.target, s.angle), (rest + 1000, rest + 1000));
     }
 
     #[test]
