@@ -1,5 +1,5 @@
 //! Pixel regions for calibration targets: luminance planes, Otsu thresholds, 8-connected
-//! components, hole filling and bilinear sampling.
+//! components, hole filling, region growing and bilinear sampling.
 //!
 //! Conventions: a plane is row-major `width * height` `f32`, like [`LinearImage`]; continuous
 //! pixel coordinates put the centre of pixel `(x, y)` at `(x + 0.5, y + 0.5)` (COLMAP), which is
@@ -217,48 +217,58 @@ pub fn filled_mask(c: &Component, width: usize, height: usize) -> Vec<bool> {
     for &i in &c.pixels {
         member[i] = true;
     }
-    let mut outside = vec![false; width * height];
-    let mut stack = Vec::new();
-    for x in 0..width {
-        for y in [0, height - 1] {
-            let i = y * width + x;
-            if !member[i] && !outside[i] {
-                outside[i] = true;
-                stack.push(i);
-            }
+    let border: Vec<usize> = (0..width * height)
+        .filter(|&i| {
+            let (x, y) = (i % width, i / width);
+            !member[i] && (x == 0 || y == 0 || x + 1 == width || y + 1 == height)
+        })
+        .collect();
+    let mut filled = vec![true; width * height];
+    for i in grow_region(&border, width, height, |j| !member[j]) {
+        filled[i] = false;
+    }
+    filled
+}
+
+/// Pixels 4-connected to `seeds` through pixels where `keep` holds (the seeds always count).
+pub fn grow_region(
+    seeds: &[usize],
+    w: usize,
+    h: usize,
+    keep: impl Fn(usize) -> bool,
+) -> Vec<usize> {
+    let mut seen = vec![false; w * h];
+    let mut stack: Vec<usize> = Vec::new();
+    for &i in seeds {
+        if !seen[i] {
+            seen[i] = true;
+            stack.push(i);
         }
     }
-    for y in 0..height {
-        for x in [0, width - 1] {
-            let i = y * width + x;
-            if !member[i] && !outside[i] {
-                outside[i] = true;
-                stack.push(i);
-            }
-        }
-    }
+    let mut out = Vec::new();
     while let Some(i) = stack.pop() {
-        let (x, y) = (i % width, i / width);
+        out.push(i);
+        let (x, y) = (i % w, i / w);
         let mut visit = |j: usize| {
-            if !member[j] && !outside[j] {
-                outside[j] = true;
+            if !seen[j] && keep(j) {
+                seen[j] = true;
                 stack.push(j);
             }
         };
         if x > 0 {
             visit(i - 1);
         }
-        if x + 1 < width {
+        if x + 1 < w {
             visit(i + 1);
         }
         if y > 0 {
-            visit(i - width);
+            visit(i - w);
         }
-        if y + 1 < height {
-            visit(i + width);
+        if y + 1 < h {
+            visit(i + w);
         }
     }
-    outside.iter().map(|o| !o).collect()
+    out
 }
 
 /// Morphological opening with a `(2k+1)` square: removes parts narrower than `2k+1` pixels (a

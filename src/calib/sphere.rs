@@ -788,7 +788,7 @@ pub fn find_highlight(
     let excess_all: Vec<f64> = (0..w * h).filter_map(excess).collect();
     let noise = super::robust::mad_sigma(&excess_all, 0.0).unwrap_or(0.0);
     let low = (LOBE_FRACTION * peak_excess).max(5.0 * noise);
-    let lobe = grow_region(&best.pixels, w, h, |i| excess(i).is_some_and(|e| e >= low));
+    let lobe = regions::grow_region(&best.pixels, w, h, |i| excess(i).is_some_and(|e| e >= low));
     // per lobe pixel: position, sphere normal, normal-space area (1 / n.v), excess, clipped
     type LobePixel = (f64, f64, Vector3<f64>, f64, f64, bool);
     let mut px: Vec<LobePixel> = Vec::with_capacity(lobe.len());
@@ -901,42 +901,6 @@ fn low_quantile(values: &mut [f64]) -> Option<f64> {
     }
     values.sort_by(f64::total_cmp);
     Some(values[(values.len() - 1) / 4])
-}
-
-/// Pixels 4-connected to `seeds` through pixels where `keep` holds (the seeds always count).
-fn grow_region(seeds: &[usize], w: usize, h: usize, keep: impl Fn(usize) -> bool) -> Vec<usize> {
-    let mut seen = vec![false; w * h];
-    let mut stack: Vec<usize> = Vec::new();
-    for &i in seeds {
-        if !seen[i] {
-            seen[i] = true;
-            stack.push(i);
-        }
-    }
-    let mut out = Vec::new();
-    while let Some(i) = stack.pop() {
-        out.push(i);
-        let (x, y) = (i % w, i / w);
-        let mut visit = |j: usize| {
-            if !seen[j] && keep(j) {
-                seen[j] = true;
-                stack.push(j);
-            }
-        };
-        if x > 0 {
-            visit(i - 1);
-        }
-        if x + 1 < w {
-            visit(i + 1);
-        }
-        if y > 0 {
-            visit(i - w);
-        }
-        if y + 1 < h {
-            visit(i + w);
-        }
-    }
-    out
 }
 
 /// Connected regions of `eff >= thr`: component, weighted centroid (pixel coordinates) and
