@@ -182,15 +182,7 @@ pub fn speed(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
         );
     }
     md += &failures(&points);
-    write(a.out.join("speed.md"), &md)?;
-    write(
-        a.out.join("speed.json"),
-        &serde_json::to_string_pretty(
-            &serde_json::json!({"command": command, "points": points, "summary": sums}),
-        )?,
-    )?;
-    print!("{md}");
-    Ok(ExitCode::SUCCESS)
+    finish(&a, "speed", &md, &command, &points, &sums)
 }
 
 /// Does the pipeline's own verdict follow the true error? Runs grouped by the level it gave.
@@ -216,6 +208,26 @@ fn confidence_table(points: &[Point]) -> String {
         );
     }
     s + "\n"
+}
+
+/// Writes `NAME.md` and `NAME.json` (command, every run, the summary) and prints the table.
+fn finish(
+    a: &BenchSweepArgs,
+    name: &str,
+    md: &str,
+    command: &str,
+    points: &[Point],
+    sums: &[Summary],
+) -> anyhow::Result<ExitCode> {
+    write(a.out.join(format!("{name}.md")), md)?;
+    write(
+        a.out.join(format!("{name}.json")),
+        &serde_json::to_string_pretty(
+            &serde_json::json!({"command": command, "points": points, "summary": sums}),
+        )?,
+    )?;
+    print!("{md}");
+    Ok(ExitCode::SUCCESS)
 }
 
 fn failures(points: &[Point]) -> String {
@@ -303,13 +315,5 @@ pub fn stability(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
     }
     md += &confidence_table(&points);
     md += &failures(&points);
-    write(a.out.join("stability.md"), &md)?;
-    write(
-        a.out.join("stability.json"),
-        &serde_json::to_string_pretty(
-            &serde_json::json!({"command": command, "points": points, "summary": sums}),
-        )?,
-    )?;
-    print!("{md}");
-    Ok(ExitCode::SUCCESS)
+    finish(&a, "stability", &md, &command, &points, &sums)
 }
