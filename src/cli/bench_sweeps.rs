@@ -275,7 +275,7 @@ pub fn stability(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
     for (n, sweep) in sweeps.iter().enumerate() {
         let rows: Vec<&Summary> = sums.iter().filter(|s| &s.sweep == sweep).collect();
         md += &format!("## {sweep}\n\n");
-        if sweep != "material" {
+        if sweep != "material" && rows.len() > 1 {
             let mean: Vec<(f64, f64)> = rows.iter().map(|s| (s.value, s.mean)).collect();
             let lo: Vec<(f64, f64)> = rows.iter().map(|s| (s.value, s.mean - s.sd)).collect();
             let hi: Vec<(f64, f64)> = rows.iter().map(|s| (s.value, s.mean + s.sd)).collect();

@@ -269,6 +269,15 @@ pub fn stability_settings(base: &Setting, seeds: u64, flat: &[String]) -> Vec<Se
                 s.sfm.noise_rel = n
             });
         }
+        push(
+            "mesh",
+            0.0,
+            "exact (no smoothing, no noise)".to_string(),
+            &|s| {
+                s.sfm.iterations = 0;
+                s.sfm.noise_rel = 0.0;
+            },
+        );
         for it in [0usize, 10, 40] {
             push(
                 "SfM smoothing (Taubin iterations)",
