@@ -15,17 +15,8 @@ use brdf_rig::render::sphere::{Sphere, render_sphere};
 use nalgebra::{Point3, Vector3};
 use std::f64::consts::PI;
 
-/// Lambertian BRDF `albedo / pi`.
-struct Lambert([f64; 3]);
-
-impl Brdf for Lambert {
-    fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return [0.0; 3];
-        }
-        self.0.map(|a| a / PI)
-    }
-}
+/// Lambertian BRDF `albedo / pi` (the simulator's).
+use brdf_rig::sim::render::Lambertian as Lambert;
 
 /// A probe "BRDF" that reports the local cosines it was given, to check the shading frame:
 /// R = cos(theta_o), G = 1, B = |wi x wo| (the sine of the angle between them).

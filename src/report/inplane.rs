@@ -169,16 +169,7 @@ mod tests {
     use crate::brdf::merl::MerlTable;
     use std::f64::consts::PI;
 
-    /// Lambertian: constant albedo / pi above the horizon.
-    struct Lambert([f64; 3]);
-    impl Brdf for Lambert {
-        fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
-            if wi.z <= 0.0 || wo.z <= 0.0 {
-                return [0.0; 3];
-            }
-            self.0.map(|a| a / PI)
-        }
-    }
+    use crate::sim::render::Lambertian as Lambert;
 
     /// A narrow lobe around the half vector: peaks exactly where h = n.
     struct Lobe;
