@@ -73,16 +73,7 @@ fn light_within_half_a_degree_and_irradiance_within_2_percent_over_12_random_dir
     for (k, three) in lights.chunks(3).enumerate() {
         let profile = profile_with_lights(tmp.path(), three);
         let out = tmp.path().join(format!("session{k}"));
-        let o = run(&[
-            "capture",
-            "--profile",
-            s(&profile),
-            "--plan",
-            s(&plan),
-            "--out",
-            s(&out),
-            "--unattended",
-        ]);
+        let o = crate::capture_util::capture_unattended(&profile, &plan, &out);
         assert!(o.status.success(), "{}", text(&o));
         let o = run(&["calibrate", s(&out)]);
         assert!(o.status.success(), "{}", text(&o));

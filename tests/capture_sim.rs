@@ -7,7 +7,7 @@ use brdf_rig::capture::exr::decode_exr;
 use brdf_rig::capture::session::{Manifest, read_journal};
 use brdf_rig::capture::{ShotKind, verify_session};
 
-use crate::capture_util::{fast_profile, run, s, text, tiny_plan};
+use crate::capture_util::{capture_unattended, fast_profile, run, s, text, tiny_plan};
 
 fn mean(img: &brdf_rig::render::image::LinearImage) -> f64 {
     img.data().iter().map(|&v| f64::from(v)).sum::<f64>() / img.data().len() as f64
@@ -19,16 +19,7 @@ fn a_full_simulated_capture_takes_every_planned_shot_of_the_scene() {
     let profile = fast_profile(tmp.path());
     let plan = tiny_plan(tmp.path(), 6);
     let out = tmp.path().join("session");
-    let o = run(&[
-        "capture",
-        "--profile",
-        s(&profile),
-        "--plan",
-        s(&plan),
-        "--out",
-        s(&out),
-        "--unattended",
-    ]);
+    let o = capture_unattended(&profile, &plan, &out);
     assert!(o.status.success(), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("theta_d covered: 10.0 .. 55.0 deg"), "{err}");
@@ -112,16 +103,7 @@ fn verify_catches_a_corrupted_image() {
     let profile = fast_profile(tmp.path());
     let plan = tiny_plan(tmp.path(), 3);
     let out = tmp.path().join("session");
-    let o = run(&[
-        "capture",
-        "--profile",
-        s(&profile),
-        "--plan",
-        s(&plan),
-        "--out",
-        s(&out),
-        "--unattended",
-    ]);
+    let o = capture_unattended(&profile, &plan, &out);
     assert!(o.status.success(), "{}", text(&o));
     let file = out.join("light/v000_ch2_e1.exr");
     let mut bytes = std::fs::read(&file).unwrap();
@@ -151,16 +133,7 @@ fn a_missing_serial_port_is_a_clear_error_before_anything_moves_or_is_written() 
     // a real-rig profile still needs a camera: keep the simulated one, which must then refuse
     std::fs::write(&profile, text_p).unwrap();
     let out = tmp.path().join("session");
-    let o = run(&[
-        "capture",
-        "--profile",
-        s(&profile),
-        "--plan",
-        s(&tiny_plan(tmp.path(), 3)),
-        "--out",
-        s(&out),
-        "--unattended",
-    ]);
+    let o = capture_unattended(&profile, &tiny_plan(tmp.path(), 3), &out);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("/dev/brdf-rig-no-such-port"), "{err}");
@@ -202,16 +175,7 @@ fn the_plan_must_fit_the_rig_and_the_folder_must_be_new() {
         .replace("channels = [0, 1, 2]", "channels = [0, 5]");
     std::fs::write(&plan, t).unwrap();
     let out = tmp.path().join("session");
-    let o = run(&[
-        "capture",
-        "--profile",
-        s(&fast_profile(tmp.path())),
-        "--plan",
-        s(&plan),
-        "--out",
-        s(&out),
-        "--unattended",
-    ]);
+    let o = capture_unattended(&fast_profile(tmp.path()), &plan, &out);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(
         String::from_utf8_lossy(&o.stderr).contains("contains 5, but the light reports 3"),
@@ -221,16 +185,7 @@ fn the_plan_must_fit_the_rig_and_the_folder_must_be_new() {
     assert!(!out.exists());
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
-    let o = run(&[
-        "capture",
-        "--profile",
-        s(&fast_profile(tmp.path())),
-        "--plan",
-        s(&tiny_plan(tmp.path(), 3)),
-        "--out",
-        s(&out),
-        "--unattended",
-    ]);
+    let o = capture_unattended(&fast_profile(tmp.path()), &tiny_plan(tmp.path(), 3), &out);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         String::from_utf8_lossy(&o.stderr).contains("not empty"),

@@ -46,6 +46,20 @@ pub fn brdf_rig(args: &[&str]) -> Command {
     c
 }
 
+/// `brdf-rig capture --profile P --plan PLAN --out OUT --unattended`, run to the end.
+pub fn capture_unattended(profile: &Path, plan: &Path, out: &Path) -> Output {
+    run(&[
+        "capture",
+        "--profile",
+        s(profile),
+        "--plan",
+        s(plan),
+        "--out",
+        s(out),
+        "--unattended",
+    ])
+}
+
 pub fn run(args: &[&str]) -> Output {
     brdf_rig(args).output().unwrap()
 }
