@@ -123,6 +123,13 @@ pub fn cosine_map_weight(s: &ReflectanceSample) -> f64 {
     (s.wi.z * s.wo.z).clamp(super::basis::COS_MAP_MIN, 1.0)
 }
 
+/// The image-space weight `cos theta_i` of an observation: weighting residuals of f_r by it
+/// is least squares on the pixels themselves (radiance `f E cos theta_i`, for a common E),
+/// which is what a user fitting a model to photographs minimises.
+pub fn pixel_weight(s: &ReflectanceSample) -> f64 {
+    s.wi.z.max(0.0)
+}
+
 impl Lambert {
     /// Least squares: `albedo_c = pi mean(r_c)` over the observations above the horizon.
     pub fn fit(samples: &[ReflectanceSample]) -> Result<Self, FitError> {
@@ -149,8 +156,8 @@ impl Lambert {
 }
 
 /// Non-negative weighted least squares for `r = kd/pi + ks lobe` on one channel, minimising
-/// `sum w2 (kd/pi + ks lobe - r)^2`; returns `(kd, ks, that sum)`.
-fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64]) -> (f64, f64, f64) {
+/// `sum w2 (kd/pi + ks lobe - r)^2`; returns `(kd, ks, that sum)`. Without `diffuse`, kd = 0.
+fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64], diffuse: bool) -> (f64, f64, f64) {
     let (mut sw, mut sl, mut sll, mut sr, mut slr) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for ((l, y), w) in lobe.iter().zip(r).zip(w2) {
         sw += w;
@@ -178,10 +185,10 @@ fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64]) -> (f64, f64, f64) {
             }
         }
     };
-    if det.abs() > 1e-300 {
+    if diffuse && det.abs() > 1e-300 {
         consider((sll * sr - sl * slr) / det, (sw * slr - sl * sr) / det);
     }
-    if sw > 0.0 {
+    if diffuse && sw > 0.0 {
         consider(sr / sw, 0.0);
     }
     if sll > 0.0 {
@@ -205,6 +212,24 @@ impl LambertGgx {
         samples: &[ReflectanceSample],
         weight: impl Fn(&ReflectanceSample) -> f64,
     ) -> Result<Self, FitError> {
+        Self::fit_impl(samples, weight, true)
+    }
+
+    /// A specular lobe alone (`kd` = 0), fitted the same way: what a residual peak on top of
+    /// another model needs (the hybrid rung of `reconstruct::ladder`). Residuals may be
+    /// negative; `ks` stays non-negative.
+    pub fn fit_lobe_weighted(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
+        Self::fit_impl(samples, weight, false)
+    }
+
+    fn fit_impl(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+        diffuse: bool,
+    ) -> Result<Self, FitError> {
         let s = usable(samples)?;
         let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
         if !w2.iter().all(|w| w.is_finite()) || w2.iter().sum::<f64>() <= 0.0 {
@@ -224,7 +249,7 @@ impl LambertGgx {
             let mut ks = [0.0; 3];
             let mut total = 0.0;
             for c in 0..3 {
-                let (d, k, e) = solve_linear(&lobe, &channels[c], &w2);
+                let (d, k, e) = solve_linear(&lobe, &channels[c], &w2, diffuse);
                 kd[c] = d;
                 ks[c] = k;
                 total += e;

@@ -474,16 +474,19 @@ impl Basis {
     pub fn synthesize(&self, coeffs: &[Vec<f64>; 3]) -> Vec<[f64; 3]> {
         (0..self.n_rows())
             .into_par_iter()
-            .map(|row| {
-                let mut rgb = [0.0; 3];
-                for (ch, x) in coeffs.iter().enumerate() {
-                    let qr = self.q_row(row, x.len());
-                    let m: f64 = qr.iter().zip(x).map(|(q, c)| f64::from(*q) * c).sum();
-                    rgb[ch] = self.unmap(row, m);
-                }
-                rgb
-            })
+            .map(|row| self.synthesize_row(coeffs, row))
             .collect()
+    }
+
+    /// f_r at one row from per-channel coefficients (what [`Self::synthesize`] gives there).
+    pub fn synthesize_row(&self, coeffs: &[Vec<f64>; 3], row: usize) -> [f64; 3] {
+        let mut rgb = [0.0; 3];
+        for (ch, x) in coeffs.iter().enumerate() {
+            let qr = self.q_row(row, x.len());
+            let m: f64 = qr.iter().zip(x).map(|(q, c)| f64::from(*q) * c).sum();
+            rgb[ch] = self.unmap(row, m);
+        }
+        rgb
     }
 }
 

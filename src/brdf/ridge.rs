@@ -87,6 +87,22 @@ pub fn reconstruct(
     observations: &[Observation],
     settings: &RidgeSettings,
 ) -> Result<Reconstruction, RidgeError> {
+    let coefficients = solve(basis, observations, settings)?;
+    Ok(Reconstruction {
+        grid: basis.grid().clone(),
+        values: basis.synthesize(&coefficients),
+        coefficients,
+    })
+}
+
+/// The ridge coefficients alone (per channel, on the first `min(|S|, k)` components), without
+/// synthesising every row: validation evaluates a fit at a few rows only
+/// (`Basis::synthesize_row`).
+pub fn solve(
+    basis: &Basis,
+    observations: &[Observation],
+    settings: &RidgeSettings,
+) -> Result<[Vec<f64>; 3], RidgeError> {
     if observations.is_empty() {
         return Err(RidgeError::Empty);
     }
@@ -117,11 +133,7 @@ pub fn reconstruct(
         });
         chol.solve(&a.tr_mul(&b)).iter().copied().collect()
     });
-    Ok(Reconstruction {
-        grid: basis.grid().clone(),
-        values: basis.synthesize(&coefficients),
-        coefficients,
-    })
+    Ok(coefficients)
 }
 
 impl Reconstruction {

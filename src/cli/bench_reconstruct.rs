@@ -318,7 +318,10 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             }
         }
         let Some(out) = first else { continue };
-        let (lambert, ggx) = fit_baselines(&out.observed.observations)?;
+        let (lambert, ggx) = fit_baselines(&out.observed.observations);
+        let (Some(lambert), Some(ggx)) = (lambert, ggx) else {
+            anyhow::bail!("{m}: the baselines could not be fitted to the observed pixels");
+        };
         let el = err(&bins, truth, &MerlTable::tabulate(&lambert)).cosine_weighted;
         let eg = err(&bins, truth, &MerlTable::tabulate(&ggx)).cosine_weighted;
         let r = &out.report;

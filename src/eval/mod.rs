@@ -17,7 +17,6 @@
 pub mod accuracy;
 pub mod sweeps;
 
-use crate::brdf::analytic::{Lambert, LambertGgx};
 use crate::brdf::basis::Basis;
 use crate::brdf::coords::MerlBin;
 use crate::brdf::metrics::{ErrorReport, compare_values};
@@ -26,16 +25,21 @@ use crate::brdf::{BinValues, Brdf};
 use crate::geometry::mesh::Mesh;
 use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use crate::reconstruct::core::{CoreError, CoreSettings, reconstruct_observations};
+use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observe::{Observation, ObserveSettings};
 use crate::reconstruct::pipeline::{ReconstructError, Settings, load_scene, observe_scene};
 use crate::reconstruct::synthetic::{SceneSpec, write_scene};
 use crate::reconstruct::{Job, prior::Candidate};
+use crate::render::probe::{
+    ProbeRenders, ProbeSettings, RenderedErrors, SphereProbe, compare as compare_rendered,
+};
 use nalgebra::{Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use std::path::Path;
+use std::sync::OnceLock;
 use std::time::Instant;
 
 /// The paper's six target materials (METHOD.md section 7).
@@ -66,43 +70,75 @@ pub enum EvalError {
     Basis(#[from] crate::brdf::basis_cache::BasisCacheError),
 }
 
-/// The three errors of docs/error-metrics.md, serialisable.
+/// The errors of docs/error-metrics.md, serialisable: rendered (the headline:
+/// `environment`) and tabulated.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Errors {
+    /// Relative L2 error of the sphere rendered under the standard environment
+    /// (`render::probe`): the headline number.
+    pub environment: f64,
+    /// The same under the probe's five novel directional lights.
+    pub lights: f64,
+    /// PSNR of the environment render after the probe's fixed tone map, dB.
+    pub environment_psnr_db: f64,
     pub relative: f64,
     pub cosine_weighted: f64,
     pub near_specular: f64,
     /// `cosine_weighted` over theta_h >= 2 degrees (everything but the peak).
     pub cosine_weighted_off_peak: f64,
+    /// Solid-angle weighted table error (docs/error-metrics.md).
+    pub solid_angle: f64,
+    /// Solid-angle weighted log-space error.
+    pub log: f64,
 }
 
-impl From<ErrorReport> for Errors {
-    fn from(e: ErrorReport) -> Self {
+impl Errors {
+    fn from_parts(e: ErrorReport, r: RenderedErrors) -> Self {
         Self {
+            environment: r.environment,
+            lights: r.lights,
+            environment_psnr_db: r.environment_psnr_db,
             relative: e.relative,
             cosine_weighted: e.cosine_weighted,
             near_specular: e.near_specular,
             cosine_weighted_off_peak: e.cosine_weighted_off_peak,
+            solid_angle: e.solid_angle,
+            log: e.log,
         }
     }
 }
 
-/// The ground truth tabulated at the evaluation bins once, compared with many candidates.
+/// The sphere probe of every evaluation (built once per process: its quadrature does not
+/// depend on the BRDF).
+pub fn probe() -> &'static SphereProbe {
+    static PROBE: OnceLock<SphereProbe> = OnceLock::new();
+    PROBE.get_or_init(|| SphereProbe::standard(ProbeSettings::default()))
+}
+
+/// The ground truth tabulated at the evaluation bins and rendered by the probe once, compared
+/// with many candidates.
 pub struct Truth {
     pub bins: Vec<usize>,
     pub values: Vec<[f64; 3]>,
+    pub renders: ProbeRenders,
 }
 
 impl Truth {
-    /// Every `bin_step`-th MERL bin (the metric skips those below the horizon).
+    /// Every `bin_step`-th MERL bin (the metric skips those below the horizon), and the probe.
     pub fn new(brdf: &dyn BinValues, bin_step: usize) -> Self {
         let bins: Vec<usize> = (0..90 * 90 * 180).step_by(bin_step.max(1)).collect();
         let values = brdf.values_at(&bins);
-        Self { bins, values }
+        Self {
+            bins,
+            values,
+            renders: probe().render(brdf),
+        }
     }
 
     pub fn errors_of(&self, rec: &dyn BinValues) -> Errors {
-        compare_values(&self.bins, &self.values, &rec.values_at(&self.bins)).into()
+        let table = compare_values(&self.bins, &self.values, &rec.values_at(&self.bins));
+        let rendered = compare_rendered(&self.renders, &probe().render(rec));
+        Errors::from_parts(table, rendered)
     }
 
     pub fn errors_of_candidate(&self, c: &dyn Candidate) -> Errors {
@@ -160,14 +196,11 @@ impl BinValues for BrdfValues<'_> {
 /// Lambert and Lambert+GGX fitted by least squares to the same observed pixels the
 /// reconstruction sees; their errors against the truth.
 pub fn baseline_errors(truth: &Truth, obs: &[Observation]) -> (Option<Errors>, Option<Errors>) {
-    let samples = crate::reconstruct::baselines::reflectance_samples(obs);
-    let lambert = Lambert::fit(&samples)
-        .ok()
-        .map(|b| truth.errors_of(&BrdfValues(&b)));
-    let ggx = LambertGgx::fit(&samples)
-        .ok()
-        .map(|b| truth.errors_of(&BrdfValues(&b)));
-    (lambert, ggx)
+    let (lambert, ggx) = crate::reconstruct::baselines::fit_baselines(obs);
+    (
+        lambert.map(|b| truth.errors_of(&BrdfValues(&b))),
+        ggx.map(|b| truth.errors_of(&BrdfValues(&b))),
+    )
 }
 
 /// Loads a neural MERL fit by name from the loaded set.
@@ -301,6 +334,13 @@ pub struct RunResult {
     pub trial_mean: Option<Errors>,
     /// What the pipeline said of its own result (no truth involved).
     pub confidence: crate::reconstruct::confidence::Confidence,
+    /// The model reported, and the ladder that chose it.
+    pub model: crate::reconstruct::core::ModelReport,
+    pub ladder: Option<crate::reconstruct::ladder::Ladder>,
+    pub plausibility: crate::reconstruct::plausible::Plausibility,
+    /// Every other family's final fit against the truth (as fitted), when the settings keep
+    /// them: would another rung have been better?
+    pub alternatives: Vec<(Family, Errors)>,
     pub seconds: f64,
 }
 
@@ -319,15 +359,21 @@ pub fn run_core(
     let t = Instant::now();
     let out = reconstruct_observations(observations, &prior, core, &mut |_| {})?;
     let seconds = t.elapsed().as_secs_f64();
-    let chosen = truth.errors_of_candidate(out.brdf.as_ref());
-    // The chosen trial's candidate was moved into `out.brdf`; the others are still there.
+    // What is written: the chosen model, tabulated and made plausible.
+    let chosen = truth.errors_of(&out.table);
+    // The chosen trial's candidate was moved out (into `out.brdf`, or replaced by the chosen
+    // model); it is scored here as fitted, the other trials too.
+    let chosen_basis = match out.model.family {
+        Family::Basis => Some(truth.errors_of_candidate(out.brdf.as_ref())),
+        _ => None,
+    };
     let trials: Vec<(f64, Option<Errors>)> = out
         .trials
         .iter()
         .enumerate()
         .map(|(i, tr)| {
             let e = if i == out.chosen_trial {
-                Some(chosen)
+                chosen_basis
             } else {
                 tr.candidate
                     .as_ref()
@@ -336,8 +382,11 @@ pub fn run_core(
             (tr.similarity, e)
         })
         .collect();
-    let fitted: Vec<&dyn Candidate> = std::iter::once(out.brdf.as_ref())
-        .chain(out.trials.iter().filter_map(|t| t.candidate.as_deref()))
+    let fitted: Vec<&dyn Candidate> = out
+        .trials
+        .iter()
+        .filter_map(|t| t.candidate.as_deref())
+        .chain((out.model.family == Family::Basis).then_some(out.brdf.as_ref()))
         .collect();
     let trial_mean = (fitted.len() > 1).then(|| truth.errors_of(&MeanOf(&fitted)));
     let pixel_choice = fitted
@@ -354,8 +403,13 @@ pub fn run_core(
     let chosen_rank = 1 + trials
         .iter()
         .filter_map(|(_, e)| e.as_ref())
-        .filter(|e| e.cosine_weighted < chosen.cosine_weighted)
+        .filter(|e| e.environment < chosen.environment)
         .count();
+    let alternatives = out
+        .alternatives
+        .iter()
+        .map(|(f, c)| (*f, truth.errors_of_candidate(c.as_ref())))
+        .collect();
     Ok(RunResult {
         chosen,
         chosen_trial: out.chosen_trial,
@@ -367,6 +421,10 @@ pub fn run_core(
         trial_mean,
         pixel_choice,
         confidence: out.confidence.clone(),
+        model: out.model.clone(),
+        ladder: out.ladder.clone(),
+        plausibility: out.plausibility.clone(),
+        alternatives,
         seconds,
     })
 }

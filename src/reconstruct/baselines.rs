@@ -1,9 +1,10 @@
-//! The baselines a user would otherwise fit to the same pixels: Lambert and Lambert + GGX
-//! least-squares fits (`brdf::analytic`) to every observed pixel's reflectance, in the local
-//! frame of its (rasterised, possibly wrong) normal. Pure.
+//! The baselines a user would otherwise fit to the same pixels: Lambert and Lambert + GGX,
+//! least squares on the pixels themselves (image space: residuals of `f E cos theta_i`, so
+//! `brdf::analytic` weights f_r residuals by `cos theta_i`), to every observed pixel, in the
+//! local frame of its (rasterised, possibly wrong) normal. Pure.
 
 use super::observe::{Observation, to_local};
-use crate::brdf::analytic::{FitError, Lambert, LambertGgx, ReflectanceSample};
+use crate::brdf::analytic::{Lambert, LambertGgx, ReflectanceSample, pixel_weight};
 
 /// The observations as samples for `brdf::analytic` fits.
 pub fn reflectance_samples(obs: &[Observation]) -> Vec<ReflectanceSample> {
@@ -19,8 +20,18 @@ pub fn reflectance_samples(obs: &[Observation]) -> Vec<ReflectanceSample> {
         .collect()
 }
 
-/// Lambert and Lambert + GGX fitted to the observations.
-pub fn fit_baselines(obs: &[Observation]) -> Result<(Lambert, LambertGgx), FitError> {
-    let samples = reflectance_samples(obs);
-    Ok((Lambert::fit(&samples)?, LambertGgx::fit(&samples)?))
+/// Lambert fitted to pixels by image-space least squares; `None` when it cannot be fitted (no
+/// pixel, or non-finite values).
+pub fn fit_lambert(obs: &[Observation]) -> Option<Lambert> {
+    Lambert::fit_weighted(&reflectance_samples(obs), pixel_weight).ok()
+}
+
+/// Lambert + GGX fitted to pixels by image-space least squares.
+pub fn fit_lambert_ggx(obs: &[Observation]) -> Option<LambertGgx> {
+    LambertGgx::fit_weighted(&reflectance_samples(obs), pixel_weight).ok()
+}
+
+/// Both baselines.
+pub fn fit_baselines(obs: &[Observation]) -> (Option<Lambert>, Option<LambertGgx>) {
+    (fit_lambert(obs), fit_lambert_ggx(obs))
 }

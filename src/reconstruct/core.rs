@@ -3,14 +3,32 @@
 //!
 //! Pure: no I/O; the caller supplies the observations and the prior.
 
-use super::components::{ComponentChoice, ComponentSettings, choose_components};
+use super::baselines::{fit_lambert, fit_lambert_ggx};
+use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
 use super::confidence::{Confidence, ConfidenceSettings, assess};
+use super::ladder::{
+    AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, WithPeak, climb, fit_peak,
+    subset,
+};
 use super::observe::Observation;
+use super::plausible::{Plausibility, PlausibleSettings, make_plausible};
 use super::prior::{Candidate, Prior};
 use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
+use crate::brdf::analytic::LambertGgx;
+use crate::brdf::merl::MerlTable;
 use serde::Serialize;
 use std::time::Instant;
+
+/// Which models the reconstruction may report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ModelSelection {
+    /// The ladder chooses by held-out error (`reconstruct::ladder`).
+    Auto,
+    /// This family only (the basis still chooses its k by the ladder's validation).
+    Only(Family),
+}
 
 /// How the reported trial is chosen among the fitted ones.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -39,6 +57,15 @@ pub struct CoreSettings {
     pub confidence: ConfidenceSettings,
     /// How the reported trial is chosen.
     pub choose: TrialChoice,
+    /// The model ladder's held-out scheme and rungs.
+    pub ladder: LadderSettings,
+    /// Which models may be reported.
+    pub model: ModelSelection,
+    /// Shrinkage, non-negativity and albedo of the written table.
+    pub plausible: PlausibleSettings,
+    /// Keep the final fit of every family, not only the chosen one (studies compare them with
+    /// the truth; costs one more analytic peak fit).
+    pub keep_alternatives: bool,
 }
 
 impl Default for CoreSettings {
@@ -51,6 +78,43 @@ impl Default for CoreSettings {
             fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
             confidence: ConfidenceSettings::default(),
             choose: TrialChoice::Similarity,
+            ladder: LadderSettings::default(),
+            model: ModelSelection::Auto,
+            plausible: PlausibleSettings::default(),
+            keep_alternatives: false,
+        }
+    }
+}
+
+/// The model the result comes from.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ModelReport {
+    pub family: Family,
+    /// Basis components and ridge weight (basis and hybrid).
+    pub k: Option<usize>,
+    pub eta: Option<f64>,
+    /// The analytic model or peak, when there is one.
+    pub analytic: Option<AnalyticParams>,
+    /// Why this model (the ladder's reason, or the setting that forced it).
+    pub reason: String,
+}
+
+/// Parameters of a Lambert (+ GGX) model or peak.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AnalyticParams {
+    pub kd: [f64; 3],
+    pub ks: [f64; 3],
+    pub alpha: f64,
+    pub f0: f64,
+}
+
+impl From<LambertGgx> for AnalyticParams {
+    fn from(m: LambertGgx) -> Self {
+        Self {
+            kd: m.kd,
+            ks: m.ks,
+            alpha: m.alpha,
+            f0: m.f0,
         }
     }
 }
@@ -68,7 +132,16 @@ pub enum CoreError {
 
 /// What the core produces.
 pub struct CoreOutput {
+    /// The chosen model as fitted (before the plausibility step).
     pub brdf: Box<dyn Candidate>,
+    /// The result as written: the model tabulated and made plausible.
+    pub table: MerlTable,
+    pub plausibility: Plausibility,
+    pub model: ModelReport,
+    /// The ladder, when it ran (not with a fixed k).
+    pub ladder: Option<Ladder>,
+    /// With `keep_alternatives`: every other family's final fit (as fitted, not made plausible).
+    pub alternatives: Vec<(Family, Box<dyn Candidate>)>,
     pub trials: Vec<Trial>,
     pub chosen_trial: usize,
     pub components: ComponentChoice,
@@ -81,7 +154,7 @@ pub struct CoreOutput {
     pub timings: Vec<(String, f64)>,
 }
 
-/// Reliable pixels, number of components, trials, choice.
+/// Reliable pixels, the model ladder, trials, choice, the plausible table, confidence.
 pub fn reconstruct_observations(
     observations: &[Observation],
     prior: &dyn Prior,
@@ -100,36 +173,73 @@ pub fn reconstruct_observations(
             threshold: reliable.curvature_threshold.unwrap_or(f64::NAN),
         });
     }
+    let used: Vec<&Observation> = reliable
+        .pixels
+        .iter()
+        .chain(reliable.brightest.as_ref())
+        .collect();
+    let used_owned: Vec<Observation> = used.iter().map(|o| **o).collect();
+    let analytic_pixels = subset(
+        &used_owned,
+        settings.ladder.analytic_max_pixels,
+        settings.trials.seed ^ 0xA11A,
+    );
     timings.push(("reliable".to_string(), t.elapsed().as_secs_f64()));
 
+    // The model ladder: every family scored on held-out images (or blocks).
     let t = Instant::now();
-    let components = match settings.fixed_components {
-        Some(k) => ComponentChoice {
-            k: k.min(prior.max_components()).max(1),
-            eta: settings.fixed_eta,
-            curve: Vec::new(),
-            held_out_pixels: 0,
-            samples: 0,
-            note: Some("fixed by the settings".to_string()),
-        },
+    let images = observations.iter().map(|o| o.image + 1).max().unwrap_or(0);
+    let ladder = match settings.fixed_components {
+        Some(_) => None,
         None => {
-            progress("number of components (validation on held-back pixels)");
-            choose_components(
+            progress("model ladder (held-out images or blocks)");
+            let mut ladder_settings = settings.ladder.clone();
+            if let ModelSelection::Only(f) = settings.model {
+                ladder_settings.analytic = false;
+                ladder_settings.hybrid = f == Family::Hybrid;
+            }
+            climb(&LadderInput {
                 prior,
-                &reliable,
-                &settings.reliable,
-                settings.trials.samples,
-                &settings.components,
-                settings.trials.seed,
-            )
+                reliable: &reliable,
+                reliable_settings: &settings.reliable,
+                samples: settings.trials.samples,
+                components: &settings.components,
+                settings: &ladder_settings,
+                images,
+                seed: settings.trials.seed,
+            })
         }
     };
-    timings.push(("components".to_string(), t.elapsed().as_secs_f64()));
+    let components = component_choice(settings, prior, ladder.as_ref(), &reliable);
+    timings.push(("ladder".to_string(), t.elapsed().as_secs_f64()));
 
+    // The family to report.
+    let (family, reason) = match (settings.model, settings.fixed_components, &ladder) {
+        (ModelSelection::Only(f), _, _) => (f, format!("{f} was asked for (--model)")),
+        (_, Some(k), _) => (
+            Family::Basis,
+            format!("the basis with k = {k} was asked for (--components)"),
+        ),
+        (ModelSelection::Auto, None, Some(l)) => (l.chosen().family, l.reason.clone()),
+        (ModelSelection::Auto, None, None) => (
+            Family::Basis,
+            "too few reliable pixels to hold any out: the basis at the fallback k".to_string(),
+        ),
+    };
+    let (k, eta) = match (&ladder, family) {
+        (Some(l), Family::Hybrid) if l.chosen().family == Family::Hybrid => (
+            l.chosen().k.unwrap_or(components.k),
+            l.chosen().eta.unwrap_or(components.eta),
+        ),
+        _ => (components.k, components.eta),
+    };
+
+    // Trials of the basis at (k, eta): the paper's fit and eq. 3, also the confidence's
+    // measure of agreement whatever the family.
     let t = Instant::now();
     progress(&format!(
-        "{} trials ({} samples, k = {}, eta = {})",
-        settings.trials.trials, settings.trials.samples, components.k, components.eta
+        "{} trials ({} samples, k = {k}, eta = {eta})",
+        settings.trials.trials, settings.trials.samples
     ));
     let mut trials = run_trials(
         prior,
@@ -137,8 +247,8 @@ pub fn reconstruct_observations(
         observations,
         &settings.reliable,
         &settings.trials,
-        components.k,
-        components.eta,
+        k,
+        eta,
     );
     let chosen = match settings.choose {
         TrialChoice::Similarity => best_trial(&trials),
@@ -154,11 +264,90 @@ pub fn reconstruct_observations(
             .map(|(i, _)| i),
     }
     .ok_or(CoreError::AllTrialsFailed)?;
-    let brdf = trials[chosen]
+    let basis_fit = trials[chosen]
         .candidate
         .take()
         .ok_or(CoreError::AllTrialsFailed)?;
     timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
+
+    // The reported model, and the analytic prior for regions no pixel saw.
+    let t = Instant::now();
+    progress(&format!("{family}: the final fit and a plausible table"));
+    let lambert_ggx = fit_lambert_ggx(&analytic_pixels);
+    let mut alternatives: Vec<(Family, Box<dyn Candidate>)> = Vec::new();
+    if settings.keep_alternatives {
+        if family != Family::Lambert
+            && let Some(m) = fit_lambert(&analytic_pixels)
+        {
+            alternatives.push((Family::Lambert, Box::new(AnalyticCandidate(m))));
+        }
+        if family != Family::LambertGgx
+            && let Some(m) = lambert_ggx
+        {
+            alternatives.push((Family::LambertGgx, Box::new(AnalyticCandidate(m))));
+        }
+        if family != Family::Hybrid
+            && let Some(peak) = fit_peak(basis_fit.as_ref(), &analytic_pixels)
+        {
+            alternatives.push((
+                Family::Hybrid,
+                Box::new(WithPeak {
+                    base: Box::new(TableCandidate(basis_fit.to_merl_table())),
+                    peak,
+                }),
+            ));
+        }
+    }
+    let basis_alternative = (settings.keep_alternatives && family != Family::Basis)
+        .then(|| TableCandidate(basis_fit.to_merl_table()));
+    let (brdf, analytic): (Box<dyn Candidate>, Option<AnalyticParams>) = match family {
+        Family::Lambert => match fit_lambert(&analytic_pixels) {
+            Some(m) => (
+                Box::new(AnalyticCandidate(m)),
+                Some(AnalyticParams {
+                    kd: m.albedo,
+                    ks: [0.0; 3],
+                    alpha: 0.0,
+                    f0: 0.0,
+                }),
+            ),
+            None => (basis_fit, None),
+        },
+        Family::LambertGgx => match lambert_ggx {
+            Some(m) => (Box::new(AnalyticCandidate(m)), Some(m.into())),
+            None => (basis_fit, None),
+        },
+        Family::Basis => (basis_fit, None),
+        Family::Hybrid => match fit_peak(basis_fit.as_ref(), &analytic_pixels) {
+            Some(peak) => (
+                Box::new(WithPeak {
+                    base: basis_fit,
+                    peak,
+                }),
+                Some(peak.into()),
+            ),
+            None => (basis_fit, None),
+        },
+    };
+    if let Some(b) = basis_alternative {
+        alternatives.push((Family::Basis, Box::new(b)));
+    }
+    let prior_model = match (family, lambert_ggx) {
+        (Family::Basis | Family::Hybrid, Some(m)) => Some(AnalyticCandidate(m)),
+        _ => None,
+    };
+    let (table, plausibility) = make_plausible(
+        brdf.as_ref(),
+        prior_model.as_ref().map(|p| {
+            (
+                p as &dyn Candidate,
+                "Lambert + GGX fitted to the same pixels",
+            )
+        }),
+        &used,
+        &settings.plausible,
+    );
+    timings.push(("plausible".to_string(), t.elapsed().as_secs_f64()));
 
     let t = Instant::now();
     progress("confidence (trial agreement, coverage)");
@@ -166,16 +355,13 @@ pub fn reconstruct_observations(
         .iter()
         .filter_map(|tr| tr.candidate.as_deref())
         .collect();
-    let used: Vec<&Observation> = reliable
-        .pixels
-        .iter()
-        .chain(reliable.brightest.as_ref())
-        .collect();
-    let held_out = components
-        .curve
-        .iter()
-        .find(|p| p.k == components.k && p.eta == components.eta)
-        .and_then(|p| p.error);
+    let held_out = ladder.as_ref().and_then(|l| l.chosen().error).or_else(|| {
+        components
+            .curve
+            .iter()
+            .find(|p| p.k == components.k && p.eta == components.eta)
+            .and_then(|p| p.error)
+    });
     let confidence = assess(
         brdf.as_ref(),
         &others,
@@ -184,17 +370,126 @@ pub fn reconstruct_observations(
         &settings.confidence,
     );
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
+    let model = ModelReport {
+        family,
+        k: matches!(family, Family::Basis | Family::Hybrid).then_some(k),
+        eta: matches!(family, Family::Basis | Family::Hybrid).then_some(eta),
+        analytic,
+        reason,
+    };
     Ok(CoreOutput {
         brdf,
+        table,
+        plausibility,
+        model,
+        ladder,
+        alternatives,
         trials,
         chosen_trial: chosen,
         components,
-        reliable_pixels: reliable.pixels.len() + usize::from(reliable.brightest.is_some()),
+        reliable_pixels: used.len(),
         dropped_by_curvature: reliable.dropped_by_curvature,
         curvature_threshold: reliable.curvature_threshold,
         confidence,
         timings,
     })
+}
+
+/// A tabulated BRDF as a candidate.
+struct TableCandidate(MerlTable);
+
+impl Candidate for TableCandidate {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.0.get(bin).unwrap_or([0.0; 3])
+    }
+
+    fn to_merl_table(&self) -> MerlTable {
+        self.0.clone()
+    }
+}
+
+/// The basis's k and eta: fixed by the settings, the ladder's best basis rung (its curve is the
+/// basis rungs' held-out errors), or the old single-split validation when the ladder could not
+/// run.
+fn component_choice(
+    settings: &CoreSettings,
+    prior: &dyn Prior,
+    ladder: Option<&Ladder>,
+    reliable: &super::reliable::Reliable,
+) -> ComponentChoice {
+    if let Some(k) = settings.fixed_components {
+        return ComponentChoice {
+            k: k.min(prior.max_components()).max(1),
+            eta: settings.fixed_eta,
+            curve: Vec::new(),
+            held_out_pixels: 0,
+            samples: 0,
+            note: Some("fixed by the settings".to_string()),
+        };
+    }
+    let Some(ladder) = ladder else {
+        return choose_components(
+            prior,
+            reliable,
+            &settings.reliable,
+            settings.trials.samples,
+            &settings.components,
+            settings.trials.seed,
+        );
+    };
+    let basis: Vec<&super::ladder::Rung> = ladder
+        .rungs
+        .iter()
+        .filter(|r| r.family == Family::Basis)
+        .collect();
+    let curve: Vec<ValidationPoint> = basis
+        .iter()
+        .filter_map(|r| {
+            Some(ValidationPoint {
+                k: r.k?,
+                eta: r.eta?,
+                error: r.error,
+            })
+        })
+        .collect();
+    // The chosen rung's own (k, eta) when it is a basis rung; else the simplest basis rung
+    // within one standard error of the best basis rung.
+    let pick = if ladder.chosen().family == Family::Basis {
+        Some(ladder.chosen())
+    } else {
+        let best = basis
+            .iter()
+            .filter_map(|r| Some((r, r.error?, r.standard_error.unwrap_or(0.0))))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        best.and_then(|(_, e, se)| {
+            basis
+                .iter()
+                .filter(|r| r.error.is_some_and(|x| x <= e + se))
+                .min_by(|a, b| {
+                    a.parameters
+                        .cmp(&b.parameters)
+                        .then(b.eta.unwrap_or(0.0).total_cmp(&a.eta.unwrap_or(0.0)))
+                })
+                .copied()
+        })
+    };
+    let fallback = settings
+        .components
+        .fallback
+        .min(prior.max_components())
+        .max(1);
+    ComponentChoice {
+        k: pick.and_then(|r| r.k).unwrap_or(fallback),
+        eta: pick
+            .and_then(|r| r.eta)
+            .unwrap_or(settings.components.fallback_eta),
+        note: pick
+            .is_none()
+            .then(|| format!("every basis rung failed on some fold: k = {fallback}")),
+        curve,
+        held_out_pixels: ladder.held_out_pixels,
+        samples: settings.trials.samples,
+    }
 }
 
 #[cfg(test)]

@@ -84,7 +84,35 @@ impl Prior for NielsenPrior<'_> {
     }
 
     fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String> {
-        let obs: Vec<ridge::Observation> = samples
+        let (obs, settings) = self.ridge_input(samples, k, eta);
+        ridge::reconstruct(self.basis, &obs, &settings)
+            .map(|r| Box::new(Fitted(r)) as Box<dyn Candidate>)
+            .map_err(|e| e.to_string())
+    }
+
+    fn fit_lazy<'a>(
+        &'a self,
+        samples: &[Sample],
+        k: usize,
+        eta: f64,
+    ) -> Result<Box<dyn Candidate + 'a>, String> {
+        let (obs, settings) = self.ridge_input(samples, k, eta);
+        let coefficients = ridge::solve(self.basis, &obs, &settings).map_err(|e| e.to_string())?;
+        Ok(Box::new(Lazy {
+            basis: self.basis,
+            coefficients,
+        }))
+    }
+}
+
+impl NielsenPrior<'_> {
+    fn ridge_input(
+        &self,
+        samples: &[Sample],
+        k: usize,
+        eta: f64,
+    ) -> (Vec<ridge::Observation>, RidgeSettings) {
+        let obs = samples
             .iter()
             .filter_map(|s| {
                 self.row_of(s.bin).map(|row| ridge::Observation {
@@ -93,12 +121,26 @@ impl Prior for NielsenPrior<'_> {
                 })
             })
             .collect();
-        let settings = RidgeSettings {
-            n_components: k,
-            eta,
-        };
-        ridge::reconstruct(self.basis, &obs, &settings)
-            .map(|r| Box::new(Fitted(r)) as Box<dyn Candidate>)
-            .map_err(|e| e.to_string())
+        (
+            obs,
+            RidgeSettings {
+                n_components: k,
+                eta,
+            },
+        )
+    }
+}
+
+/// A fit evaluated row by row on demand (validation reads a few hundred bins of it).
+struct Lazy<'a> {
+    basis: &'a Basis,
+    coefficients: [Vec<f64>; 3],
+}
+
+impl Candidate for Lazy<'_> {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.basis.grid().row_of_bin(bin).map_or([0.0; 3], |row| {
+            self.basis.synthesize_row(&self.coefficients, row)
+        })
     }
 }

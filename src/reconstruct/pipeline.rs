@@ -453,10 +453,7 @@ pub fn finish(
         source,
     })?;
     timings.extend(core.timings.iter().cloned());
-    let t = Instant::now();
-    progress("tabulating the MERL table");
-    let table = core.brdf.to_merl_table();
-    timings.push(("tabulate".to_string(), t.elapsed().as_secs_f64()));
+    let table = core.table.clone();
     let report =
         super::output::Report::new(job, settings, basis, &scene, &observed, &core, timings);
     Ok(Output {

@@ -51,6 +51,18 @@ pub trait Prior: Send + Sync {
     /// Fits a BRDF to the samples with the first `min(k, samples)` components and ridge
     /// weight `eta` (a prior without regularisation may ignore it).
     fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String>;
+
+    /// The same fit, for validation: the result is evaluated at a few bins only, so a prior may
+    /// skip tabulating it (the Nielsen prior evaluates rows on demand).
+    fn fit_lazy<'a>(
+        &'a self,
+        samples: &[Sample],
+        k: usize,
+        eta: f64,
+    ) -> Result<Box<dyn Candidate + 'a>, String> {
+        self.fit(samples, k, eta)
+            .map(|c| c as Box<dyn Candidate + 'a>)
+    }
 }
 
 /// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least

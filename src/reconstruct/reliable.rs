@@ -82,19 +82,11 @@ pub struct Reliable {
 /// Applies assumptions 1 and 3 (assumption 2 acts during sample selection: [`MonotonicSet`]).
 pub fn select_reliable(obs: &[Observation], settings: &ReliableSettings) -> Reliable {
     let brightest_idx = if settings.use_brightest {
-        obs.iter()
-            .enumerate()
-            .map(|(i, o)| {
-                let ie = (0..3).map(|c| o.radiance[c] / o.irradiance[c]).sum::<f64>() / 3.0;
-                (i, ie)
-            })
-            .filter(|(_, v)| v.is_finite())
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| i)
+        brightest_index(obs)
     } else {
         None
     };
-    let brightest = brightest_idx.and_then(|i| obs[i].with_normal(obs[i].half()));
+    let brightest = brightest_idx.and_then(|i| as_peak(&obs[i]));
     let threshold = settings
         .use_curvature
         .then(|| match settings.curvature_threshold {
@@ -125,6 +117,25 @@ pub fn select_reliable(obs: &[Observation], settings: &ReliableSettings) -> Reli
         curvature_threshold: threshold,
         dropped_by_curvature: dropped,
     }
+}
+
+/// Index of the pixel with the largest `I / E` (mean over channels), ignoring non-finite ones.
+pub fn brightest_index(obs: &[Observation]) -> Option<usize> {
+    obs.iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let ie = (0..3).map(|c| o.radiance[c] / o.irradiance[c]).sum::<f64>() / 3.0;
+            (i, ie)
+        })
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+/// Eq. 2: the pixel re-observed with its normal set to its half vector (`None` when that puts
+/// a direction below the horizon).
+pub fn as_peak(o: &Observation) -> Option<Observation> {
+    o.with_normal(o.half())
 }
 
 /// The `q` quantile (nearest rank) of |H| over the observations; 0 when there are none.

@@ -5,8 +5,10 @@
 
 pub mod analytic;
 pub mod board;
+pub mod environment;
 pub mod frame;
 pub mod image;
 pub mod light;
+pub mod probe;
 pub mod shade;
 pub mod sphere;

@@ -1,0 +1,809 @@
+//! The model ladder: "model no more than a scene needs". Several model families are fitted to
+//! the same reliable pixels and scored on held-out data in image space; the simplest model whose
+//! held-out error is within one standard error of the best is chosen.
+//!
+//! Rungs, simplest first (parameter count per the whole RGB model):
+//! - **Lambert** (3): image-space least squares (`brdf::analytic`, weight `cos theta_i`);
+//! - **Lambert + GGX** (8): the same, with one GGX lobe and Schlick Fresnel;
+//! - **basis** at each `(k, eta)` of the component grid (3k): the paper's fit, samples chosen
+//!   exactly as a trial chooses them (brightest pixel first, eq. 1, conditioning), ridge on the
+//!   first k components of the Nielsen basis;
+//! - **hybrid** (3k + 5): the best basis rung plus a GGX lobe fitted to what the basis leaves
+//!   of the pixels: the basis carries the broad part, the lobe the peak, and the lobe's width
+//!   is what the pixels show (the true peak blurred by the normals' error).
+//!
+//! Held-out data: the reliable pixels are split into folds by **whole images** when there are at
+//! least `min_images_for_image_folds` images (each image's pixels are held out together: a held
+//! out image is a novel view and light), otherwise by **spatial blocks** of `block_px` pixels
+//! (random pixels would leak their neighbours into the fit). Per fold, every rung is fitted on
+//! the other folds and scored on the held-out one by the relative image-space error
+//! `sqrt(sum (f E cos theta_i - I)^2) / sqrt(sum I^2)` over its pixels and channels (`f` read at
+//! each pixel's MERL bin, as the written table will be). A rung's score is the mean over folds,
+//! with the standard error `sd / sqrt(folds)`.
+//!
+//! Pure: no I/O. Deterministic for a seed.
+
+use super::baselines::{fit_lambert, fit_lambert_ggx};
+use super::components::ComponentSettings;
+use super::observe::Observation;
+use super::prior::{Candidate, Prior};
+use super::reliable::{Reliable, ReliableSettings, as_peak, brightest_index};
+use super::trials::{samples_of, select_pixels};
+use crate::brdf::Brdf;
+use crate::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
+use crate::brdf::coords::MerlBin;
+use crate::brdf::merl::MerlTable;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// A model family of the ladder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Family {
+    Lambert,
+    LambertGgx,
+    Basis,
+    Hybrid,
+}
+
+impl std::fmt::Display for Family {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Family::Lambert => "Lambert",
+            Family::LambertGgx => "Lambert + GGX",
+            Family::Basis => "basis",
+            Family::Hybrid => "basis + GGX peak",
+        })
+    }
+}
+
+/// How the ladder holds out data and which rungs it climbs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LadderSettings {
+    /// Folds of the held-out scheme (capped by the number of images for image folds).
+    pub folds: usize,
+    /// Images needed to hold out whole images; fewer: spatial blocks.
+    pub min_images_for_image_folds: usize,
+    /// Side of a spatial block, pixels; `None`: a tenth of the larger pixel coordinate seen,
+    /// at least 8.
+    pub block_px: Option<usize>,
+    /// The analytic rungs fit at most this many pixels (a seeded subset; the fit has only 8
+    /// parameters, and its cost grows with the pixels).
+    pub analytic_max_pixels: usize,
+    /// Climb the analytic rungs (Lambert, Lambert + GGX).
+    pub analytic: bool,
+    /// Climb the hybrid rung.
+    pub hybrid: bool,
+}
+
+impl Default for LadderSettings {
+    fn default() -> Self {
+        Self {
+            folds: 5,
+            min_images_for_image_folds: 3,
+            block_px: None,
+            analytic_max_pixels: 20_000,
+            analytic: true,
+            hybrid: true,
+        }
+    }
+}
+
+/// How the pixels were split.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum FoldScheme {
+    /// Whole images held out together.
+    Images { folds: usize },
+    /// Square blocks of `block_px` pixels, each held out together.
+    Blocks { folds: usize, block_px: usize },
+}
+
+impl FoldScheme {
+    pub fn folds(&self) -> usize {
+        match *self {
+            FoldScheme::Images { folds } | FoldScheme::Blocks { folds, .. } => folds,
+        }
+    }
+}
+
+/// One rung's held-out score.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Rung {
+    pub family: Family,
+    /// Basis components (basis and hybrid rungs).
+    pub k: Option<usize>,
+    /// Ridge weight (basis and hybrid rungs).
+    pub eta: Option<f64>,
+    /// Free parameters of the RGB model (the ladder's measure of simplicity).
+    pub parameters: usize,
+    /// Held-out error of each fold that held pixels; `None` where the fit failed.
+    pub fold_errors: Vec<Option<f64>>,
+    /// Mean of the fold errors; `None` when no fold scored.
+    pub error: Option<f64>,
+    /// Standard error of that mean.
+    pub standard_error: Option<f64>,
+    /// Per light image (job order): the error on its pixels while its fold was held out.
+    pub image_errors: Vec<Option<f64>>,
+}
+
+impl Rung {
+    fn label(&self) -> String {
+        match (self.k, self.eta) {
+            (Some(k), Some(eta)) => format!("{} (k = {k}, eta = {eta})", self.family),
+            _ => self.family.to_string(),
+        }
+    }
+}
+
+/// The ladder's outcome.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Ladder {
+    pub scheme: FoldScheme,
+    pub held_out_pixels: usize,
+    pub rungs: Vec<Rung>,
+    /// Index of the chosen rung in `rungs`.
+    pub chosen: usize,
+    /// Why (one sentence).
+    pub reason: String,
+}
+
+impl Ladder {
+    pub fn chosen(&self) -> &Rung {
+        &self.rungs[self.chosen]
+    }
+}
+
+/// An analytic BRDF as a candidate: evaluated at bin centres, as its MERL table will be.
+pub struct AnalyticCandidate<B>(pub B);
+
+impl<B: Brdf> Candidate for AnalyticCandidate<B> {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        match MerlBin::from_index(bin) {
+            Some(b) => {
+                let (wi, wo) = b.centre().to_directions();
+                if wi.z > 0.0 && wo.z > 0.0 {
+                    self.0.eval_local(&wi, &wo)
+                } else {
+                    [0.0; 3]
+                }
+            }
+            None => [0.0; 3],
+        }
+    }
+
+    fn to_merl_table(&self) -> MerlTable {
+        MerlTable::tabulate(&self.0)
+    }
+}
+
+/// A basis fit plus a GGX peak (the hybrid rung).
+pub struct WithPeak<'a> {
+    pub base: Box<dyn Candidate + 'a>,
+    pub peak: LambertGgx,
+}
+
+impl Candidate for WithPeak<'_> {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        let a = self.base.eval_bin(bin);
+        let b = AnalyticCandidate(self.peak).eval_bin(bin);
+        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+    }
+}
+
+/// Squared image-space residual and signal of a candidate over observations:
+/// `(sum (f E cos_i - I)^2, sum I^2)` over pixels and channels.
+pub fn image_residual(c: &dyn Candidate, obs: &[Observation]) -> (f64, f64) {
+    let (mut num, mut den) = (0.0, 0.0);
+    for o in obs {
+        let f = c.eval_bin(o.bin);
+        for ch in 0..3 {
+            let rendered = f[ch] * o.irradiance[ch] * o.cos_theta_i;
+            let d = if rendered.is_finite() {
+                rendered - o.radiance[ch]
+            } else {
+                o.radiance[ch]
+            };
+            num += d * d;
+            den += o.radiance[ch] * o.radiance[ch];
+        }
+    }
+    (num, den)
+}
+
+/// Relative image-space error of a candidate over observations (see the module header).
+pub fn image_error(c: &dyn Candidate, obs: &[Observation]) -> f64 {
+    let (num, den) = image_residual(c, obs);
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
+/// A seeded subset of at most `max` observations (all of them when fewer).
+pub fn subset(obs: &[Observation], max: usize, seed: u64) -> Vec<Observation> {
+    if obs.len() <= max {
+        return obs.to_vec();
+    }
+    let mut v = obs.to_vec();
+    v.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
+    v.truncate(max);
+    v
+}
+
+/// A GGX peak fitted to what `base` leaves of the pixels.
+pub fn fit_peak(base: &dyn Candidate, obs: &[Observation]) -> Option<LambertGgx> {
+    let samples: Vec<ReflectanceSample> = super::baselines::reflectance_samples(obs)
+        .into_iter()
+        .zip(obs)
+        .map(|(mut s, o)| {
+            let f = base.eval_bin(o.bin);
+            s.rgb = [0, 1, 2].map(|c| s.rgb[c] - f[c]);
+            s
+        })
+        .collect();
+    LambertGgx::fit_lobe_weighted(&samples, pixel_weight).ok()
+}
+
+/// The split of the pixels into folds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Folds {
+    pub scheme: FoldScheme,
+    /// The distinct images, sorted (image folds rank images in this order).
+    images: Vec<usize>,
+    /// Block folds: the distinct blocks, sorted, with their fold.
+    blocks: Vec<(u64, usize)>,
+}
+
+impl Folds {
+    /// Chooses the scheme for these observations (see the module header). Blocks are dealt to
+    /// the folds in a seeded random order, round robin, so the folds are balanced.
+    pub fn new(obs: &[Observation], settings: &LadderSettings) -> Self {
+        let mut images: Vec<usize> = obs.iter().map(|o| o.image).collect();
+        images.sort_unstable();
+        images.dedup();
+        let want = settings.folds.max(2);
+        if images.len() >= settings.min_images_for_image_folds.max(2) {
+            return Self {
+                scheme: FoldScheme::Images {
+                    folds: want.min(images.len()),
+                },
+                images,
+                blocks: Vec::new(),
+            };
+        }
+        let extent = obs.iter().map(|o| o.x.max(o.y)).max().unwrap_or(0) as usize + 1;
+        let block_px = settings.block_px.unwrap_or((extent / 10).max(8)).max(1);
+        let mut keys: Vec<u64> = obs.iter().map(|o| block_key(o, block_px)).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        let folds = want.min(keys.len()).max(1);
+        let mut order = keys.clone();
+        order.shuffle(&mut ChaCha8Rng::seed_from_u64(0xB10C));
+        let mut blocks: Vec<(u64, usize)> = order
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| (k, i % folds))
+            .collect();
+        blocks.sort_unstable();
+        Self {
+            scheme: FoldScheme::Blocks { folds, block_px },
+            images,
+            blocks,
+        }
+    }
+
+    /// The fold of a pixel (by its image and position only).
+    pub fn fold_of(&self, o: &Observation) -> usize {
+        match self.scheme {
+            FoldScheme::Images { folds } => {
+                self.images.binary_search(&o.image).unwrap_or(o.image) % folds
+            }
+            FoldScheme::Blocks { folds, block_px } => {
+                let key = block_key(o, block_px);
+                match self.blocks.binary_search_by_key(&key, |b| b.0) {
+                    Ok(i) => self.blocks[i].1,
+                    Err(_) => (key % folds as u64) as usize,
+                }
+            }
+        }
+    }
+}
+
+fn block_key(o: &Observation, block_px: usize) -> u64 {
+    (o.image as u64) << 40
+        | ((o.x as usize / block_px) as u64) << 20
+        | (o.y as usize / block_px) as u64
+}
+
+/// One rung's key before scoring.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RungKey {
+    family: Family,
+    k: Option<usize>,
+    eta: Option<f64>,
+}
+
+/// Per fold and rung: the held-out residual, and per image.
+struct FoldScore {
+    /// The fold held no pixel (it does not count).
+    empty: bool,
+    residual: Option<(f64, f64)>,
+    per_image: Vec<(usize, f64, f64)>,
+}
+
+fn score(c: &dyn Candidate, held: &[Observation]) -> FoldScore {
+    let mut per_image: Vec<(usize, f64, f64)> = Vec::new();
+    let (mut num, mut den) = (0.0, 0.0);
+    for o in held {
+        let (n, d) = image_residual(c, std::slice::from_ref(o));
+        num += n;
+        den += d;
+        match per_image.iter_mut().find(|p| p.0 == o.image) {
+            Some(p) => {
+                p.1 += n;
+                p.2 += d;
+            }
+            None => per_image.push((o.image, n, d)),
+        }
+    }
+    FoldScore {
+        empty: held.is_empty(),
+        residual: (den > 0.0 && num.is_finite()).then_some((num, den)),
+        per_image,
+    }
+}
+
+fn failed() -> FoldScore {
+    FoldScore {
+        empty: false,
+        residual: None,
+        per_image: Vec::new(),
+    }
+}
+
+fn empty() -> FoldScore {
+    FoldScore {
+        empty: true,
+        residual: None,
+        per_image: Vec::new(),
+    }
+}
+
+/// Everything a fold's fits need.
+struct FoldData {
+    train: Vec<Observation>,
+    held: Vec<Observation>,
+    anchor: Option<Observation>,
+}
+
+fn fold_data(
+    pool: &[Observation],
+    fold_of: &[usize],
+    fold: usize,
+    brightest: Option<&Observation>,
+    brightest_fold: Option<usize>,
+    use_brightest: bool,
+) -> FoldData {
+    let mut train = Vec::new();
+    let mut held = Vec::new();
+    for (o, &f) in pool.iter().zip(fold_of) {
+        if f == fold {
+            held.push(*o);
+        } else {
+            train.push(*o);
+        }
+    }
+    let anchor = match (brightest, brightest_fold) {
+        (Some(b), Some(bf)) if bf != fold => Some(*b),
+        _ if use_brightest => brightest_index(&train).and_then(|i| {
+            let peak = as_peak(&train[i]);
+            train.remove(i);
+            peak
+        }),
+        _ => None,
+    };
+    FoldData {
+        train,
+        held,
+        anchor,
+    }
+}
+
+/// Inputs of [`climb`].
+pub struct LadderInput<'a> {
+    pub prior: &'a dyn Prior,
+    pub reliable: &'a Reliable,
+    pub reliable_settings: &'a ReliableSettings,
+    /// Sample pixels per basis fit (as a trial).
+    pub samples: usize,
+    pub components: &'a ComponentSettings,
+    pub settings: &'a LadderSettings,
+    pub images: usize,
+    pub seed: u64,
+}
+
+/// Scores every rung on held-out folds and chooses one (see the module header). `None` when
+/// there are too few reliable pixels to hold any out.
+pub fn climb(input: &LadderInput) -> Option<Ladder> {
+    let LadderInput {
+        prior,
+        reliable,
+        reliable_settings,
+        samples,
+        components,
+        settings,
+        images,
+        seed,
+    } = *input;
+    // Held-out folds by image or block; the brightest pixel belongs to the fold of its pixel
+    // (eq. 2 moved its normal, not its pixel).
+    let pool = &reliable.pixels;
+    let split = Folds::new(pool, settings);
+    let scheme = split.scheme;
+    let folds = scheme.folds();
+    if pool.len() < 10 * folds {
+        return None;
+    }
+    let fold_of: Vec<usize> = pool.iter().map(|o| split.fold_of(o)).collect();
+    let brightest_fold = reliable.brightest.as_ref().map(|b| split.fold_of(b));
+    let max_k = prior.max_components();
+    let fallback = components.fallback.min(max_k).max(1);
+    let mut etas = components.etas.clone();
+    if etas.is_empty() {
+        etas.push(components.fallback_eta);
+    }
+    etas.sort_by(|a, b| b.total_cmp(a));
+
+    let mut keys: Vec<RungKey> = Vec::new();
+    if settings.analytic {
+        keys.push(RungKey {
+            family: Family::Lambert,
+            k: None,
+            eta: None,
+        });
+        keys.push(RungKey {
+            family: Family::LambertGgx,
+            k: None,
+            eta: None,
+        });
+    }
+    let mut ks: Vec<usize> = components
+        .grid
+        .iter()
+        .map(|&k| k.min(samples).min(max_k))
+        .filter(|&k| k > 0)
+        .collect();
+    ks.sort_unstable();
+    ks.dedup();
+    for &k in &ks {
+        for &eta in &etas {
+            keys.push(RungKey {
+                family: Family::Basis,
+                k: Some(k),
+                eta: Some(eta),
+            });
+        }
+    }
+
+    let per_fold: Vec<Vec<FoldScore>> = (0..folds)
+        .into_par_iter()
+        .map(|fold| {
+            let data = fold_data(
+                pool,
+                &fold_of,
+                fold,
+                reliable.brightest.as_ref(),
+                brightest_fold,
+                reliable_settings.use_brightest,
+            );
+            if data.held.is_empty() {
+                return keys.iter().map(|_| empty()).collect();
+            }
+            if data.train.len() < 5 {
+                return keys.iter().map(|_| failed()).collect();
+            }
+            let analytic_train = subset(
+                &data.train,
+                settings.analytic_max_pixels,
+                seed ^ fold as u64,
+            );
+            let sel = select_pixels(
+                prior,
+                &data.train,
+                data.anchor.as_ref(),
+                reliable_settings,
+                samples,
+                fallback,
+                seed.wrapping_add(fold as u64),
+            );
+            let fit_samples = samples_of(&sel.pixels);
+            keys.iter()
+                .map(|key| match key.family {
+                    Family::Lambert => fit_lambert(&analytic_train)
+                        .map_or_else(failed, |m| score(&AnalyticCandidate(m), &data.held)),
+                    Family::LambertGgx => fit_lambert_ggx(&analytic_train)
+                        .map_or_else(failed, |m| score(&AnalyticCandidate(m), &data.held)),
+                    Family::Basis | Family::Hybrid => {
+                        let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
+                        prior
+                            .fit_lazy(&fit_samples, k, eta)
+                            .map_or_else(|_| failed(), |c| score(c.as_ref(), &data.held))
+                    }
+                })
+                .collect()
+        })
+        .collect();
+
+    let mut rungs: Vec<Rung> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, key)| rung_of(key, per_fold.iter().map(|f| &f[i]), images))
+        .collect();
+
+    // The hybrid: the best basis rung plus a peak fitted to its residual, per fold.
+    if settings.hybrid
+        && let Some(best_basis) = rungs
+            .iter()
+            .filter(|r| r.family == Family::Basis)
+            .filter_map(|r| r.error.map(|e| (r.k, r.eta, e)))
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+    {
+        let key = RungKey {
+            family: Family::Hybrid,
+            k: best_basis.0,
+            eta: best_basis.1,
+        };
+        let scores: Vec<FoldScore> = (0..folds)
+            .into_par_iter()
+            .map(|fold| {
+                let data = fold_data(
+                    pool,
+                    &fold_of,
+                    fold,
+                    reliable.brightest.as_ref(),
+                    brightest_fold,
+                    reliable_settings.use_brightest,
+                );
+                if data.held.is_empty() {
+                    return empty();
+                }
+                if data.train.len() < 5 {
+                    return failed();
+                }
+                let sel = select_pixels(
+                    prior,
+                    &data.train,
+                    data.anchor.as_ref(),
+                    reliable_settings,
+                    samples,
+                    fallback,
+                    seed.wrapping_add(fold as u64),
+                );
+                let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
+                let Ok(base) = prior.fit_lazy(&samples_of(&sel.pixels), k, eta) else {
+                    return failed();
+                };
+                let peak_train = subset(
+                    &data.train,
+                    settings.analytic_max_pixels,
+                    seed ^ fold as u64,
+                );
+                match fit_peak(base.as_ref(), &peak_train) {
+                    Some(peak) => score(&WithPeak { base, peak }, &data.held),
+                    None => failed(),
+                }
+            })
+            .collect();
+        rungs.push(rung_of(&key, scores.iter(), images));
+    }
+    let (chosen, reason) = choose(&rungs)?;
+    Some(Ladder {
+        scheme,
+        held_out_pixels: pool.len(),
+        rungs,
+        chosen,
+        reason,
+    })
+}
+
+fn parameters(key: &RungKey) -> usize {
+    match key.family {
+        Family::Lambert => 3,
+        Family::LambertGgx => 8,
+        Family::Basis => 3 * key.k.unwrap_or(0),
+        Family::Hybrid => 3 * key.k.unwrap_or(0) + 5,
+    }
+}
+
+fn rung_of<'a>(key: &RungKey, scores: impl Iterator<Item = &'a FoldScore>, images: usize) -> Rung {
+    let mut fold_errors = Vec::new();
+    let mut per_image = vec![(0.0, 0.0); images];
+    for s in scores {
+        if s.empty {
+            continue;
+        }
+        fold_errors.push(s.residual.map(|(n, d)| (n / d).sqrt()));
+        for &(img, n, d) in &s.per_image {
+            if let Some(p) = per_image.get_mut(img) {
+                p.0 += n;
+                p.1 += d;
+            }
+        }
+    }
+    let ok: Vec<f64> = fold_errors.iter().flatten().copied().collect();
+    // A rung that failed on some fold is not comparable with one scored on all of them.
+    let complete = ok.len() == fold_errors.len() && !ok.is_empty();
+    let (error, standard_error) = if complete {
+        let n = ok.len() as f64;
+        let m = ok.iter().sum::<f64>() / n;
+        let sd = if ok.len() > 1 {
+            (ok.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        };
+        (Some(m), Some(sd / n.sqrt()))
+    } else {
+        (None, None)
+    };
+    Rung {
+        family: key.family,
+        k: key.k,
+        eta: key.eta,
+        parameters: parameters(key),
+        fold_errors,
+        error,
+        standard_error,
+        image_errors: per_image
+            .iter()
+            .map(|&(n, d)| (d > 0.0).then(|| (n / d).sqrt()))
+            .collect(),
+    }
+}
+
+/// The simplest rung within one standard error of the best (fewest parameters; among equals,
+/// the most regularised), and why.
+fn choose(rungs: &[Rung]) -> Option<(usize, String)> {
+    let (best, best_err, best_se) = rungs
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| Some((i, r.error?, r.standard_error.unwrap_or(0.0))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let limit = best_err + best_se;
+    let chosen = rungs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.error.is_some_and(|e| e <= limit))
+        .min_by(|a, b| {
+            a.1.parameters
+                .cmp(&b.1.parameters)
+                .then(b.1.eta.unwrap_or(0.0).total_cmp(&a.1.eta.unwrap_or(0.0)))
+        })
+        .map(|(i, _)| i)
+        .unwrap_or(best);
+    let reason = if chosen == best {
+        format!(
+            "{}: the lowest held-out error ({best_err:.4} +- {best_se:.4}); no simpler model is within one standard error",
+            rungs[best].label()
+        )
+    } else {
+        format!(
+            "{}: held-out error {:.4}, within one standard error of the best, {} ({best_err:.4} +- {best_se:.4}), with fewer parameters ({} against {})",
+            rungs[chosen].label(),
+            rungs[chosen].error.unwrap_or(f64::NAN),
+            rungs[best].label(),
+            rungs[chosen].parameters,
+            rungs[best].parameters
+        )
+    };
+    Some((chosen, reason))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::prior::synthetic::{CosinePrior, cap_pixels, phi};
+    use super::*;
+    use crate::reconstruct::reliable::select_reliable;
+
+    /// Pixels from `truth(bin)`, spread over `images` images.
+    fn scene(truth: impl Fn(usize) -> f64, images: usize) -> Vec<Observation> {
+        let mut obs = cap_pixels(truth, 600, [1.0, 0.7, 0.5]);
+        for (i, o) in obs.iter_mut().enumerate() {
+            o.image = i % images;
+            o.x = (i / images) as u32 % 40;
+            o.y = (i / images) as u32 / 40;
+        }
+        obs
+    }
+
+    fn run(obs: &[Observation], images: usize) -> Ladder {
+        let rs = ReliableSettings::none();
+        let reliable = select_reliable(obs, &rs);
+        let components = ComponentSettings {
+            grid: vec![1, 2, 4, 6],
+            etas: vec![1e-6],
+            ..Default::default()
+        };
+        climb(&LadderInput {
+            prior: &CosinePrior { k: 6 },
+            reliable: &reliable,
+            reliable_settings: &rs,
+            samples: 40,
+            components: &components,
+            settings: &LadderSettings {
+                hybrid: false,
+                ..Default::default()
+            },
+            images,
+            seed: 3,
+        })
+        .expect("a ladder")
+    }
+
+    #[test]
+    fn a_constant_brdf_chooses_lambert() {
+        let obs = scene(|_| 0.2, 6);
+        let ladder = run(&obs, 6);
+        assert_eq!(ladder.scheme, FoldScheme::Images { folds: 5 });
+        assert_eq!(ladder.chosen().family, Family::Lambert, "{ladder:#?}");
+        assert!(ladder.chosen().error.unwrap() < 1e-9);
+        // Every image got a held-out error.
+        assert!(ladder.chosen().image_errors.iter().all(|e| e.is_some()));
+    }
+
+    #[test]
+    fn structure_beyond_the_analytic_models_chooses_the_basis_at_the_smallest_sufficient_k() {
+        // Not a Lambert + GGX shape: a ripple in theta_h that the cosine prior's 4 functions span.
+        let truth = |b: usize| 1.0 + 0.6 * phi(2, b) - 0.4 * phi(3, b);
+        let obs = scene(truth, 6);
+        let ladder = run(&obs, 6);
+        let chosen = ladder.chosen();
+        assert_eq!(chosen.family, Family::Basis, "{ladder:#?}");
+        assert_eq!(chosen.k, Some(4), "{ladder:#?}");
+        let lambert = &ladder.rungs[0];
+        assert!(lambert.error.unwrap() > 10.0 * chosen.error.unwrap().max(1e-6));
+    }
+
+    #[test]
+    fn one_image_holds_out_spatial_blocks() {
+        let obs = scene(|_| 0.2, 1);
+        let ladder = run(&obs, 1);
+        assert!(matches!(ladder.scheme, FoldScheme::Blocks { folds: 5, .. }));
+        // Blocks, not pixels: neighbours share a fold.
+        let split = Folds::new(&obs, &LadderSettings::default());
+        let a = obs.iter().find(|o| o.x == 0 && o.y == 0).unwrap();
+        let b = obs.iter().find(|o| o.x == 1 && o.y == 0).unwrap();
+        assert_eq!(split.fold_of(a), split.fold_of(b));
+    }
+
+    #[test]
+    fn choose_prefers_the_simplest_within_one_standard_error() {
+        let rung = |family, parameters, error: f64, se: f64| Rung {
+            family,
+            k: None,
+            eta: None,
+            parameters,
+            fold_errors: vec![],
+            error: Some(error),
+            standard_error: Some(se),
+            image_errors: vec![],
+        };
+        let rungs = vec![
+            rung(Family::Lambert, 3, 0.30, 0.01),
+            rung(Family::LambertGgx, 8, 0.205, 0.01),
+            rung(Family::Basis, 30, 0.20, 0.01),
+        ];
+        let (i, reason) = choose(&rungs).unwrap();
+        assert_eq!(i, 1, "{reason}");
+        assert!(reason.contains("within one standard error"), "{reason}");
+        let rungs = vec![
+            rung(Family::Lambert, 3, 0.30, 0.01),
+            rung(Family::Basis, 30, 0.10, 0.01),
+        ];
+        assert_eq!(choose(&rungs).unwrap().0, 1);
+    }
+}
