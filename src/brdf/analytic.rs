@@ -12,8 +12,9 @@
 //! Fits minimise the sum of squared differences in f_r over all observations and channels,
 //! optionally weighted per observation (e.g. by the cosine map, to fit what images see).
 //! Lambert: `kd_c = pi mean(r_c)`, closed form. Lambert + GGX: `kd` and `ks` are linear and
-//! solved in closed form (non-negative) for each `(alpha, F0)`; those two are found by a grid
-//! search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
+//! solved in closed form for each `(alpha, F0)`, bounded to `[0, 1]` per channel
+//! ([`MAX_WEIGHT`]: a physical albedo, and what a material editor allows); those two are found
+//! by a grid search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
 //! Pure: no files; must not depend on the network, the basis (beyond its cosine-map floor, so
 //! the weighted fit and the cosine-weighted error agree) or any I/O.
 
@@ -155,45 +156,64 @@ impl Lambert {
     }
 }
 
-/// Non-negative weighted least squares for `r = kd/pi + ks lobe` on one channel, minimising
-/// `sum w2 (kd/pi + ks lobe - r)^2`; returns `(kd, ks, that sum)`. Without `diffuse`, kd = 0.
+/// The largest diffuse albedo `kd` and specular weight `ks` a fit may take, per channel: a
+/// physical albedo is at most 1 (and a material editor bounds both the same way), so a few
+/// bright pixels cannot drive an unbounded lobe.
+pub const MAX_WEIGHT: f64 = 1.0;
+
+/// Box-constrained weighted least squares for `r = kd/pi + ks lobe` on one channel, minimising
+/// `sum w2 (kd/pi + ks lobe - r)^2` with `kd, ks` in `[0, MAX_WEIGHT]`; returns
+/// `(kd, ks, that sum)`. Without `diffuse`, kd = 0.
 fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64], diffuse: bool) -> (f64, f64, f64) {
-    let (mut sw, mut sl, mut sll, mut sr, mut slr) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sw, mut sl, mut sll, mut sr, mut slr, mut srr) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for ((l, y), w) in lobe.iter().zip(r).zip(w2) {
         sw += w;
         sl += w * l;
         sll += w * l * l;
         sr += w * y;
         slr += w * l * y;
+        srr += w * y * y;
     }
+    // The sum of squares as a quadratic in (a = kd/pi, ks).
     let ssr = |a: f64, ks: f64| -> f64 {
-        lobe.iter()
-            .zip(r)
-            .zip(w2)
-            .map(|((l, y), w)| w * (a + ks * l - y).powi(2))
-            .sum()
+        (a * a * sw + ks * ks * sll + srr + 2.0 * a * ks * sl - 2.0 * a * sr - 2.0 * ks * slr)
+            .max(0.0)
     };
-    // Normal equations in (a = kd/pi, ks): [sw sl; sl sll] [a ks] = [sr slr]; candidates on
-    // the boundary of the non-negative quadrant when the free solution leaves it.
-    let det = sw * sll - sl * sl;
-    let mut best = (0.0, 0.0, ssr(0.0, 0.0));
-    let mut consider = |a: f64, ks: f64| {
-        if a >= 0.0 && ks >= 0.0 {
-            let e = ssr(a, ks);
-            if e < best.2 {
-                best = (a, ks, e);
-            }
+    let a_max = if diffuse { MAX_WEIGHT / PI } else { 0.0 };
+    let ks_of = |a: f64| {
+        if sll > 0.0 {
+            ((slr - a * sl) / sll).clamp(0.0, MAX_WEIGHT)
+        } else {
+            0.0
         }
     };
-    if diffuse && det.abs() > 1e-300 {
-        consider((sll * sr - sl * slr) / det, (sw * slr - sl * sr) / det);
+    let a_of = |ks: f64| {
+        if sw > 0.0 {
+            ((sr - ks * sl) / sw).clamp(0.0, a_max)
+        } else {
+            0.0
+        }
+    };
+    // A convex quadratic on a box: the minimum is the free one if inside, else on an edge,
+    // where the other variable is the clamped 1-D minimiser.
+    let mut cands = vec![(0.0, ks_of(0.0)), (a_max, ks_of(a_max))];
+    if diffuse {
+        cands.push((a_of(0.0), 0.0));
+        cands.push((a_of(MAX_WEIGHT), MAX_WEIGHT));
+        let det = sw * sll - sl * sl;
+        if det.abs() > 1e-300 {
+            let a = (sll * sr - sl * slr) / det;
+            let ks = (sw * slr - sl * sr) / det;
+            if (0.0..=a_max).contains(&a) && (0.0..=MAX_WEIGHT).contains(&ks) {
+                cands.push((a, ks));
+            }
+        }
     }
-    if diffuse && sw > 0.0 {
-        consider(sr / sw, 0.0);
-    }
-    if sll > 0.0 {
-        consider(0.0, slr / sll);
-    }
+    let best = cands
+        .into_iter()
+        .map(|(a, ks)| (a, ks, ssr(a, ks)))
+        .min_by(|x, y| x.2.total_cmp(&y.2))
+        .unwrap_or((0.0, 0.0, ssr(0.0, 0.0)));
     (best.0 * PI, best.1, best.2)
 }
 

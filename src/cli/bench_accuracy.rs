@@ -10,7 +10,7 @@ use clap::Args;
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::{basis_cache, nbrdf};
 use brdf_rig::eval::PAPER_MATERIALS;
-use brdf_rig::eval::accuracy::{self, AccuracySpec, Variant};
+use brdf_rig::eval::accuracy::{self, AccuracySpec, Rig, Variant};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::reconstruct::core::CoreSettings;
@@ -67,6 +67,13 @@ pub struct BenchAccuracyArgs {
     /// Run only "all three assumptions" (no ablation).
     #[arg(long)]
     pub no_ablation: bool,
+    /// Light rigs: `spread` (light-view angle over 10-150 degrees, many theta_d) and
+    /// `one-light` (one light fixed beside the camera, one theta_d).
+    #[arg(long, value_delimiter = ',', default_value = "spread,one-light")]
+    pub rigs: Vec<String>,
+    /// The one-light rig's angle between the light and the optical axis, degrees.
+    #[arg(long, default_value_t = 30.0)]
+    pub one_light_deg: f64,
     /// Output folder for accuracy.md and accuracy.json.
     #[arg(long, default_value = "docs/eval")]
     pub out: PathBuf,
@@ -220,6 +227,20 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
             bail!("--materials: {m:?} is not among the neural MERL fits");
         }
     }
+    if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
+        bail!("--one-light-deg must be in (0, 90) degrees, got {}", a.one_light_deg);
+    }
+    let rigs = a
+        .rigs
+        .iter()
+        .map(|r| match r.as_str() {
+            "spread" => Ok(Rig::Spread),
+            "one-light" => Ok(Rig::OneLight {
+                alpha_deg: a.one_light_deg,
+            }),
+            other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let variants = if a.no_ablation {
         vec![Variant::ALL]
     } else {
@@ -246,6 +267,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         variants,
         bin_step: a.common.bin_step,
         seeds: a.seeds.max(1),
+        rigs,
     };
     let mut command = format!(
         "cargo run --release -- bench accuracy --materials {} {}",
@@ -258,6 +280,11 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
     if a.no_ablation {
         command += " --no-ablation";
     }
+    command += &format!(
+        " --rigs {} --one-light-deg {}",
+        a.rigs.join(","),
+        a.one_light_deg
+    );
     command += &format!(" --out {}", a.out.display());
     let machine = super::bench::machine();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -292,13 +319,15 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         &mut |r| {
             if let Some(a) = r.all() {
                 eprintln!(
-                    "  {} on {}: ours E_c {:.3}, Lambert {:.3}, Lambert+GGX {:.3}, chosen rank {}",
+                    "  {} on {} ({}): ours env {:.3} ({}), Lambert {:.3}, Lambert+GGX {:.3}, ratio {:.2}",
                     r.material,
                     r.mesh,
-                    a.chosen.cosine_weighted,
-                    r.lambert.map_or(f64::NAN, |e| e.cosine_weighted),
-                    r.lambert_ggx.map_or(f64::NAN, |e| e.cosine_weighted),
-                    a.chosen_rank
+                    r.rig.label(),
+                    a.chosen.environment,
+                    a.model.family,
+                    r.lambert.map_or(f64::NAN, |e| e.environment),
+                    r.lambert_ggx.map_or(f64::NAN, |e| e.environment),
+                    accuracy::ratio(r).unwrap_or(f64::NAN)
                 );
             }
             done.push(r.clone());

@@ -338,6 +338,8 @@ pub struct RunResult {
     pub model: crate::reconstruct::core::ModelReport,
     pub ladder: Option<crate::reconstruct::ladder::Ladder>,
     pub plausibility: crate::reconstruct::plausible::Plausibility,
+    /// The chosen family's fit against the truth as fitted (before the plausibility step).
+    pub chosen_fitted: Option<Errors>,
     /// Every other family's final fit against the truth (as fitted), when the settings keep
     /// them: would another rung have been better?
     pub alternatives: Vec<(Family, Errors)>,
@@ -424,6 +426,7 @@ pub fn run_core(
         model: out.model.clone(),
         ladder: out.ladder.clone(),
         plausibility: out.plausibility.clone(),
+        chosen_fitted: Some(truth.errors_of_candidate(out.brdf.as_ref())),
         alternatives,
         seconds,
     })

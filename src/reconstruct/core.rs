@@ -178,9 +178,10 @@ pub fn reconstruct_observations(
         .iter()
         .chain(reliable.brightest.as_ref())
         .collect();
-    let used_owned: Vec<Observation> = used.iter().map(|o| **o).collect();
+    // The analytic fits see the reliable pixels as observed: eq. 2's brightest pixel with
+    // n = h is the basis's anchor, and would pin a GGX lobe to an infinitely narrow peak.
     let analytic_pixels = subset(
-        &used_owned,
+        &reliable.pixels,
         settings.ladder.analytic_max_pixels,
         settings.trials.seed ^ 0xA11A,
     );

@@ -77,6 +77,20 @@ pub struct LadderSettings {
     pub analytic: bool,
     /// Climb the hybrid rung.
     pub hybrid: bool,
+    /// What "within noise" means.
+    pub rule: ChoiceRule,
+}
+
+/// When a simpler rung counts as "within noise" of the best.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ChoiceRule {
+    /// Its mean held-out error is at most the best's plus the best's standard error (the
+    /// classic one-standard-error rule; loose when the folds differ in difficulty).
+    OneStandardError,
+    /// Its fold-by-fold excess over the best is at most one standard error of that paired
+    /// difference (the folds' common difficulty cancels).
+    Paired,
 }
 
 impl Default for LadderSettings {
@@ -88,6 +102,7 @@ impl Default for LadderSettings {
             analytic_max_pixels: 20_000,
             analytic: true,
             hybrid: true,
+            rule: ChoiceRule::Paired,
         }
     }
 }
@@ -601,7 +616,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
             .collect();
         rungs.push(rung_of(&key, scores.iter(), images));
     }
-    let (chosen, reason) = choose(&rungs)?;
+    let (chosen, reason) = choose(&rungs, settings.rule)?;
     Some(Ladder {
         scheme,
         held_out_pixels: pool.len(),
@@ -665,19 +680,47 @@ fn rung_of<'a>(key: &RungKey, scores: impl Iterator<Item = &'a FoldScore>, image
     }
 }
 
-/// The simplest rung within one standard error of the best (fewest parameters; among equals,
-/// the most regularised), and why.
-fn choose(rungs: &[Rung]) -> Option<(usize, String)> {
+/// Whether `c` is within noise of `best` by `rule`.
+fn within_noise(c: &Rung, best: &Rung, rule: ChoiceRule) -> bool {
+    let (Some(ec), Some(eb)) = (c.error, best.error) else {
+        return false;
+    };
+    match rule {
+        ChoiceRule::OneStandardError => ec <= eb + best.standard_error.unwrap_or(0.0),
+        ChoiceRule::Paired => {
+            let d: Vec<f64> = c
+                .fold_errors
+                .iter()
+                .zip(&best.fold_errors)
+                .filter_map(|(a, b)| Some((*a)? - (*b)?))
+                .collect();
+            if d.len() != c.fold_errors.len() || d.is_empty() {
+                return false;
+            }
+            let n = d.len() as f64;
+            let m = d.iter().sum::<f64>() / n;
+            let sd = if d.len() > 1 {
+                (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+            } else {
+                0.0
+            };
+            m <= sd / n.sqrt()
+        }
+    }
+}
+
+/// The simplest rung within noise of the best (fewest parameters; among equals, the most
+/// regularised), and why.
+pub fn choose(rungs: &[Rung], rule: ChoiceRule) -> Option<(usize, String)> {
     let (best, best_err, best_se) = rungs
         .iter()
         .enumerate()
         .filter_map(|(i, r)| Some((i, r.error?, r.standard_error.unwrap_or(0.0))))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    let limit = best_err + best_se;
     let chosen = rungs
         .iter()
         .enumerate()
-        .filter(|(_, r)| r.error.is_some_and(|e| e <= limit))
+        .filter(|(i, r)| *i == best || within_noise(r, &rungs[best], rule))
         .min_by(|a, b| {
             a.1.parameters
                 .cmp(&b.1.parameters)
@@ -685,14 +728,18 @@ fn choose(rungs: &[Rung]) -> Option<(usize, String)> {
         })
         .map(|(i, _)| i)
         .unwrap_or(best);
+    let noise = match rule {
+        ChoiceRule::OneStandardError => "within one standard error of the best",
+        ChoiceRule::Paired => "within one standard error (fold by fold) of the best",
+    };
     let reason = if chosen == best {
         format!(
-            "{}: the lowest held-out error ({best_err:.4} +- {best_se:.4}); no simpler model is within one standard error",
+            "{}: the lowest held-out error ({best_err:.4} +- {best_se:.4}); no simpler model is {noise}",
             rungs[best].label()
         )
     } else {
         format!(
-            "{}: held-out error {:.4}, within one standard error of the best, {} ({best_err:.4} +- {best_se:.4}), with fewer parameters ({} against {})",
+            "{}: held-out error {:.4}, {noise}, {} ({best_err:.4} +- {best_se:.4}), with fewer parameters ({} against {})",
             rungs[chosen].label(),
             rungs[chosen].error.unwrap_or(f64::NAN),
             rungs[best].label(),
@@ -797,13 +844,42 @@ mod tests {
             rung(Family::LambertGgx, 8, 0.205, 0.01),
             rung(Family::Basis, 30, 0.20, 0.01),
         ];
-        let (i, reason) = choose(&rungs).unwrap();
+        let (i, reason) = choose(&rungs, ChoiceRule::OneStandardError).unwrap();
         assert_eq!(i, 1, "{reason}");
         assert!(reason.contains("within one standard error"), "{reason}");
         let rungs = vec![
             rung(Family::Lambert, 3, 0.30, 0.01),
             rung(Family::Basis, 30, 0.10, 0.01),
         ];
-        assert_eq!(choose(&rungs).unwrap().0, 1);
+        assert_eq!(choose(&rungs, ChoiceRule::OneStandardError).unwrap().0, 1);
+    }
+
+    #[test]
+    fn the_paired_rule_sees_a_consistent_gain_that_fold_difficulty_hides() {
+        let rung = |family, parameters, folds: &[f64]| {
+            let n = folds.len() as f64;
+            let m = folds.iter().sum::<f64>() / n;
+            let sd = (folds.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            Rung {
+                family,
+                k: None,
+                eta: None,
+                parameters,
+                fold_errors: folds.iter().map(|x| Some(*x)).collect(),
+                error: Some(m),
+                standard_error: Some(sd / n.sqrt()),
+                image_errors: vec![],
+            }
+        };
+        // Folds of very different difficulty; the basis is better on every one of them by 0.01.
+        let simple = rung(Family::LambertGgx, 8, &[0.10, 0.30, 0.50, 0.20, 0.40]);
+        let rich = rung(Family::Basis, 30, &[0.09, 0.29, 0.49, 0.19, 0.39]);
+        let rungs = vec![simple, rich];
+        assert_eq!(choose(&rungs, ChoiceRule::OneStandardError).unwrap().0, 0);
+        assert_eq!(choose(&rungs, ChoiceRule::Paired).unwrap().0, 1);
+        // A gain on some folds and a loss on others is noise: the simpler one stays.
+        let mixed = rung(Family::Basis, 30, &[0.08, 0.32, 0.47, 0.22, 0.38]);
+        let rungs = vec![rungs[0].clone(), mixed];
+        assert_eq!(choose(&rungs, ChoiceRule::Paired).unwrap().0, 0);
     }
 }

@@ -17,6 +17,7 @@
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
 
 pub mod baselines;
+pub mod compare;
 pub mod components;
 pub mod confidence;
 pub mod core;

@@ -25,6 +25,27 @@ use std::path::{Path, PathBuf};
 /// Said wherever a result made from the neural fits is reported.
 pub const PROVENANCE: &str = "basis built from neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, not measured MERL data";
 
+/// One light image's comparison, as reported.
+#[derive(Clone, Debug, Serialize)]
+pub struct ComparisonReport {
+    /// Index of the light image in the job.
+    pub image: usize,
+    /// The light image.
+    pub photo: PathBuf,
+    /// The panel (photo | re-render | error), relative to the folder of `report.json`.
+    pub file: String,
+    /// Relative error of the re-render over the image's observed pixels.
+    pub fit_error: f64,
+    /// The chosen model's error on this image while it (or its blocks) was held out.
+    pub held_out_error: Option<f64>,
+    pub observed_pixels: usize,
+}
+
+/// The panel file of light image `index`, relative to the output folder.
+pub fn comparison_file(index: usize) -> String {
+    format!("compare/view_{index:02}.png")
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct StageTiming {
     pub stage: String,
@@ -67,6 +88,15 @@ pub struct Report {
     pub components: ComponentChoice,
     pub trials: Vec<Trial>,
     pub chosen_trial: usize,
+    /// The model reported and why (`reconstruct::ladder`).
+    pub model: super::core::ModelReport,
+    /// Every rung's held-out score; `None` when the ladder did not run (a fixed k).
+    pub ladder: Option<super::ladder::Ladder>,
+    /// What the plausibility step found and did (`reconstruct::plausible`).
+    pub plausibility: super::plausible::Plausibility,
+    /// Per light image: the photo beside its re-render (`compare/view_NN.png`, relative to
+    /// this file's folder) and the errors.
+    pub comparisons: Vec<ComparisonReport>,
     /// How far the result can be trusted, and why not (`reconstruct::confidence`).
     pub confidence: super::confidence::Confidence,
     pub timings: Vec<StageTiming>,
@@ -82,6 +112,7 @@ impl Report {
         scene: &Scene,
         observed: &Observed,
         core: &CoreOutput,
+        comparisons: &[super::compare::Comparison],
         timings: Vec<(String, f64)>,
     ) -> Self {
         let s = basis.settings().stride;
@@ -128,6 +159,28 @@ impl Report {
                 })
                 .collect(),
             chosen_trial: core.chosen_trial,
+            model: core.model.clone(),
+            ladder: core.ladder.clone(),
+            plausibility: core.plausibility.clone(),
+            comparisons: comparisons
+                .iter()
+                .map(|c| ComparisonReport {
+                    image: c.image,
+                    photo: scene
+                        .views
+                        .iter()
+                        .find(|v| v.index == c.image)
+                        .map(|v| v.file.clone())
+                        .unwrap_or_default(),
+                    file: comparison_file(c.image),
+                    fit_error: c.error,
+                    held_out_error: core
+                        .ladder
+                        .as_ref()
+                        .and_then(|l| l.chosen().image_errors.get(c.image).copied().flatten()),
+                    observed_pixels: c.observed,
+                })
+                .collect(),
             confidence: core.confidence.clone(),
             timings: timings
                 .into_iter()
@@ -168,7 +221,8 @@ pub fn sphere_preview(table: &MerlTable, size: usize) -> LinearImage {
     }
 }
 
-/// Writes `brdf.binary`, `report.json`, `sphere.exr` and `sphere.png` into `dir` (created).
+/// Writes `brdf.binary`, `report.json`, `sphere.exr`, `sphere.png` and the comparison panels
+/// `compare/view_NN.png` into `dir` (created).
 pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
     std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
         path: dir.to_path_buf(),
@@ -184,5 +238,15 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
     imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;
+    if !output.comparisons.is_empty() {
+        let cdir = dir.join("compare");
+        std::fs::create_dir_all(&cdir).map_err(|source| OutputError::Io {
+            path: cdir.clone(),
+            source,
+        })?;
+        for c in &output.comparisons {
+            imageio::write_preview_png(&dir.join(comparison_file(c.image)), &c.panel, 0.0)?;
+        }
+    }
     Ok(())
 }

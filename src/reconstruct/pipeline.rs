@@ -2,6 +2,7 @@
 //! build (or read from the cache) the basis, then run the pure core. The only part of
 //! `reconstruct` besides `output` that touches files; every error names the file and the field.
 
+use super::compare::{Comparison, compare_image};
 use super::core::{CoreError, CoreOutput, CoreSettings, reconstruct_observations};
 use super::job::{Job, JobError};
 use super::nielsen::{NielsenPrior, NielsenSettings};
@@ -350,6 +351,8 @@ pub struct Output {
     pub core: CoreOutput,
     pub observed: Observed,
     pub report: super::output::Report,
+    /// Per light image: the photo beside its re-render (written by `output::write`).
+    pub comparisons: Vec<Comparison>,
 }
 
 /// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is unavailable.
@@ -454,12 +457,44 @@ pub fn finish(
     })?;
     timings.extend(core.timings.iter().cloned());
     let table = core.table.clone();
-    let report =
-        super::output::Report::new(job, settings, basis, &scene, &observed, &core, timings);
+    let t = Instant::now();
+    progress("photo against re-render, per light image");
+    let comparisons = comparisons(&scene, &observed, &table);
+    timings.push(("compare".to_string(), t.elapsed().as_secs_f64()));
+    let report = super::output::Report::new(
+        job,
+        settings,
+        basis,
+        &scene,
+        &observed,
+        &core,
+        &comparisons,
+        timings,
+    );
     Ok(Output {
         table,
         core,
         observed,
         report,
+        comparisons,
     })
+}
+
+/// Width of one panel of a comparison image, pixels.
+const COMPARISON_WIDTH: usize = 320;
+
+/// Every light image beside its re-render (`compare`).
+fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Comparison> {
+    scene
+        .views
+        .iter()
+        .map(|v| {
+            let obs: Vec<&Observation> = observed
+                .observations
+                .iter()
+                .filter(|o| o.image == v.index)
+                .collect();
+            compare_image(v.index, &v.image, &obs, table, COMPARISON_WIDTH)
+        })
+        .collect()
 }

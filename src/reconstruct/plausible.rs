@@ -6,10 +6,13 @@
 //! - **Coverage**: observed pixels are counted per (theta_h bin, theta_d bin) of the MERL grid.
 //!   A cell's distance `d` to the nearest observed cell is measured in bins (theta_h in MERL's
 //!   square-root index, theta_d in degrees); its weight is `w = exp(-d^2 / (2 L^2))` with the
-//!   shrink length `L` (bins). Every bin of the cell becomes `w f_model + (1 - w) f_prior`; an
-//!   observed cell keeps the model (`w = 1`). The prior is an analytic model fitted to the same
-//!   pixels (Lambert + GGX): physically shaped where the data say nothing, and at the data's
-//!   scale.
+//!   shrink length `L` (bins). Every bin of the cell becomes `w f_model + (1 - w) g`, where `g`
+//!   is the model clamped to within a factor `R` of the prior (`[f_prior / R, R f_prior]` per
+//!   channel): the model's shape survives where it stays near the prior, a free extrapolation
+//!   that runs away (the basis can put 100 times the energy in a bin no pixel saw) is pulled
+//!   back; `R = 1` replaces unobserved regions by the prior. An observed cell keeps the model
+//!   (`w = 1`). The prior is an analytic model fitted to the same pixels (Lambert + GGX):
+//!   physically shaped where the data say nothing, and at the data's scale.
 //! - **Non-negative**: negative and non-finite values become the prior's (negative entries mean
 //!   "no data" in a MERL file, and a BRDF is never negative).
 //! - **Albedo**: `a(theta_i) = int f(wi, wo) cos theta_o d omega_o`, by the half-vector
@@ -38,6 +41,8 @@ pub struct PlausibleSettings {
     pub shrink: bool,
     /// The shrink length L, in bins (see the module header).
     pub shrink_length_bins: f64,
+    /// R: how far (a factor) the model may stray from the prior where nothing was observed.
+    pub prior_ratio_limit: f64,
     /// A cell counts as observed with at least this many pixels.
     pub min_pixels_per_cell: usize,
     /// The largest directional albedo allowed.
@@ -49,6 +54,7 @@ impl Default for PlausibleSettings {
         Self {
             shrink: true,
             shrink_length_bins: 6.0,
+            prior_ratio_limit: 1.0,
             min_pixels_per_cell: 1,
             max_albedo: 1.0,
         }
@@ -197,8 +203,12 @@ pub fn make_plausible(
                     _ => m.map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 }),
                 }
             };
+            let r = settings.prior_ratio_limit.max(1.0);
             let v = match p {
-                Some(p) if w < 1.0 && valid(&p) => [0, 1, 2].map(|c| w * m[c] + (1.0 - w) * p[c]),
+                Some(p) if w < 1.0 && valid(&p) => [0, 1, 2].map(|c| {
+                    let g = m[c].clamp(p[c] / r, p[c] * r);
+                    w * m[c] + (1.0 - w) * g
+                }),
                 _ => m,
             };
             Some((v, invalid, w < 0.5))

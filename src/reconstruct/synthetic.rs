@@ -34,6 +34,21 @@ pub struct SceneSpec {
     /// Range of the light-view angle alpha over the views, degrees.
     pub light_angle_deg: (f64, f64),
     pub irradiance: [f64; 3],
+    /// The light turns with the camera: the same direction in camera axes in every view (one
+    /// light fixed beside the camera of a turntable rig: a single theta_d). Otherwise it comes
+    /// alternately from the upper left and the upper right.
+    pub fixed_light: bool,
+}
+
+impl SceneSpec {
+    /// One light fixed beside the camera at `alpha_deg` from the optical axis (the paper's rig).
+    pub fn one_light(alpha_deg: f64) -> Self {
+        Self {
+            light_angle_deg: (alpha_deg, alpha_deg),
+            fixed_light: true,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SceneSpec {
@@ -45,6 +60,7 @@ impl Default for SceneSpec {
             elevation_deg: 25.0,
             light_angle_deg: (10.0, 150.0),
             irradiance: [3.0, 3.0, 3.0],
+            fixed_light: false,
         }
     }
 }
@@ -77,7 +93,12 @@ pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Po
     let (a0, a1) = spec.light_angle_deg;
     let alpha = (a0 + t * (a1 - a0)).to_radians();
     // Around the optical axis: from above (-y), tilted left or right.
-    let phi = (-90.0f64 + if i % 2 == 0 { 40.0 } else { -40.0 }).to_radians();
+    let side = if i % 2 == 0 || spec.fixed_light {
+        40.0
+    } else {
+        -40.0
+    };
+    let phi = (-90.0f64 + side).to_radians();
     let l_cam = Vector3::new(
         alpha.sin() * phi.cos(),
         alpha.sin() * phi.sin(),
