@@ -199,9 +199,9 @@ def local_frame(n):
 def pixel_check(caster, normals, diag, camera, view, image, material, bsdf, rng,
                 pixels=24, sub=4):
     """Predicts rendered pixels from the truth without Mitsuba's geometry: rays through a
-    sub x sub grid in each pixel (brute-force numpy ray casting), angle-weighted vertex normals
-    interpolated at the hit, a shadow ray to the light; radiance = E f_r cos theta_i averaged
-    over the pixel (what a box filter integrates). Lambert: f_r = albedo / pi analytically;
+    sub x sub grid in each pixel (numpy ray casting, independent/raycast.py), angle-weighted
+    vertex normals interpolated at the hit, a shadow ray to the light; radiance =
+    E f_r cos theta_i averaged over the pixel (what a box filter integrates). Lambert: f_r = albedo / pi analytically;
     others: f_r from the BSDF's eval. Only pixels whose every sub-sample hits, is lit and is
     at most 80 degrees from the light and the camera are compared."""
     lum = image.mean(axis=2)
@@ -247,10 +247,9 @@ def pixel_check(caster, normals, diag, camera, view, image, material, bsdf, rng,
             rad = (alb / np.pi)[None] * e[None] * np.maximum(cos_i, 0)[:, None]
         else:
             tt, bb = local_frame(n)
-            to_local = lambda x: np.stack([np.einsum("ij,ij->i", x, tt), np.einsum("ij,ij->i", x, bb),
-                                           np.einsum("ij,ij->i", x, n)], axis=1)
-            wi = to_local(np.broadcast_to(l_w, n.shape))
-            wo = to_local(v)
+            frame = np.stack([tt, bb, n], axis=1)  # rows: the local axes, per sample
+            wi = np.einsum("rij,j->ri", frame, l_w)
+            wo = np.einsum("rij,rj->ri", frame, v)
             good = lit & (wi[:, 2] > 0) & (wo[:, 2] > 0)
             rad = np.zeros((len(n), 3))
             rad[good] = eval_brdf(bsdf, wi[good], wo[good]) * e[None] * wi[good, 2:3]
@@ -444,9 +443,11 @@ def main():
                         f"Written by: {command}")
                     M.write_atomic(os.path.join(folder, name), text.encode("utf-8"))
                     jobs[f"{kind}{suffix}"] = name
-            f = sw.run("truth: evaluate BSDF", eval_brdf, bsdf, wi[above], wo[above])
+            # every bin above the horizon for the full table, else only the subset's
+            need = above if "full" in truth_kinds else np.isin(np.arange(merl.BINS), subset)
+            f = sw.run("truth: evaluate BSDF", eval_brdf, bsdf, wi[need], wo[need])
             full = np.zeros((merl.BINS, 3))
-            full[above] = f
+            full[need] = f
             if "full" in truth_kinds:
                 sw.run("truth: write table", merl.write_table,
                        os.path.join(folder, "truth.binary"), full, above)
