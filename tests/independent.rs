@@ -75,8 +75,9 @@ fn read_truth_bins(path: &Path) -> TruthBins {
     t
 }
 
-/// The three lights sit 20, 55 and 90 degrees from the camera, so the pixels' theta_d (half the
-/// light-view angle) spans about 8-47 degrees: bins above this are never observed.
+/// The three lights sit 20, 55 and 90 degrees from the camera, so the lit pixels' theta_d (half
+/// the light-view angle) spans 5-15, 24-32 and 42-49 degrees (docs/independent-scenes.md): bins
+/// above this are never observed.
 const OBSERVED_THETA_D_DEG: usize = 50;
 
 fn median(v: &mut [f64]) -> f64 {
@@ -209,7 +210,7 @@ fn score(truth: &TruthBins, rec: &MerlTable, max_theta_d_deg: usize) -> (f64, [f
 /// within a few percent of the albedo; above it the basis extrapolates (theta_d 70-90 deg:
 /// 5-8x the truth at the median on the exact mesh), which is the whole-table figure: a ceiling
 /// against it getting worse, to be tightened once results shrink towards a prior there.
-/// A wrong factor of pi, or a mixed-up irradiance, breaks the first two by far.
+/// A factor of pi breaks the first two by far; smaller mix-ups are the conventions test's job.
 const BOUNDS: [(&str, f64, f64, f64); 2] =
     [("exact", 0.12, 0.05, 0.5), ("realistic", 0.18, 0.1, 0.7)];
 
