@@ -17,7 +17,7 @@ Requirements (none of them needed by brdf-rig's build, tests or CI):
   one it falls back to `scalar_rgb` (same images up to noise, the MERL tables much slower).
 
 Usage (the full set, and the tiny scene committed under tests/fixtures/independent):
-    /work/venv-mitsuba/bin/python scripts/render_recon_scenes.py --out scenes
+    /work/venv-mitsuba/bin/python scripts/render_recon_scenes.py --out target/independent-scenes
     /work/venv-mitsuba/bin/python scripts/render_recon_scenes.py \\
         --out tests/fixtures/independent --scenes spot-3lights --materials lambert \\
         --meshes exact,realistic --views 6 --size 96x72 --half --truth subset --path-spp 0
