@@ -19,6 +19,7 @@ mod firmware;
 mod firmware_flash;
 mod firmware_qemu;
 mod geometry;
+mod independent;
 mod reconstruct;
 mod render;
 mod report;
