@@ -11,7 +11,9 @@
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
-use brdf_rig::eval::{PAPER_MATERIALS, Perturb, Truth, baseline_errors, find_material, observe_case};
+use brdf_rig::eval::{
+    PAPER_MATERIALS, Perturb, Truth, baseline_errors, find_material, observe_case,
+};
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use brdf_rig::reconstruct::Job;
@@ -51,8 +53,8 @@ fn main() -> anyhow::Result<()> {
                 ..Default::default()
             }),
         ));
-        for l in [3.0, 6.0, 12.0] {
-            for r in [1.0, 2.0, 4.0] {
+        for (l, rs) in [(6.0, vec![1.0, 3.0, 10.0]), (12.0, vec![3.0])] {
+            for r in rs {
                 v.push((
                     format!("L{l} R{r}"),
                     Some(PlausibleSettings {
@@ -65,8 +67,14 @@ fn main() -> anyhow::Result<()> {
         }
         v
     };
-    let mut rows: Vec<(String, String, f64, Vec<(Family, Vec<f64>)>, Vec<(String, Family)>)> =
-        Vec::new();
+    let mut rows: Vec<(
+        String,
+        String,
+        f64,
+        Vec<(Family, Vec<f64>)>,
+        Vec<(String, Family)>,
+    )> = Vec::new();
+    let mut dump: Vec<serde_json::Value> = Vec::new();
     for name in &materials_wanted {
         let net = find_material(&materials, name)?;
         let bs = BasisSettings {
@@ -125,10 +133,9 @@ fn main() -> anyhow::Result<()> {
                         .chain(reliable.brightest.as_ref())
                         .collect();
                     let lggx = out.alternatives.iter().find(|a| a.0 == Family::LambertGgx);
-                    let ggx_model = brdf_rig::reconstruct::baselines::fit_lambert_ggx(
-                        &reliable.pixels,
-                    )
-                    .map(AnalyticCandidate);
+                    let ggx_model =
+                        brdf_rig::reconstruct::baselines::fit_lambert_ggx(&reliable.pixels)
+                            .map(AnalyticCandidate);
                     let mut fams: Vec<(Family, &dyn Candidate)> = out
                         .alternatives
                         .iter()
@@ -169,11 +176,9 @@ fn main() -> anyhow::Result<()> {
                                 choices.push((label.to_string(), l.rungs[i].family));
                             }
                         }
-                        let best = l
-                            .rungs
-                            .iter()
-                            .filter(|r| r.error.is_some())
-                            .min_by(|a, b| a.error.unwrap_or(1e9).total_cmp(&b.error.unwrap_or(1e9)));
+                        let best = l.rungs.iter().filter(|r| r.error.is_some()).min_by(|a, b| {
+                            a.error.unwrap_or(1e9).total_cmp(&b.error.unwrap_or(1e9))
+                        });
                         if let Some(b) = best {
                             choices.push(("min".to_string(), b.family));
                         }
@@ -184,17 +189,44 @@ fn main() -> anyhow::Result<()> {
                         eprintln!(
                             "   {:<18} {}",
                             f.to_string(),
-                            errs.iter().map(|e| format!("{e:.3}")).collect::<Vec<_>>().join(" ")
+                            errs.iter()
+                                .map(|e| format!("{e:.3}"))
+                                .collect::<Vec<_>>()
+                                .join(" ")
                         );
                     }
                     eprintln!("   choices {choices:?}");
+                    dump.push(serde_json::json!({
+                        "scene": label,
+                        "rig": rig,
+                        "better_baseline": better,
+                        "lambert": lam.map(|e| e.environment),
+                        "lambert_ggx": ggx.map(|e| e.environment),
+                        "families": per_family.iter().map(|(f, e)| serde_json::json!({"family": f, "env": e})).collect::<Vec<_>>(),
+                        "ladder": out.ladder,
+                        "confidence": out.confidence,
+                    }));
+                    std::fs::write(
+                        root.join("study.json"),
+                        serde_json::to_string_pretty(&serde_json::json!({
+                            "variants": variants.iter().map(|v| v.0.clone()).collect::<Vec<_>>(),
+                            "scenes": dump,
+                        }))?,
+                    )?;
                     rows.push((label, rig.clone(), better, per_family, choices));
                 }
             }
         }
     }
     // Geometric mean of better-baseline / ours, per (family, variant) and per (rule, variant).
-    println!("variants: {}", variants.iter().map(|v| v.0.clone()).collect::<Vec<_>>().join(" | "));
+    println!(
+        "variants: {}",
+        variants
+            .iter()
+            .map(|v| v.0.clone())
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
     let gm = |xs: &[f64]| (xs.iter().map(|x| x.ln()).sum::<f64>() / xs.len() as f64).exp();
     for rig in ["spread", "one-light", "all"] {
         let rs: Vec<_> = rows.iter().filter(|r| rig == "all" || r.1 == rig).collect();
@@ -202,7 +234,12 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         println!("== {rig} ({} scenes): gm ratio (min ratio)", rs.len());
-        for fam in [Family::Lambert, Family::LambertGgx, Family::Basis, Family::Hybrid] {
+        for fam in [
+            Family::Lambert,
+            Family::LambertGgx,
+            Family::Basis,
+            Family::Hybrid,
+        ] {
             let mut line = format!("{:<18}", fam.to_string());
             for vi in 0..variants.len() {
                 let ratios: Vec<f64> = rs

@@ -11,7 +11,7 @@
 use crate::util;
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::nbrdf::load_dir;
-use brdf_rig::eval::accuracy::{AccuracySpec, Variant, run};
+use brdf_rig::eval::accuracy::{AccuracySpec, Rig, Variant, run};
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::reconstruct::core::CoreSettings;
 use brdf_rig::reconstruct::nielsen::NielsenSettings;
@@ -53,6 +53,7 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
         variants: vec![Variant::ablation()[0], Variant::ALL],
         bin_step: 5,
         seeds: 1,
+        rigs: vec![Rig::Spread],
     };
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");

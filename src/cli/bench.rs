@@ -31,6 +31,8 @@ pub enum BenchCommand {
     Capture(super::bench_capture::BenchCaptureArgs),
     /// Time, peak memory and accuracy of reconstruction on a simulated Bunny scene.
     Reconstruct(super::bench_reconstruct::BenchReconstructArgs),
+    /// The reconstruction on scenes rendered by Mitsuba 3 (scripts/render_recon_scenes.py).
+    External(super::bench_external::BenchExternalArgs),
 }
 
 #[derive(Args, Debug)]
@@ -58,6 +60,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         BenchCommand::Render(a) => super::bench_render::run(a),
         BenchCommand::Capture(a) => super::bench_capture::run(a),
         BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
+        BenchCommand::External(a) => super::bench_external::run(a),
     }
 }
 

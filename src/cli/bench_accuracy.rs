@@ -228,7 +228,10 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         }
     }
     if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
-        bail!("--one-light-deg must be in (0, 90) degrees, got {}", a.one_light_deg);
+        bail!(
+            "--one-light-deg must be in (0, 90) degrees, got {}",
+            a.one_light_deg
+        );
     }
     let rigs = a
         .rigs

@@ -4,7 +4,8 @@
 
 use anyhow::Context;
 use brdf_rig::reconstruct::confidence::Level;
-use brdf_rig::reconstruct::core::TrialChoice;
+use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
+use brdf_rig::reconstruct::ladder::Family;
 use brdf_rig::reconstruct::{self, Job, Settings};
 use clap::Args as ClapArgs;
 use std::path::PathBuf;
@@ -70,6 +71,14 @@ pub struct Args {
     /// the images) or `pixel-error` (lowest relative error over every observed pixel).
     #[arg(long, value_parser = parse_choice, default_value = "similarity")]
     pub choose: TrialChoice,
+    /// Which model to report: `auto` (the model ladder: the simplest model within noise of the
+    /// best held-out image error), or one family: `lambert`, `lambert-ggx`, `basis`, `hybrid`.
+    #[arg(long, value_parser = parse_model, default_value = "auto")]
+    pub model: ModelSelection,
+    /// Keep the fitted model where no pixel was observed, instead of shrinking it towards a
+    /// Lambert + GGX fit of the same pixels (docs/reconstruction.md, plausibility).
+    #[arg(long)]
+    pub no_shrink: bool,
     /// Random seed of the trials.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -84,6 +93,19 @@ fn parse_choice(s: &str) -> Result<TrialChoice, String> {
         "similarity" => Ok(TrialChoice::Similarity),
         "pixel-error" => Ok(TrialChoice::PixelError),
         _ => Err(format!("{s:?}: expected similarity or pixel-error")),
+    }
+}
+
+fn parse_model(s: &str) -> Result<ModelSelection, String> {
+    match s {
+        "auto" => Ok(ModelSelection::Auto),
+        "lambert" => Ok(ModelSelection::Only(Family::Lambert)),
+        "lambert-ggx" => Ok(ModelSelection::Only(Family::LambertGgx)),
+        "basis" => Ok(ModelSelection::Only(Family::Basis)),
+        "hybrid" => Ok(ModelSelection::Only(Family::Hybrid)),
+        _ => Err(format!(
+            "{s:?}: expected auto, lambert, lambert-ggx, basis or hybrid"
+        )),
     }
 }
 
@@ -109,6 +131,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.fixed_components = args.components;
     settings.core.fixed_eta = args.eta;
     settings.core.choose = args.choose;
+    settings.core.model = args.model;
+    settings.core.plausible.shrink = !args.no_shrink;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;
@@ -147,15 +171,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for w in &output.report.warnings {
         eprintln!("warning: {w}");
     }
-    let chosen = &output.report.trials[output.report.chosen_trial];
+    let model = &output.report.model;
     eprintln!(
-        "done in {:.2} s: trial {} of {} (similarity {:.5}), k = {}; wrote {}",
+        "done in {:.2} s: {}{}; wrote {}",
         started.elapsed().as_secs_f64(),
-        chosen.index + 1,
-        output.report.trials.len(),
-        chosen.similarity,
-        output.report.components.k,
+        model.family,
+        model.k.map_or(String::new(), |k| format!(" (k = {k})")),
         args.out.display()
+    );
+    eprintln!("model: {}", model.reason);
+    let p = &output.report.plausibility;
+    eprintln!(
+        "plausibility: {:.0} % of the table from the prior, {} invalid bins replaced, largest \
+         albedo {:.3} (before {:.3})",
+        100.0 * p.prior_share,
+        p.invalid_bins,
+        p.max_albedo_after,
+        p.max_albedo_before
     );
     let confidence = &output.report.confidence;
     eprintln!("confidence: {}", confidence.level);

@@ -3,7 +3,6 @@
 //! ablation of the three assumptions (paper Fig. 5), the Lambert and Lambert+GGX baselines fitted
 //! to the same pixels, and the rank of the chosen trial among all trials (paper Fig. 6).
 
-use crate::reconstruct::ladder::Family;
 use super::{
     Errors, EvalError, Perturb, RunResult, Truth, baseline_errors, find_material, observe_case,
     run_core, write_case,
@@ -14,6 +13,7 @@ use crate::brdf::nbrdf::Nbrdf;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::sfm_like::SfmLikeParams;
 use crate::reconstruct::core::CoreSettings;
+use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::NielsenSettings;
 use crate::reconstruct::observe::ObserveSettings;
 use crate::reconstruct::reliable::ReliableSettings;
@@ -417,7 +417,11 @@ pub fn markdown(
         spec.views,
         spec.width,
         spec.height,
-        spec.rigs.iter().map(Rig::label).collect::<Vec<_>>().join(", "),
+        spec.rigs
+            .iter()
+            .map(Rig::label)
+            .collect::<Vec<_>>()
+            .join(", "),
         spec.sfm_iterations,
         spec.sfm_noise_rel,
         spec.basis_stride,
@@ -561,7 +565,12 @@ pub fn markdown(
         }
         s += "\n";
         for r in results {
-            s += &format!("| {} | {} | {} |", r.mesh, scene_label(spec, r), r.rig.label());
+            s += &format!(
+                "| {} | {} | {} |",
+                r.mesh,
+                scene_label(spec, r),
+                r.rig.label()
+            );
             for (_, res) in &r.variants {
                 match res {
                     Ok(a) => s += &format!(" {} |", f3(a.chosen.environment)),

@@ -15,6 +15,7 @@
 //! scene sees the same pixels. An I/O edge: writes scene folders.
 
 pub mod accuracy;
+pub mod external;
 pub mod sweeps;
 
 use crate::brdf::basis::Basis;
@@ -167,14 +168,7 @@ impl BinValues for MeanOf<'_> {
     }
 }
 
-/// A reconstruction candidate seen as bin values.
-pub struct CandidateValues<'a>(pub &'a dyn Candidate);
-
-impl BinValues for CandidateValues<'_> {
-    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
-        bins.iter().map(|&b| self.0.eval_bin(b)).collect()
-    }
-}
+pub use crate::reconstruct::prior::CandidateValues;
 
 /// An analytic BRDF seen as bin values (evaluated at the bin centres).
 pub struct BrdfValues<'a>(pub &'a dyn Brdf);

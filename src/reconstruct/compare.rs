@@ -101,7 +101,11 @@ pub fn compare_image(
             if n_seen > 0.0 {
                 panel.set(sw + px, py, r.map(|v| (v / n_seen / p99).clamp(0.0, 1.0)));
                 let d = (e.iter().sum::<f32>() / 3.0 / n_seen / p99).clamp(-1.0, 1.0);
-                let err = if d >= 0.0 { [d, 0.0, 0.0] } else { [0.0, 0.0, -d] };
+                let err = if d >= 0.0 {
+                    [d, 0.0, 0.0]
+                } else {
+                    [0.0, 0.0, -d]
+                };
                 panel.set(2 * sw + px, py, err);
             } else {
                 panel.set(sw + px, py, [UNOBSERVED; 3]);
@@ -112,7 +116,11 @@ pub fn compare_image(
     Comparison {
         image: image_index,
         panel,
-        error: if den > 0.0 { (num / den).sqrt() } else { f64::NAN },
+        error: if den > 0.0 {
+            (num / den).sqrt()
+        } else {
+            f64::NAN
+        },
         observed: obs.len(),
     }
 }

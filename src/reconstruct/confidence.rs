@@ -1,31 +1,45 @@
 //! How far a reconstruction can be trusted, judged only from what the pipeline saw (never from a
 //! ground truth), so an operator gets "low confidence" instead of a confident wrong answer.
 //!
-//! Four indicators, each with its own reason when it fails:
-//! - **trial disagreement**: the median, over the other trials, of the cosine-weighted relative
-//!   difference between their BRDF and the chosen one over the whole MERL domain (the metric of
-//!   `brdf::metrics`, with the chosen trial in place of the truth). Trials fit different random
-//!   pixel subsets; where the pixels constrain the BRDF they agree, where the basis extrapolates
-//!   they do not. This is the indicator that follows the true error most closely
-//!   (docs/evaluation.md, section "Confidence").
-//! - **held-out error**: the relative error on the held-back pixels at the chosen number of
-//!   components (`components::held_out_error`): the fit does not even explain what was seen.
+//! Four indicators, each with its own reason when it fails; the renders are those of a small
+//! sphere probe (`render::probe`: the standard environment, as the rendered error of
+//! docs/error-metrics.md sees a BRDF):
+//! - **disagreement**: the median, over the trials (basis fits to different random subsets of
+//!   the pixels), of the relative difference between their environment render and the
+//!   result's. Where the pixels pin the BRDF down, different fits of them render alike; where
+//!   the result is extrapolated, they do not. When the ladder chose an analytic model, it
+//!   measures how far a data-driven fit of the same pixels renders from it.
+//! - **held-out error**: the chosen model's image-space error on held-out images or blocks
+//!   (`reconstruct::ladder`): the model does not even explain what was seen.
 //! - **theta_d span**: the 10th to 90th percentile range of `theta_d` over the reliable pixels.
 //!   One fixed light on a turntable sees a single `theta_d` (METHOD.md section 1), so the rest of
 //!   the domain is extrapolated.
-//! - **unseen energy**: the share of the result's cosine-weighted energy
-//!   (`sum (c f)^2`, `c` the basis cosine map) that falls in (theta_h, theta_d) cells of 10 x 10
-//!   MERL bins where no pixel was observed: how much of what is reported was never seen.
+//! - **unseen share**: the share of the result's environment render that comes from
+//!   (theta_h, theta_d) cells of 10 x 10 MERL bins where no pixel was observed: how much of what
+//!   a user will see was never measured.
 //!
-//! The thresholds are the `ConfidenceSettings` defaults, chosen from the stability and accuracy
-//! benchmarks (docs/evaluation.md). Pure computation: no files, no printing.
+//! The thresholds are the `ConfidenceSettings` defaults, tuned on one half of the accuracy grid
+//! and checked on the other (`brdf-rig bench confidence`, docs/evaluation.md section 5). Pure
+//! computation: no files, no printing.
 
 use super::observe::Observation;
-use super::prior::Candidate;
-use crate::brdf::basis::cos_map;
-use crate::brdf::coords::{MERL_BINS, MerlBin, THETA_D_BINS, THETA_H_BINS};
-use crate::brdf::metrics::compare_values;
+use super::prior::{Candidate, CandidateValues};
+use crate::brdf::BinValues;
+use crate::brdf::coords::{MerlBin, THETA_D_BINS, THETA_H_BINS};
+use crate::render::probe::{ProbeSettings, SphereProbe, compare};
 use serde::Serialize;
+use std::sync::OnceLock;
+
+/// The probe of the confidence (smaller than the evaluation's: it renders every trial).
+fn probe() -> &'static SphereProbe {
+    static PROBE: OnceLock<SphereProbe> = OnceLock::new();
+    PROBE.get_or_init(|| {
+        SphereProbe::standard(ProbeSettings {
+            size: 24,
+            phi_h_steps: 16,
+        })
+    })
+}
 
 /// Overall verdict.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
@@ -57,9 +71,6 @@ pub struct ConfidenceSettings {
     pub theta_d_span_low_deg: f64,
     pub unseen_energy_medium: f64,
     pub unseen_energy_low: f64,
-    /// Every how many MERL bins the domain-wide comparisons look (a prime, so the sample does not
-    /// alias with the 180-bin phi_d rows).
-    pub bin_step: usize,
 }
 
 impl Default for ConfidenceSettings {
@@ -73,7 +84,6 @@ impl Default for ConfidenceSettings {
             theta_d_span_low_deg: 8.0,
             unseen_energy_medium: 0.35,
             unseen_energy_low: 0.55,
-            bin_step: 97,
         }
     }
 }
@@ -84,41 +94,35 @@ pub struct Confidence {
     pub level: Level,
     /// One sentence per indicator that lowered the level.
     pub reasons: Vec<String>,
-    /// Median cosine-weighted relative difference between the chosen trial and the others;
-    /// `None` with fewer than two successful trials.
+    /// Median relative difference of the trials' environment renders from the result's;
+    /// `None` without a fitted trial.
     pub trial_disagreement: Option<f64>,
-    /// Relative error on the held-back pixels at the chosen k; `None` when k was fixed.
+    /// The chosen model's held-out image error; `None` when the ladder did not run.
     pub held_out_error: Option<f64>,
     /// 10th-90th percentile range of theta_d over the reliable pixels, degrees.
     pub theta_d_span_deg: f64,
-    /// Share of the result's cosine-weighted energy in never-observed (theta_h, theta_d) cells.
+    /// Share of the result's environment render from never-observed (theta_h, theta_d) cells.
     pub unseen_energy: f64,
 }
 
 /// Cells of `CELL x CELL` (theta_h, theta_d) bins.
 const CELL: usize = 10;
 
-/// Judges a result: `chosen` is the reported BRDF, `others` the other trials' candidates,
-/// `reliable` the pixels the fit used, `held_out_error` the validation error at the chosen k.
+/// Judges a result: `result` is the reported BRDF (as written), `others` the trials' fits,
+/// `reliable` the pixels the fit used, `held_out_error` the chosen model's held-out error.
 pub fn assess(
-    chosen: &dyn Candidate,
+    result: &dyn BinValues,
     others: &[&dyn Candidate],
     reliable: &[&Observation],
     held_out_error: Option<f64>,
     settings: &ConfidenceSettings,
 ) -> Confidence {
-    let bins: Vec<usize> = (0..MERL_BINS)
-        .step_by(settings.bin_step.max(1))
-        .filter(|&b| MerlBin::from_index(b).is_some_and(|m| m.is_above_horizon()))
-        .collect();
-    let reference: Vec<[f64; 3]> = bins.iter().map(|&b| chosen.eval_bin(b)).collect();
-
+    let probe = probe();
+    let values = result.values_at(probe.bins());
+    let reference = probe.render_values(&values);
     let mut diffs: Vec<f64> = others
         .iter()
-        .map(|c| {
-            let vals: Vec<[f64; 3]> = bins.iter().map(|&b| c.eval_bin(b)).collect();
-            compare_values(&bins, &reference, &vals).cosine_weighted
-        })
+        .map(|c| compare(&reference, &probe.render(&CandidateValues(*c))).environment)
         .filter(|d| d.is_finite())
         .collect();
     let trial_disagreement = crate::calib::robust::median(&mut diffs);
@@ -129,7 +133,7 @@ pub fn assess(
         .collect();
     let theta_d_span_deg = percentile(&mut theta_d, 0.9) - percentile(&mut theta_d, 0.1);
 
-    let unseen_energy = unseen_energy(&bins, &reference, reliable);
+    let unseen_energy = unseen_share(probe, &values, reliable);
 
     let mut level = Level::High;
     let mut reasons = Vec::new();
@@ -153,8 +157,9 @@ pub fn assess(
             d > settings.disagreement_medium,
             d > settings.disagreement_low,
             format!(
-                "the trials disagree by {:.0} % (median cosine-weighted difference from the \
-                 chosen one): the pixels do not pin the BRDF down",
+                "fits to different subsets of the pixels render {:.0} % apart (median \
+                 environment-render difference from the result): the pixels do not pin the \
+                 BRDF down",
                 100.0 * d
             ),
         );
@@ -186,7 +191,7 @@ pub fn assess(
         unseen_energy > settings.unseen_energy_medium,
         unseen_energy > settings.unseen_energy_low,
         format!(
-            "{:.0} % of the result's cosine-weighted energy lies where no pixel was observed",
+            "{:.0} % of a render of the result comes from angles no pixel observed",
             100.0 * unseen_energy
         ),
     );
@@ -200,7 +205,9 @@ pub fn assess(
     }
 }
 
-fn unseen_energy(bins: &[usize], values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {
+/// The share of the environment render of `values` (at the probe's bins) that comes from
+/// bins in never-observed (theta_h, theta_d) cells.
+fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {
     let (ch, cd) = (THETA_H_BINS.div_ceil(CELL), THETA_D_BINS.div_ceil(CELL));
     let mut seen = vec![false; ch * cd];
     for o in reliable {
@@ -208,22 +215,24 @@ fn unseen_energy(bins: &[usize], values: &[[f64; 3]], reliable: &[&Observation])
             seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] = true;
         }
     }
-    let (mut total, mut unseen) = (0.0, 0.0);
-    for (&bin, v) in bins.iter().zip(values) {
-        let Some(b) = MerlBin::from_index(bin) else {
-            continue;
-        };
-        let w = cos_map(bin);
-        let e: f64 = v
-            .iter()
-            .map(|x| (w * x).powi(2))
-            .filter(|e| e.is_finite())
-            .sum();
-        total += e;
-        if !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] {
-            unseen += e;
-        }
-    }
+    let unseen_only: Vec<[f64; 3]> = probe
+        .bins()
+        .iter()
+        .zip(values)
+        .map(|(&bin, v)| match MerlBin::from_index(bin) {
+            Some(b) if !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] => *v,
+            _ => [0.0; 3],
+        })
+        .collect();
+    let energy = |r: &[[f64; 3]]| -> f64 {
+        r.iter()
+            .flatten()
+            .filter(|x| x.is_finite())
+            .map(|x| x.max(0.0))
+            .sum()
+    };
+    let total = energy(&probe.render_values(values).environment);
+    let unseen = energy(&probe.render_values(&unseen_only).environment);
     if total > 0.0 { unseen / total } else { 1.0 }
 }
 
@@ -285,10 +294,17 @@ mod tests {
             .collect();
         let refs: Vec<&Observation> = obs.iter().collect();
         let (a, b) = (Const(0.3), Const(0.31));
-        let c = assess(&a, &[&b], &refs, Some(0.05), &ConfidenceSettings::default());
+        let c = assess(
+            &CandidateValues(&a),
+            &[&b],
+            &refs,
+            Some(0.05),
+            &ConfidenceSettings::default(),
+        );
         assert_eq!(c.level, Level::High, "{c:?}");
         assert!(c.reasons.is_empty());
-        assert!((c.trial_disagreement.unwrap_or(1.0) - 1.0 / 30.0).abs() < 1e-9);
+        // A constant BRDF 0.31 against 0.3 renders 1/30 apart everywhere.
+        assert!((c.trial_disagreement.unwrap_or(1.0) - 1.0 / 30.0).abs() < 1e-6);
         assert!(c.unseen_energy < 0.01, "{}", c.unseen_energy);
         assert!(c.theta_d_span_deg > 60.0);
     }
@@ -299,7 +315,7 @@ mod tests {
         let refs: Vec<&Observation> = obs.iter().collect();
         let (a, b, c2) = (Const(0.3), Const(0.6), Const(0.1));
         let c = assess(
-            &a,
+            &CandidateValues(&a),
             &[&b, &c2],
             &refs,
             Some(0.7),
@@ -319,7 +335,7 @@ mod tests {
             .collect();
         let refs: Vec<&Observation> = obs.iter().collect();
         let c = assess(
-            &Const(0.2),
+            &CandidateValues(&Const(0.2)),
             &[],
             &refs,
             None,

@@ -363,13 +363,7 @@ pub fn reconstruct_observations(
             .find(|p| p.k == components.k && p.eta == components.eta)
             .and_then(|p| p.error)
     });
-    let confidence = assess(
-        brdf.as_ref(),
-        &others,
-        &used,
-        held_out,
-        &settings.confidence,
-    );
+    let confidence = assess(&table, &others, &used, held_out, &settings.confidence);
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
     let model = ModelReport {
         family,

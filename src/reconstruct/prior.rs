@@ -26,6 +26,15 @@ pub trait Candidate: Send + Sync {
     }
 }
 
+/// A candidate seen as values at MERL bins (what metrics and renders read).
+pub struct CandidateValues<'a>(pub &'a dyn Candidate);
+
+impl crate::brdf::BinValues for CandidateValues<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        bins.iter().map(|&b| self.0.eval_bin(b)).collect()
+    }
+}
+
 /// A basis-backed prior.
 pub trait Prior: Send + Sync {
     /// Components available (the largest k a fit may use).

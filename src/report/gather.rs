@@ -171,6 +171,38 @@ pub struct ReportData {
     /// Where the result's prior came from, as the producer states it (`basis.note`,
     /// `provenance`): shown beside the result.
     pub provenance: Vec<String>,
+    /// The model ladder and the plausibility step (`model`, `ladder`, `plausibility`).
+    pub ladder: Avail<LadderSection>,
+    /// Every light image beside its re-render (`comparisons`).
+    pub comparisons: Avail<Vec<ComparisonRow>>,
+}
+
+/// One rung of the ladder, as shown.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LadderRow {
+    pub label: String,
+    pub parameters: Option<f64>,
+    pub error: Option<f64>,
+    pub standard_error: Option<f64>,
+    pub chosen: bool,
+}
+
+/// The model ladder's table, the choice and the plausibility facts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LadderSection {
+    pub model: String,
+    pub reason: String,
+    pub scheme: String,
+    pub rows: Vec<LadderRow>,
+    pub plausibility: Vec<(String, String)>,
+}
+
+/// One light image beside its re-render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ComparisonRow {
+    pub image: EmbeddedImage,
+    pub fit_error: Option<f64>,
+    pub held_out_error: Option<f64>,
 }
 
 /// Reads what `dir` holds. Fails only when `dir` cannot be listed or is neither a session folder
@@ -332,7 +364,127 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         confidence: rj.and_then(confidence),
         other_facts,
         provenance: rj.map(provenance).unwrap_or_default(),
+        ladder: rj.map_or_else(|| Avail::No("no report.json".into()), ladder_section),
+        comparisons: match (rj, &recon_dir) {
+            (Some(v), Some(d)) => comparisons_section(v, d),
+            _ => Avail::No("no report.json".into()),
+        },
     })
+}
+
+/// A rung's label from its JSON (`family`, `k`, `eta`).
+fn rung_label(r: &Value) -> String {
+    let family = match r.get("family").and_then(Value::as_str).unwrap_or("?") {
+        "lambert" => "Lambert",
+        "lambert-ggx" => "Lambert + GGX",
+        "basis" => "basis",
+        "hybrid" => "basis + GGX peak",
+        other => other,
+    };
+    match (
+        r.get("k").and_then(Value::as_u64),
+        r.get("eta").and_then(Value::as_f64),
+    ) {
+        (Some(k), Some(eta)) => format!("{family} (k = {k}, eta = {eta})"),
+        _ => family.to_string(),
+    }
+}
+
+/// `model`, `ladder` and `plausibility` of report.json.
+fn ladder_section(v: &Value) -> Avail<LadderSection> {
+    let Some(model) = v.get("model") else {
+        return Avail::No("report.json has no \"model\" (made before the model ladder)".into());
+    };
+    let ladder = v.get("ladder").filter(|l| !l.is_null());
+    let chosen = ladder
+        .and_then(|l| l.get("chosen"))
+        .and_then(Value::as_u64)
+        .map(|c| c as usize);
+    let rows = ladder
+        .and_then(|l| l.get("rungs"))
+        .and_then(Value::as_array)
+        .map(|rs| {
+            rs.iter()
+                .enumerate()
+                .map(|(i, r)| LadderRow {
+                    label: rung_label(r),
+                    parameters: r.get("parameters").and_then(Value::as_f64),
+                    error: r.get("error").and_then(Value::as_f64),
+                    standard_error: r.get("standard_error").and_then(Value::as_f64),
+                    chosen: Some(i) == chosen,
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let scheme = ladder
+        .and_then(|l| l.get("scheme"))
+        .map(|s| match s.get("kind").and_then(Value::as_str) {
+            Some("images") => format!(
+                "whole images held out, {} folds",
+                s.get("folds").map(value_text).unwrap_or_default()
+            ),
+            Some("blocks") => format!(
+                "spatial blocks of {} px held out, {} folds",
+                s.get("block_px").map(value_text).unwrap_or_default(),
+                s.get("folds").map(value_text).unwrap_or_default()
+            ),
+            _ => value_text(s),
+        })
+        .unwrap_or_else(|| "the ladder did not run".to_string());
+    let plausibility = v
+        .get("plausibility")
+        .and_then(Value::as_object)
+        .map(|o| {
+            o.iter()
+                .map(|(k, x)| (k.replace('_', " "), value_text(x)))
+                .collect()
+        })
+        .unwrap_or_default();
+    Avail::Yes(LadderSection {
+        model: rung_label(model),
+        reason: model.get("reason").map(value_text).unwrap_or_default(),
+        scheme,
+        rows,
+        plausibility,
+    })
+}
+
+/// `comparisons` of report.json, with their panels embedded.
+fn comparisons_section(v: &Value, recon_dir: &Path) -> Avail<Vec<ComparisonRow>> {
+    let Some(list) = v.get("comparisons").and_then(Value::as_array) else {
+        return Avail::No(
+            "report.json has no \"comparisons\" (made before photo/re-render panels)".into(),
+        );
+    };
+    let mut rows = Vec::new();
+    let mut bad = Vec::new();
+    for c in list {
+        let Some(file) = c.get("file").and_then(Value::as_str) else {
+            continue;
+        };
+        let photo = c.get("photo").map(value_text).unwrap_or_default();
+        let caption = format!(
+            "light image {}: {photo} | re-render | error (red: re-render brighter)",
+            c.get("image").map(value_text).unwrap_or_default()
+        );
+        match super::images::embed_png(&recon_dir.join(file), caption) {
+            Ok(image) => rows.push(ComparisonRow {
+                image,
+                fit_error: c.get("fit_error").and_then(Value::as_f64),
+                held_out_error: c.get("held_out_error").and_then(Value::as_f64),
+            }),
+            Err(e) => bad.push(format!("{file}: {e}")),
+        }
+    }
+    if rows.is_empty() {
+        Avail::No(if bad.is_empty() {
+            "no light image to compare".into()
+        } else {
+            bad.join("; ")
+        })
+    } else {
+        Avail::Yes(rows)
+    }
 }
 
 /// `dir` itself if it holds `brdf.binary` or `report.json`, else the first subfolder (by name)
@@ -918,7 +1070,11 @@ fn confidence(v: &Value) -> Option<(String, Vec<String>)> {
     Some((level, strings_at(c, "reasons")))
 }
 
-const INTERPRETED: [&str; 19] = [
+const INTERPRETED: [&str; 23] = [
+    "model",
+    "ladder",
+    "plausibility",
+    "comparisons",
     "provenance",
     "confidence",
     "trials",

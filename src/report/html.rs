@@ -4,7 +4,8 @@
 //! `<body>` after load with whether every image decoded, for headless-browser tests.
 
 use super::gather::{
-    Avail, CalibrationEntry, ComponentsSection, ReportData, TrialsSection, fmt_num,
+    Avail, CalibrationEntry, ComparisonRow, ComponentsSection, LadderSection, ReportData,
+    TrialsSection, fmt_num,
 };
 use super::images::EmbeddedImage;
 use super::session::CaptureSummary;
@@ -122,6 +123,8 @@ pub fn render_html(data: &ReportData) -> String {
     section_capture(&mut h, &data.capture);
     section_calibration(&mut h, &data.calibration);
     section_brdf(&mut h, data);
+    section_ladder(&mut h, &data.ladder);
+    section_comparisons(&mut h, &data.comparisons);
     section_trials(&mut h, &data.trials, &data.components);
     section_timing(&mut h, &data.timing);
 
@@ -294,6 +297,73 @@ fn section_calibration(h: &mut String, cal: &Avail<Vec<CalibrationEntry>>) {
         );
     }
     h.push_str("</table>");
+}
+
+fn section_ladder(h: &mut String, ladder: &Avail<LadderSection>) {
+    h.push_str("<h2 id=\"ladder\">Model: chosen by held-out image error</h2>");
+    match ladder {
+        Avail::No(why) => na(h, why),
+        Avail::Yes(l) => {
+            let _ = write!(
+                h,
+                "<p>Reported model: <b>{}</b>. {}</p><p>Every model was fitted to the reliable \
+                 pixels and scored on pixels it did not see ({}): relative error of the \
+                 re-rendered pixels, mean over folds +- standard error. The simplest model within \
+                 noise of the best is reported.</p>",
+                escape(&l.model),
+                escape(&l.reason),
+                escape(&l.scheme)
+            );
+            if !l.rows.is_empty() {
+                h.push_str("<table><tr><th>model</th><th>parameters</th><th>held-out error</th><th>+- SE</th><th></th></tr>");
+                for r in &l.rows {
+                    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+                    let _ = write!(
+                        h,
+                        "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                        if r.chosen { " class=\"chosen\"" } else { "" },
+                        escape(&r.label),
+                        escape(&num(r.parameters)),
+                        escape(&num(r.error)),
+                        escape(&num(r.standard_error)),
+                        if r.chosen { "chosen" } else { "" }
+                    );
+                }
+                h.push_str("</table>");
+            }
+            if !l.plausibility.is_empty() {
+                h.push_str("<h3>Plausibility of the written table</h3>");
+                kv_table(h, &l.plausibility);
+            }
+        }
+    }
+}
+
+fn section_comparisons(h: &mut String, rows: &Avail<Vec<ComparisonRow>>) {
+    h.push_str("<h2 id=\"compare\">Photo against re-render</h2>");
+    match rows {
+        Avail::No(why) => na(h, why),
+        Avail::Yes(rows) => {
+            h.push_str(
+                "<p>Each light image (left), the mesh re-rendered with the recovered BRDF from \
+                 the same camera, light and irradiance (middle; dark grey where no pixel was \
+                 used: background, shadow, grazing or clipped), and the difference (right: red \
+                 where the re-render is brighter, blue where darker, on the photo's scale). \
+                 No ground truth is needed to read it.</p>",
+            );
+            for r in rows {
+                figure(h, &r.image);
+                let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+                let _ = write!(
+                    h,
+                    "<p class=\"note\">Error of the re-render on this image: {}; while this \
+                     image was held out from the fit: {}.</p>",
+                    escape(&num(r.fit_error)),
+                    escape(&num(r.held_out_error))
+                );
+            }
+        }
+    }
 }
 
 fn section_brdf(h: &mut String, data: &ReportData) {

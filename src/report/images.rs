@@ -136,6 +136,19 @@ pub fn sphere_renders(brdf: &dyn Brdf, pixels: usize) -> Avail<Vec<EmbeddedImage
     Avail::Yes(out)
 }
 
+/// A PNG file embedded as it is (its size read from the file).
+pub(super) fn embed_png(path: &Path, caption: String) -> Result<EmbeddedImage, String> {
+    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+        .map_err(|e| e.to_string())?;
+    Ok(EmbeddedImage {
+        caption,
+        width: img.width(),
+        height: img.height(),
+        png: bytes,
+    })
+}
+
 /// The `*.png` files of the reconstruction output (its own renders), embedded as they are.
 pub(super) fn png_files(dir: &Path) -> Avail<Vec<EmbeddedImage>> {
     let Ok(rd) = std::fs::read_dir(dir) else {
@@ -157,18 +170,8 @@ pub(super) fn png_files(dir: &Path) -> Avail<Vec<EmbeddedImage>> {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let dims = std::fs::read(&p).map_err(|e| e.to_string()).and_then(|b| {
-            image::load_from_memory_with_format(&b, image::ImageFormat::Png)
-                .map(|i| (b, i.width(), i.height()))
-                .map_err(|e| e.to_string())
-        });
-        match dims {
-            Ok((png, width, height)) => out.push(EmbeddedImage {
-                caption: name,
-                png,
-                width,
-                height,
-            }),
+        match embed_png(&p, name) {
+            Ok(img) => out.push(img),
             Err(e) => bad.push(format!("{}: {e}", p.display())),
         }
     }

@@ -1,0 +1,226 @@
+//! Evaluation on scenes the project did not render: the folders written by
+//! `scripts/render_recon_scenes.py` (Mitsuba 3, materials outside the MERL set, exact and
+//! degraded meshes; docs/independent-scenes.md). Each job of each scene is reconstructed as a
+//! user would (`reconstruct::reconstruct_with_basis`, the full basis: the materials are not in
+//! it), the Lambert and Lambert + GGX baselines are fitted to the same observed pixels, and all
+//! three are scored against the scene's truth table with the errors of `Truth`.
+//!
+//! The scene folders are read, never written. An I/O edge.
+
+use super::{Errors, EvalError, Truth};
+use crate::brdf::basis::Basis;
+use crate::brdf::merl::MerlTable;
+use crate::eval::BrdfValues;
+use crate::reconstruct::baselines::fit_baselines;
+use crate::reconstruct::confidence::Level;
+use crate::reconstruct::core::ModelReport;
+use crate::reconstruct::{Job, Settings, reconstruct_with_basis};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `index.json` of a scene set.
+#[derive(Debug, Deserialize)]
+pub struct SceneIndex {
+    pub scenes: BTreeMap<String, SceneEntry>,
+}
+
+/// One scene of `index.json`.
+#[derive(Debug, Deserialize)]
+pub struct SceneEntry {
+    pub mesh: String,
+    pub rig: String,
+    pub material: String,
+    /// Job variant (exact, realistic, poor, ..._path) -> job file, relative to the scene folder.
+    pub jobs: BTreeMap<String, String>,
+    #[serde(default)]
+    pub median_normal_error_deg: BTreeMap<String, f64>,
+    pub truth_table: String,
+}
+
+/// Reads `DIR/index.json`.
+pub fn read_index(dir: &Path) -> Result<SceneIndex, EvalError> {
+    let path = dir.join("index.json");
+    let text = std::fs::read_to_string(&path).map_err(|source| EvalError::Scene {
+        dir: path.clone(),
+        source,
+    })?;
+    serde_json::from_str(&text).map_err(|e| EvalError::Scene {
+        dir: path,
+        source: std::io::Error::other(e),
+    })
+}
+
+/// One job's outcome.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExternalResult {
+    pub scene: String,
+    pub mesh: String,
+    pub rig: String,
+    pub material: String,
+    pub job: String,
+    pub median_normal_error_deg: Option<f64>,
+    pub ours: Result<Errors, String>,
+    pub model: Option<ModelReport>,
+    pub confidence: Option<Level>,
+    pub lambert: Option<Errors>,
+    pub lambert_ggx: Option<Errors>,
+    pub seconds: f64,
+}
+
+impl ExternalResult {
+    /// The better baseline's environment error / ours (above 1: ours is better).
+    pub fn ratio(&self) -> Option<f64> {
+        let ours = self.ours.as_ref().ok()?.environment;
+        let base = [self.lambert, self.lambert_ggx]
+            .iter()
+            .flatten()
+            .map(|e| e.environment)
+            .fold(f64::INFINITY, f64::min);
+        (base.is_finite() && ours > 0.0).then_some(base / ours)
+    }
+}
+
+/// Runs every selected job of every scene under `dir`.
+pub fn run(
+    dir: &Path,
+    jobs: &[String],
+    settings: &Settings,
+    basis: &Basis,
+    bin_step: usize,
+    progress: &mut dyn FnMut(&str),
+    on_result: &mut dyn FnMut(&ExternalResult),
+) -> Result<Vec<ExternalResult>, EvalError> {
+    let index = read_index(dir)?;
+    let mut out = Vec::new();
+    for (name, entry) in &index.scenes {
+        let scene_dir = dir.join(name);
+        let truth_path = scene_dir.join(&entry.truth_table);
+        let table = MerlTable::read(&truth_path).map_err(|e| EvalError::Scene {
+            dir: truth_path.clone(),
+            source: std::io::Error::other(e),
+        })?;
+        let truth = Truth::new(&table, bin_step);
+        for job_name in jobs {
+            let Some(file) = entry.jobs.get(job_name) else {
+                continue;
+            };
+            progress(&format!("{name}: {job_name}"));
+            let t = Instant::now();
+            let job_path: PathBuf = scene_dir.join(file);
+            let mut r = ExternalResult {
+                scene: name.clone(),
+                mesh: entry.mesh.clone(),
+                rig: entry.rig.clone(),
+                material: entry.material.clone(),
+                job: job_name.clone(),
+                median_normal_error_deg: entry
+                    .median_normal_error_deg
+                    .get(job_name.trim_end_matches("_path"))
+                    .copied(),
+                ours: Err("not run".into()),
+                model: None,
+                confidence: None,
+                lambert: None,
+                lambert_ggx: None,
+                seconds: 0.0,
+            };
+            match Job::from_file(&job_path)
+                .map_err(|e| e.to_string())
+                .and_then(|job| {
+                    reconstruct_with_basis(&job, settings, basis, &mut |_| {})
+                        .map_err(|e| e.to_string())
+                }) {
+                Ok(o) => {
+                    r.ours = Ok(truth.errors_of(&o.table));
+                    r.model = Some(o.core.model.clone());
+                    r.confidence = Some(o.core.confidence.level);
+                    let (l, g) = fit_baselines(&o.observed.observations);
+                    r.lambert = l.map(|b| truth.errors_of(&BrdfValues(&b)));
+                    r.lambert_ggx = g.map(|b| truth.errors_of(&BrdfValues(&b)));
+                }
+                Err(e) => r.ours = Err(e),
+            }
+            r.seconds = t.elapsed().as_secs_f64();
+            on_result(&r);
+            out.push(r);
+        }
+    }
+    Ok(out)
+}
+
+fn f3(x: f64) -> String {
+    if x.is_finite() {
+        format!("{x:.3}")
+    } else {
+        "-".to_string()
+    }
+}
+
+/// The markdown page of a run.
+pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> String {
+    let mut s = String::new();
+    s += "# Accuracy on scenes rendered by an independent renderer\n\n";
+    s += "Generated by `brdf-rig bench external`; do not edit by hand. The scenes are \
+          rendered by Mitsuba 3 with materials that are not in the MERL set \
+          (docs/independent-scenes.md); their truth is the Mitsuba BSDF tabulated at the MERL bin \
+          centres. The basis is the full neural-fit basis (neural fits of the MERL materials, \
+          Sztrajman et al. 2021: approximations, not measured MERL data). Errors as in \
+          docs/error-metrics.md; env = the rendered environment error (the headline).\n\n";
+    s += &format!("Command: `{command}`\n\nMachine: {machine}\n\n");
+    s += "## Ours against the better of Lambert and Lambert + GGX, per mesh\n\n";
+    s += "| mesh given | jobs | ours better | ours worse by > 10 % | ratio geometric mean | min | max |\n|---|---|---|---|---|---|---|\n";
+    let mut kinds: Vec<&str> = results.iter().map(|r| r.job.as_str()).collect();
+    kinds.dedup();
+    kinds.sort_unstable();
+    kinds.dedup();
+    for kind in kinds {
+        let ratios: Vec<f64> = results
+            .iter()
+            .filter(|r| r.job == kind)
+            .filter_map(ExternalResult::ratio)
+            .collect();
+        if ratios.is_empty() {
+            continue;
+        }
+        let gm = (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
+        s += &format!(
+            "| {kind} | {} | {} | {} | {} | {} | {} |\n",
+            ratios.len(),
+            ratios.iter().filter(|&&x| x > 1.0).count(),
+            ratios.iter().filter(|&&x| x < 1.0 / 1.1).count(),
+            f3(gm),
+            f3(ratios.iter().copied().fold(f64::INFINITY, f64::min)),
+            f3(ratios.iter().copied().fold(0.0, f64::max)),
+        );
+    }
+    s += "\n## Per job\n\n| scene | mesh given | median normal error deg | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours E_sa | ours log | confidence | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for r in results {
+        let ours = r.ours.as_ref().ok();
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |\n",
+            r.scene,
+            r.job,
+            r.median_normal_error_deg
+                .map_or("-".to_string(), |x| format!("{x:.1}")),
+            match &r.ours {
+                Ok(e) => f3(e.environment),
+                Err(e) => format!("failed: {}", e.replace('|', "/")),
+            },
+            r.model.as_ref().map_or("-".to_string(), |m| match m.k {
+                Some(k) => format!("{} k={k}", m.family),
+                None => m.family.to_string(),
+            }),
+            r.lambert.map_or("-".to_string(), |e| f3(e.environment)),
+            r.lambert_ggx.map_or("-".to_string(), |e| f3(e.environment)),
+            r.ratio().map_or("-".to_string(), |x| format!("{x:.2}")),
+            ours.map_or("-".to_string(), |e| f3(e.lights)),
+            ours.map_or("-".to_string(), |e| f3(e.solid_angle)),
+            ours.map_or("-".to_string(), |e| f3(e.log)),
+            r.confidence.map_or("-".to_string(), |c| c.to_string()),
+            r.seconds
+        );
+    }
+    s
+}
