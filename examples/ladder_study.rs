@@ -53,7 +53,7 @@ fn main() -> anyhow::Result<()> {
                 ..Default::default()
             }),
         ));
-        for (l, rs) in [(6.0, vec![1.0, 3.0, 10.0]), (12.0, vec![3.0])] {
+        for (l, rs) in [(6.0, vec![3.0, 10.0, 30.0])] {
             for r in rs {
                 v.push((
                     format!("L{l} R{r}"),

@@ -178,12 +178,23 @@ pub fn reconstruct_observations(
         .iter()
         .chain(reliable.brightest.as_ref())
         .collect();
-    // The analytic fits see the reliable pixels as observed: eq. 2's brightest pixel with
-    // n = h is the basis's anchor, and would pin a GGX lobe to an infinitely narrow peak.
+    // The analytic fits see every observed pixel (as a user's least-squares fit would), or the
+    // reliable ones as observed; never eq. 2's brightest pixel with n = h: that is the
+    // basis's anchor, and would pin a GGX lobe to an infinitely narrow peak.
     let analytic_pixels = subset(
-        &reliable.pixels,
+        if settings.ladder.analytic_on_all_pixels {
+            observations
+        } else {
+            &reliable.pixels
+        },
         settings.ladder.analytic_max_pixels,
         settings.trials.seed ^ 0xA11A,
+    );
+    // The hybrid's peak is part of the basis method: it sees the reliable pixels.
+    let peak_pixels = subset(
+        &reliable.pixels,
+        settings.ladder.analytic_max_pixels,
+        settings.trials.seed ^ 0xBEA4,
     );
     timings.push(("reliable".to_string(), t.elapsed().as_secs_f64()));
 
@@ -201,6 +212,7 @@ pub fn reconstruct_observations(
             }
             climb(&LadderInput {
                 prior,
+                observations,
                 reliable: &reliable,
                 reliable_settings: &settings.reliable,
                 samples: settings.trials.samples,
@@ -288,7 +300,7 @@ pub fn reconstruct_observations(
             alternatives.push((Family::LambertGgx, Box::new(AnalyticCandidate(m))));
         }
         if family != Family::Hybrid
-            && let Some(peak) = fit_peak(basis_fit.as_ref(), &analytic_pixels)
+            && let Some(peak) = fit_peak(basis_fit.as_ref(), &peak_pixels)
         {
             alternatives.push((
                 Family::Hybrid,
@@ -319,7 +331,7 @@ pub fn reconstruct_observations(
             None => (basis_fit, None),
         },
         Family::Basis => (basis_fit, None),
-        Family::Hybrid => match fit_peak(basis_fit.as_ref(), &analytic_pixels) {
+        Family::Hybrid => match fit_peak(basis_fit.as_ref(), &peak_pixels) {
             Some(peak) => (
                 Box::new(WithPeak {
                     base: basis_fit,
@@ -449,7 +461,7 @@ fn component_choice(
         .collect();
     // The chosen rung's own (k, eta) when it is a basis rung; else the simplest basis rung
     // within one standard error of the best basis rung.
-    let pick = if ladder.chosen().family == Family::Basis {
+    let pick = if matches!(ladder.chosen().family, Family::Basis | Family::Hybrid) {
         Some(ladder.chosen())
     } else {
         let best = basis
