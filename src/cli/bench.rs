@@ -33,6 +33,8 @@ pub enum BenchCommand {
     Reconstruct(super::bench_reconstruct::BenchReconstructArgs),
     /// The reconstruction on scenes rendered by Mitsuba 3 (scripts/render_recon_scenes.py).
     External(super::bench_external::BenchExternalArgs),
+    /// Tune the confidence thresholds on one mesh of an accuracy grid, check on the other.
+    Confidence(super::bench_confidence::BenchConfidenceArgs),
 }
 
 #[derive(Args, Debug)]
@@ -61,6 +63,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         BenchCommand::Capture(a) => super::bench_capture::run(a),
         BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
         BenchCommand::External(a) => super::bench_external::run(a),
+        BenchCommand::Confidence(a) => super::bench_confidence::run(a),
     }
 }
 

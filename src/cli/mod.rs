@@ -12,6 +12,7 @@ use std::process::ExitCode;
 mod bench;
 mod bench_accuracy;
 mod bench_capture;
+mod bench_confidence;
 mod bench_external;
 mod bench_reconstruct;
 mod bench_render;

@@ -135,6 +135,24 @@ pub fn assess(
 
     let unseen_energy = unseen_share(probe, &values, reliable);
 
+    judge(
+        trial_disagreement,
+        held_out_error,
+        theta_d_span_deg,
+        unseen_energy,
+        settings,
+    )
+}
+
+/// The verdict from the four indicators (the thresholds of `settings`); also what the
+/// threshold tuning of `eval::confidence` replays on recorded indicators.
+pub fn judge(
+    trial_disagreement: Option<f64>,
+    held_out_error: Option<f64>,
+    theta_d_span_deg: f64,
+    unseen_energy: f64,
+    settings: &ConfidenceSettings,
+) -> Confidence {
     let mut level = Level::High;
     let mut reasons = Vec::new();
     let mut judge = |value: f64, medium: bool, low: bool, text: String| {
@@ -170,7 +188,7 @@ pub fn assess(
             h > settings.held_out_medium,
             h > settings.held_out_low,
             format!(
-                "the fit misses the held-back pixels by {:.0} %: no single BRDF seen through this \
+                "the model misses held-out images by {:.0} %: no single BRDF seen through this \
                  mesh explains the images (normals too coarse for a narrow highlight, a wrong \
                  light direction or irradiance, a textured or anisotropic surface?)",
                 100.0 * h

@@ -404,7 +404,9 @@ fn median_radiance(obs: &[Observation]) -> f64 {
         .map(|o| o.radiance.iter().sum::<f64>() / 3.0)
         .filter(|x| x.is_finite())
         .collect();
-    crate::calib::robust::median(&mut v).unwrap_or(1.0).max(1e-12)
+    crate::calib::robust::median(&mut v)
+        .unwrap_or(1.0)
+        .max(1e-12)
 }
 
 fn score(c: &dyn Candidate, held: &[Observation]) -> FoldScore {
@@ -714,7 +716,8 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         let seen = view(std::slice::from_ref(&hybrid));
         let basis = view(std::slice::from_ref(&rungs[chosen]));
         let keep = seen[0].error.is_some()
-            && (seen[0].error <= basis[0].error || within_noise(&seen[0], &basis[0], settings.rule));
+            && (seen[0].error <= basis[0].error
+                || within_noise(&seen[0], &basis[0], settings.rule));
         rungs.push(hybrid);
         if keep {
             chosen = rungs.len() - 1;

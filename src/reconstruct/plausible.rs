@@ -54,7 +54,7 @@ impl Default for PlausibleSettings {
         Self {
             shrink: true,
             shrink_length_bins: 6.0,
-            prior_ratio_limit: 1.0,
+            prior_ratio_limit: 10.0,
             min_pixels_per_cell: 1,
             max_albedo: 1.0,
         }
@@ -386,13 +386,26 @@ mod tests {
         // An observed bin keeps the model.
         let seen = obs[10].bin;
         assert!((t.get(seen).unwrap()[0] - 10.0).abs() < 1e-9);
-        // A bin at theta_d = 60 degrees, far from any observation, is the prior's.
+        // A bin at theta_d = 60 degrees, far from any observation, is held within R (10) of
+        // the prior: the 100x extrapolation becomes 10x.
         let far = MerlBin {
             theta_h: 20,
             theta_d: 60,
             phi_d: 30,
         };
-        assert!((t.get(far.index()).unwrap()[0] - 0.1).abs() < 1e-6);
+        assert!((t.get(far.index()).unwrap()[0] - 1.0).abs() < 1e-6);
+        // R = 1 replaces it by the prior.
+        let (t1, _) = make_plausible(
+            &model,
+            Some((&prior, "test prior")),
+            &used,
+            &PlausibleSettings {
+                prior_ratio_limit: 1.0,
+                max_albedo: f64::INFINITY,
+                ..Default::default()
+            },
+        );
+        assert!((t1.get(far.index()).unwrap()[0] - 0.1).abs() < 1e-6);
         // With shrinking off, the model stays everywhere.
         let (t2, _) = make_plausible(
             &model,
