@@ -5,6 +5,7 @@ pub mod calibrate;
 mod calibrate_session;
 mod demo;
 mod merl;
+mod ranges;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
