@@ -49,6 +49,30 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     write_atomic_with(path, |f| f.write_all(bytes))
 }
 
+/// Removes the temporary files a killed [`write_atomic`] left in `dir` (`.NAME.tmp-XXXXXX`),
+/// for every NAME or only for the `names` given; returns how many. A folder that does not exist
+/// has none. Only for files no other process is writing (their owner holds a lock).
+pub fn remove_stray_temporaries(dir: &Path, names: Option<&[&str]>) -> std::io::Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some((stem, _)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp-")) else {
+            continue;
+        };
+        if names.is_none_or(|ns| ns.contains(&stem)) && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Atomic write where `fill` streams into the (seekable) temp file.
 pub fn write_atomic_with(
     path: &Path,
