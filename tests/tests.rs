@@ -20,6 +20,7 @@ mod firmware_flash;
 mod firmware_qemu;
 mod geometry;
 mod reconstruct;
+mod regression;
 mod render;
 mod report;
 mod rig_cli;
