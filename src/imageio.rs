@@ -360,6 +360,37 @@ pub fn write_preview_png(
 mod tests {
     use super::*;
 
+    #[test]
+    fn stray_temporaries_are_removed_and_nothing_else() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        for name in [
+            ".a.exr.tmp-X1",
+            ".job.toml.tmp-Y2",
+            "a.exr",
+            ".lock",
+            "b.tmp-3",
+            ".calibration.json.tmp-Z3",
+        ] {
+            std::fs::write(d.join(name), b"x").unwrap();
+        }
+        std::fs::create_dir(d.join(".dir.tmp-4")).unwrap();
+        let names = ["job.toml", "calibration.json"];
+        assert_eq!(remove_stray_temporaries(d, Some(&names)).unwrap(), 2);
+        assert!(d.join(".a.exr.tmp-X1").exists());
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 1);
+        let mut left: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".dir.tmp-4", ".lock", "a.exr", "b.tmp-3"]);
+        assert_eq!(remove_stray_temporaries(&d.join("none"), None).unwrap(), 0);
+        // a real write leaves nothing behind
+        write_atomic(&d.join("c.bin"), b"abc").unwrap();
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 0);
+    }
+
     fn ramp(w: usize, h: usize, max: f32) -> LinearImage {
         let data = (0..w * h * 3)
             .map(|i| max * i as f32 / (w * h * 3) as f32)

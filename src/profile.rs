@@ -312,7 +312,11 @@ impl Profile {
                     Ok(())
                 } else {
                     let l = if open_lo { "(" } else { "[" };
-                    Err(self.invalid(section, key, format!("{v}: must be in {l}{lo}, {hi}]{why}")))
+                    Err(self.invalid(
+                        section,
+                        key,
+                        format!("{}: must be in {l}{lo}, {hi}]{why}", number(v)),
+                    ))
                 }
             };
         let wire = " (the wire carries millidegrees in 32 bits)";
@@ -400,7 +404,7 @@ impl Profile {
             if !(-360.0..=360.0).contains(&c.azimuth_deg) {
                 return Err(at(
                     "azimuth_deg",
-                    format!("{}: must be in [-360, 360]", c.azimuth_deg),
+                    format!("{}: must be in [-360, 360]", number(c.azimuth_deg)),
                 ));
             }
             if !(-90.0..=90.0).contains(&c.elevation_deg) {
@@ -426,6 +430,15 @@ impl Profile {
             "",
         )?;
         Ok(())
+    }
+}
+
+/// A number as an operator wrote it: `1e9`, not a thousand digits.
+fn number(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
     }
 }
 
@@ -563,6 +576,74 @@ mod tests {
         let text = SIMULATED.replace("min_angle_deg = -360.0", "min_angle_deg = 400.0");
         let e = Profile::parse(&text, "x.toml").unwrap_err().to_string();
         assert!(e.contains("turntable.max_angle_deg: must be above"), "{e}");
+    }
+
+    #[test]
+    fn every_out_of_range_value_gives_the_allowed_range() {
+        for (from, to, want) in [
+            (
+                "max_speed_deg_s = 90.0",
+                "max_speed_deg_s = 1e9",
+                "turntable.max_speed_deg_s: 1e9: must be in (0, 4294967.295]",
+            ),
+            (
+                "timeout_ms = 100",
+                "timeout_ms = 0",
+                "must be in [1, 60000]",
+            ),
+            ("retries = 5", "retries = 101", "must be in [0, 100]"),
+            (
+                "reconnect_ms = 3000",
+                "reconnect_ms = 9000000",
+                "serial.reconnect_ms: 9000000: must be in [0, 600000]",
+            ),
+            ("poll_ms = 1", "poll_ms = 5000", "must be in [0, 1000]"),
+            (
+                "warmup_timeout_ms = 3000",
+                "warmup_timeout_ms = 7200000",
+                "light.warmup_timeout_ms: 7200000: must be in [0, 600000]",
+            ),
+            (
+                "drop_rate = 0.0",
+                "drop_rate = 1.0",
+                "sim.drop_rate: 1: must be in [0, 1)",
+            ),
+            (
+                "azimuth_deg = 20.0",
+                "azimuth_deg = 1e300",
+                "light.channels[0].azimuth_deg: 1e300: must be in [-360, 360]",
+            ),
+            (
+                "watchdog_ms = 2000",
+                "watchdog_ms = 2000\nboot_window_ms = 100000",
+                "serial.boot_window_ms: 100000: must be in [0, 60000]",
+            ),
+        ] {
+            assert!(SIMULATED.contains(from), "{from}");
+            let e = Profile::parse(&SIMULATED.replacen(from, to, 1), "x.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{to}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_port_without_a_profile_gets_a_real_boards_timing() {
+        let sim = Profile::simulated().unwrap();
+        assert_eq!(sim.boot_window_ms(), 0);
+        let p = Profile::real_board_defaults(Path::new("/dev/tty ACM'0")).unwrap();
+        assert_eq!(p.serial.port, "/dev/tty ACM'0");
+        assert_eq!((p.serial.timeout_ms, p.serial.retries), (200, 5));
+        assert_eq!(p.boot_window_ms(), DEFAULT_BOOT_WINDOW_MS);
+        assert_eq!(p.turntable, sim.turntable);
+        assert_eq!(p.light, sim.light);
+        assert_eq!(p.origin, REAL_BOARD_NAME);
+        // its source is what it says (a session keeps a copy; a resume reads it back)
+        assert_eq!(Profile::parse(&p.source, "copy").unwrap().serial, p.serial);
+        // a real board's own profile has the window without saying so
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("rig-profiles");
+        let real = Profile::load(&dir.join("example-real.toml")).unwrap();
+        assert_eq!(real.boot_window_ms(), DEFAULT_BOOT_WINDOW_MS);
     }
 
     #[test]

@@ -88,7 +88,10 @@ fn finding_1_resume_repairs_missing_and_damaged_shots() {
         "{err}"
     );
     assert!(err.contains(missing) && err.contains(damaged), "{err}");
-    assert!(err.contains("2 taken now, of which 2 re-taken"), "{err}");
+    assert!(
+        err.contains("2 taken now") && err.contains("2 of them re-taken"),
+        "{err}"
+    );
     let o = run(&["session", "verify", s(&dir)]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     let report = verify_session(&dir).unwrap();
@@ -495,21 +498,24 @@ fn finding_6_calibrate_removes_what_a_killed_run_left() {
 
 #[test]
 fn finding_7_a_real_board_that_resets_when_its_port_opens() {
-    // The reference firmware in QEMU, built to ignore its UART for 1 s after a reset as the
-    // Mega's bootloader does, and `rig check --port` without a profile started at once.
-    let elf = crate::firmware_qemu::qemu_elf_with(&[("BOOT_DELAY_MS", "1000")]);
+    // The reference firmware in QEMU, built to ignore its UART for 800 ms after a reset as the
+    // Mega's bootloader does, and `rig check --port` without a profile started at once. (QEMU's
+    // timers only ever stretch: the board is silent for at least 800 ms of wall time, more than
+    // the simulator's whole budget of 6 x 100 ms; 2 to 3 s on a loaded 2-core machine, within
+    // the 2.5 s window plus 6 x 200 ms.)
+    let elf = crate::firmware_qemu::qemu_elf_with(&[("BOOT_DELAY_MS", "800")]);
     let qemu = crate::firmware_qemu::Qemu::start_elf(&elf);
     let o = run(&["rig", "check", "--port", s(qemu.pty())]);
     assert!(o.status.success(), "{}", text(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("firmware:   brdf-mega-qemu"), "{out}");
-    // It answered only after its boot: more than the simulator's whole budget (6 x 100 ms).
+    // It answered only after its boot.
     let first = out
         .split("first reply ")
         .nth(1)
         .and_then(|r| r.split(' ').next())
         .and_then(|n| n.parse::<u64>().ok())
         .unwrap_or_else(|| panic!("no first-reply time in {out}"));
-    assert!(first >= 900, "{out}");
+    assert!(first >= 750, "{out}");
     assert!(out.contains("boot window 2500 ms"), "{out}");
 }

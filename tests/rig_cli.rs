@@ -36,7 +36,8 @@ fn rig_check_prints_the_handshake() {
 
 #[test]
 fn rig_check_fails_when_nothing_answers() {
-    // A pty where no firmware listens: the handshake times out.
+    // A pty where no firmware listens: `--port` without a profile is a real board, so the
+    // handshake waits out the boot window, then times out.
     let (_master, slave) = brdf_rig::sim::runner::pty_pair().unwrap();
     let path = slave.name().unwrap();
     drop(slave);
@@ -48,6 +49,7 @@ fn rig_check_fails_when_nothing_answers() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no reply"), "{err}");
     assert!(err.contains(&path), "{err}");
+    assert!(err.contains("2500 ms boot window"), "{err}");
 }
 
 #[test]

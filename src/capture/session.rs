@@ -723,6 +723,88 @@ mod tests {
     }
 
     #[test]
+    fn resume_sets_damaged_images_aside_and_journals_the_retakes() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("s");
+        let mut s = Session::create(&dir, &default_plan(), DEFAULT_TEXT, header(), &[]).unwrap();
+        let shots = s.planned().to_vec();
+        for shot in &shots[..3] {
+            let (_, sha) = s.write_image(&shot.id, &shot.file, b"abc").unwrap();
+            s.append(record(shot, &sha)).unwrap();
+        }
+        drop(s);
+        fs::write(dir.join(&shots[1].file), b"abd").unwrap(); // same size, other bytes
+        fs::remove_file(dir.join(&shots[2].file)).unwrap();
+        let mut s = Session::resume(&dir).unwrap();
+        let repaired: Vec<&str> = s.repairs().iter().map(|r| r.id.as_str()).collect();
+        assert_eq!(repaired, [shots[1].id.as_str(), shots[2].id.as_str()]);
+        assert!(s.is_done(&shots[0].id) && !s.is_done(&shots[1].id));
+        // the damaged shots come first among the remaining ones, in plan order
+        let remaining = s.remaining();
+        assert_eq!(remaining[0].id, shots[1].id);
+        assert_eq!(remaining[1].id, shots[2].id);
+        for shot in &shots[1..3] {
+            let (_, sha) = s.write_image(&shot.id, &shot.file, b"abc").unwrap();
+            s.append(record(shot, &sha)).unwrap();
+        }
+        drop(s);
+        assert_eq!(
+            fs::read(dir.join(SET_ASIDE_DIR).join(&shots[1].file)).unwrap(),
+            b"abd"
+        );
+        let (records, _) = read_journal(&dir.join(JOURNAL_FILE)).unwrap();
+        assert_eq!(records.len(), 5);
+        let r1 = records[3].retake.as_ref().unwrap();
+        assert!(r1.reason.starts_with("checksum mismatch"), "{r1:?}");
+        assert_eq!(
+            r1.set_aside.as_deref(),
+            Some(format!("{SET_ASIDE_DIR}/{}", shots[1].file).as_str())
+        );
+        let r2 = records[4].retake.as_ref().unwrap();
+        assert_eq!(
+            (r2.reason.as_str(), r2.set_aside.as_deref()),
+            ("missing", None)
+        );
+        // the re-takes supersede the first records
+        let (current, duplicates) = current_records(records);
+        assert!(duplicates.is_empty());
+        assert_eq!(current.len(), 3);
+        assert!(current[1].retake.is_some() && current[2].retake.is_some());
+        let s = Session::resume(&dir).unwrap();
+        assert!(s.repairs().is_empty());
+        assert_eq!(s.records().len(), 3);
+    }
+
+    #[test]
+    fn a_plain_duplicate_record_does_not_replace_the_first() {
+        let shot = &default_plan().shots()[0];
+        let first = record(shot, "aa");
+        let second = record(shot, "bb");
+        let (current, duplicates) = current_records(vec![first.clone(), second]);
+        assert_eq!(current, vec![first]);
+        assert_eq!(duplicates, vec![shot.id.clone()]);
+    }
+
+    #[test]
+    fn a_new_session_that_cannot_be_built_is_named_as_given() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("s");
+        // A file where the staging folder goes: building it fails half way.
+        let staging = tmp
+            .path()
+            .join(format!(".s.creating-{}", std::process::id()));
+        fs::write(&staging, b"").unwrap();
+        let err = Session::create(&dir, &default_plan(), DEFAULT_TEXT, header(), &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("creating the session folder"), "{err}");
+        assert!(err.contains(&dir.display().to_string()), "{err}");
+        assert!(!err.contains(".creating-"), "{err}");
+        assert!(!dir.exists());
+    }
+
+    #[test]
     fn a_bad_line_in_the_middle_is_an_error_naming_the_line() {
         let tmp = tempfile::tempdir().unwrap();
         let p = tmp.path().join("j.jsonl");

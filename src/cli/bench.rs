@@ -39,13 +39,13 @@ pub struct BenchRigArgs {
     /// Rig profile with `port = "sim"` (default: the built-in simulated rig).
     #[arg(long)]
     pub profile: Option<PathBuf>,
-    /// 1 to 1000000.
+    /// STATUS round trips to time (1 to 1000000).
     #[arg(long, default_value_t = 2000, value_parser = int_in(1usize, 1_000_000))]
     pub round_trips: usize,
-    /// 1 to 100000.
+    /// Turntable steps to time (1 to 100000).
     #[arg(long, default_value_t = 40, value_parser = int_in(1usize, 100_000))]
     pub steps: usize,
-    /// In (0, 360].
+    /// Degrees per step, in (0, 360].
     #[arg(long, default_value_t = 1.0, value_parser = real_in(Open(0.0), Closed(360.0)))]
     pub step_deg: f64,
     /// Also write the markdown page here (e.g. docs/benchmarks-rig.md).

@@ -620,17 +620,8 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
     }
     match result {
         Ok(summary) => {
-            let retakes = if summary.retakes > 0 {
-                format!(
-                    ", of which {} re-taken (missing or damaged; old files in {})",
-                    summary.retakes,
-                    dir.join(brdf_rig::capture::session::SET_ASIDE_DIR).display()
-                )
-            } else {
-                String::new()
-            };
             eprintln!(
-                "capture complete: {} shots in {} ({} taken now{retakes} in {:.1} s, {:.2} shots/s); verify with `brdf-rig session verify {}`",
+                "capture complete: {} shots in {} ({} taken now in {:.1} s, {:.2} shots/s); verify with `brdf-rig session verify {}`",
                 summary.shots_total,
                 dir.display(),
                 summary.shots_taken,
@@ -638,6 +629,14 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
                 summary.shots_taken as f64 / summary.wall.as_secs_f64().max(1e-9),
                 dir.display()
             );
+            if summary.retakes > 0 {
+                eprintln!(
+                    "  {} of them re-taken because their journaled image was missing or damaged \
+                     (damaged files are kept in {})",
+                    summary.retakes,
+                    dir.join(brdf_rig::capture::session::SET_ASIDE_DIR).display()
+                );
+            }
             let per = |d: Duration| 1000.0 * d.as_secs_f64() / summary.shots_taken.max(1) as f64;
             eprintln!(
                 "  per shot: {:.1} ms wall = devices {:.1} ms (camera {:.1}, settle {:.1}) + storage {:.1} ms + controller {:.2} ms",
