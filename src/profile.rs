@@ -305,57 +305,26 @@ impl Profile {
         // signed 32-bit millidegrees.
         let rate_max = f64::from(u32::MAX) / 1000.0;
         let angle_max = f64::from(i32::MAX) / 1000.0;
-        let real =
-            |section: &str, key: &str, v: f64, lo: f64, open_lo: bool, hi: f64, why: &str| {
-                let above = if open_lo { v > lo } else { v >= lo };
-                if v.is_finite() && above && v <= hi {
-                    Ok(())
-                } else {
-                    let l = if open_lo { "(" } else { "[" };
-                    Err(self.invalid(
-                        section,
-                        key,
-                        format!("{}: must be in {l}{lo}, {hi}]{why}", number(v)),
-                    ))
-                }
-            };
-        let wire = " (the wire carries millidegrees in 32 bits)";
-        real(
-            "turntable",
-            "max_speed_deg_s",
-            t.max_speed_deg_s,
-            0.0,
-            true,
-            rate_max,
-            wire,
-        )?;
-        real(
-            "turntable",
-            "max_accel_deg_s2",
-            t.max_accel_deg_s2,
-            0.0,
-            true,
-            rate_max,
-            wire,
-        )?;
-        real(
-            "turntable",
-            "min_angle_deg",
-            t.min_angle_deg,
-            -angle_max,
-            false,
-            angle_max,
-            wire,
-        )?;
-        real(
-            "turntable",
-            "max_angle_deg",
-            t.max_angle_deg,
-            -angle_max,
-            false,
-            angle_max,
-            wire,
-        )?;
+        let (rate, angle) = ((0.0, true, rate_max), (-angle_max, false, angle_max));
+        for (key, v, (lo, open_lo, hi)) in [
+            ("max_speed_deg_s", t.max_speed_deg_s, rate),
+            ("max_accel_deg_s2", t.max_accel_deg_s2, rate),
+            ("min_angle_deg", t.min_angle_deg, angle),
+            ("max_angle_deg", t.max_angle_deg, angle),
+        ] {
+            let above = if open_lo { v > lo } else { v >= lo };
+            if !(v.is_finite() && above && v <= hi) {
+                let l = if open_lo { "(" } else { "[" };
+                return Err(self.invalid(
+                    "turntable",
+                    key,
+                    format!(
+                        "{}: must be in {l}{lo}, {hi}] (the wire carries millidegrees in 32 bits)",
+                        number(v)
+                    ),
+                ));
+            }
+        }
         if t.max_angle_deg <= t.min_angle_deg {
             return Err(self.invalid(
                 "turntable",

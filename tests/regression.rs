@@ -5,12 +5,14 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
 
 use brdf_rig::capture::session::{SET_ASIDE_DIR, read_journal};
 use brdf_rig::capture::verify_session;
 
-use crate::capture_util::{brdf_rig, capture_unattended, fast_profile, run, s, text, tiny_plan};
+use crate::capture_util::{
+    capture_unattended, fast_profile, interrupt_after_first_shot, run, s, text, tiny_plan,
+    tiny_session,
+};
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -66,11 +68,7 @@ fn damage(path: &Path) {
 #[test]
 fn finding_1_resume_repairs_missing_and_damaged_shots() {
     let tmp = tempfile::tempdir().unwrap();
-    let profile = fast_profile(tmp.path());
-    let plan = tiny_plan(tmp.path(), 6);
-    let dir = tmp.path().join("session");
-    let o = capture_unattended(&profile, &plan, &dir);
-    assert!(o.status.success(), "{}", text(&o));
+    let dir = tiny_session(tmp.path(), 6);
     let missing = "ambient/v002_e0.exr";
     let damaged = "light/v003_ch1_e1.exr";
     std::fs::remove_file(dir.join(missing)).unwrap();
@@ -317,22 +315,7 @@ fn finding_4_useless_input_is_refused_or_warned_about() {
     // A light image that contributes nothing is a warning (in report.json and on stderr)...
     let dir = tmp.path().join("scene");
     std::fs::create_dir(&dir).unwrap();
-    let mats =
-        brdf_rig::brdf::nbrdf::load_dir(&crate::util::shared_data().join("merl-nbrdf")).unwrap();
-    let truth = &mats.iter().find(|(n, _)| n == "blue-acrylic").unwrap().1;
-    let mesh = brdf_rig::geometry::mesh_io::load_mesh(
-        &crate::util::shared_data().join("meshes/spot_triangulated.obj"),
-    )
-    .unwrap()
-    .0;
-    let spec = brdf_rig::reconstruct::synthetic::SceneSpec {
-        views: 2,
-        width: 64,
-        height: 48,
-        ..Default::default()
-    };
-    let job =
-        brdf_rig::reconstruct::synthetic::write_scene(&dir, &mesh, &mesh, truth, &spec).unwrap();
+    let job = crate::reconstruct::write_small_job(&dir);
     let pristine = std::fs::read(&job.light_images[1].file).unwrap();
     assert!(
         image_warnings(&job).is_empty(),
@@ -373,28 +356,7 @@ fn finding_4_useless_input_is_refused_or_warned_about() {
     assert!(w.iter().any(|w| w.contains("light image 1")), "{w:?}");
     // The binary says it on stderr and in report.json, and still writes its result.
     let out = tmp.path().join("out");
-    let o = brdf_rig(&[
-        "reconstruct",
-        s(&job.source),
-        "--out",
-        s(&out),
-        "--exclude",
-        "blue-acrylic",
-        "--basis-stride",
-        "3,10,10",
-        "--basis-components",
-        "10",
-        "--trials",
-        "2",
-        "--samples",
-        "15",
-    ])
-    .env(
-        "BRDF_RIG_BASIS_CACHE",
-        std::env::temp_dir().join("brdf-rig-test-basis"),
-    )
-    .output()
-    .unwrap();
+    let o = crate::reconstruct::run_cli(&job.source, &out, &crate::reconstruct::QUICK_ARGS);
     assert!(o.status.success(), "{}", text(&o));
     assert!(
         stderr(&o).contains("warning: light image 1"),
@@ -425,35 +387,7 @@ fn finding_5_the_interrupted_capture_hint_works_without_a_terminal() {
     let profile = fast_profile(tmp.path());
     let plan = tiny_plan(tmp.path(), 30);
     let out = tmp.path().join("session");
-    let child = brdf_rig(&[
-        "capture",
-        "--profile",
-        s(&profile),
-        "--plan",
-        s(&plan),
-        "--out",
-        s(&out),
-        "--unattended",
-    ])
-    .stdout(Stdio::piped())
-    .stderr(Stdio::piped())
-    .spawn()
-    .unwrap();
-    let journal = out.join("journal.jsonl");
-    let t0 = Instant::now();
-    while std::fs::metadata(&journal).map(|m| m.len()).unwrap_or(0) == 0 {
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "no shot within 30 s"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    let st = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let o = child.wait_with_output().unwrap();
+    let o = interrupt_after_first_shot(&profile, &plan, &out);
     assert_eq!(o.status.code(), Some(130), "{}", text(&o));
     let err = stderr(&o);
     let hint = err
