@@ -56,6 +56,11 @@ struct Args {
     /// Seed of the fault generator.
     #[arg(long)]
     seed: Option<u64>,
+    /// Ignore what arrives for this many milliseconds after start and after an unplug, as an
+    /// Arduino's bootloader does after the reset that opening its port causes (default: the
+    /// profile's `[sim] boot_delay_ms`).
+    #[arg(long)]
+    boot_delay_ms: Option<u64>,
 }
 
 fn rate(s: &str) -> Result<f64, String> {
@@ -90,6 +95,9 @@ fn main() -> ExitCode {
         cfg.seed = s;
     }
     cfg.faults.byte_drop_rate = args.byte_drop_rate;
+    if let Some(ms) = args.boot_delay_ms {
+        cfg.boot_delay = Duration::from_millis(ms);
+    }
     cfg.faults.reply_delay = Duration::from_millis(args.delay_ms);
     for (name, r) in [
         ("--drop-rate", cfg.faults.drop_rate),

@@ -49,6 +49,30 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     write_atomic_with(path, |f| f.write_all(bytes))
 }
 
+/// Removes the temporary files a killed [`write_atomic`] left in `dir` (`.NAME.tmp-XXXXXX`),
+/// for every NAME or only for the `names` given; returns how many. A folder that does not exist
+/// has none. Only for files no other process is writing (their owner holds a lock).
+pub fn remove_stray_temporaries(dir: &Path, names: Option<&[&str]>) -> std::io::Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some((stem, _)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp-")) else {
+            continue;
+        };
+        if names.is_none_or(|ns| ns.contains(&stem)) && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Atomic write where `fill` streams into the (seekable) temp file.
 pub fn write_atomic_with(
     path: &Path,
@@ -335,6 +359,37 @@ pub fn write_preview_png(
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
+
+    #[test]
+    fn stray_temporaries_are_removed_and_nothing_else() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        for name in [
+            ".a.exr.tmp-X1",
+            ".job.toml.tmp-Y2",
+            "a.exr",
+            ".lock",
+            "b.tmp-3",
+            ".calibration.json.tmp-Z3",
+        ] {
+            std::fs::write(d.join(name), b"x").unwrap();
+        }
+        std::fs::create_dir(d.join(".dir.tmp-4")).unwrap();
+        let names = ["job.toml", "calibration.json"];
+        assert_eq!(remove_stray_temporaries(d, Some(&names)).unwrap(), 2);
+        assert!(d.join(".a.exr.tmp-X1").exists());
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 1);
+        let mut left: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".dir.tmp-4", ".lock", "a.exr", "b.tmp-3"]);
+        assert_eq!(remove_stray_temporaries(&d.join("none"), None).unwrap(), 0);
+        // a real write leaves nothing behind
+        write_atomic(&d.join("c.bin"), b"abc").unwrap();
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 0);
+    }
 
     fn ramp(w: usize, h: usize, max: f32) -> LinearImage {
         let data = (0..w * h * 3)

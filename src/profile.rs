@@ -20,6 +20,9 @@ use thiserror::Error;
 pub const SIMULATED: &str = include_str!("../rig-profiles/simulated.toml");
 /// Name under which the built-in profile appears in messages.
 pub const SIMULATED_NAME: &str = "<built-in rig-profiles/simulated.toml>";
+/// Name of [`Profile::real_board_defaults`] in messages.
+pub const REAL_BOARD_NAME: &str =
+    "<built-in defaults for a real board: simulated.toml's rig with example-real.toml's [serial]>";
 
 #[derive(Debug, Error)]
 pub enum ProfileError {
@@ -57,7 +60,17 @@ pub struct SerialSection {
     pub reconnect_ms: u64,
     #[serde(default = "default_watchdog")]
     pub watchdog_ms: u16,
+    /// How long after opening the port the board may stay silent while it boots (an Arduino
+    /// resets when its port opens and its bootloader holds the UART for 1-2 s): requests are
+    /// re-sent every `timeout_ms` for this long before `retries` start counting. Default
+    /// [`DEFAULT_BOOT_WINDOW_MS`] for a real board's profile, 0 for `port = "sim"`.
+    #[serde(default)]
+    pub boot_window_ms: Option<u64>,
 }
+
+/// The boot window of a real board when the profile does not give one: an Arduino Mega's
+/// bootloader holds the UART for about 1-2 s after the reset that opening the port causes.
+pub const DEFAULT_BOOT_WINDOW_MS: u64 = 2500;
 
 fn default_baud() -> u32 {
     115_200
@@ -127,6 +140,9 @@ pub struct SimSection {
     pub drop_rate: f64,
     pub corrupt_rate: f64,
     pub seed: u64,
+    /// The simulated board ignores what it receives for this long after it starts (or comes
+    /// back after an unplug), as a bootloader would.
+    pub boot_delay_ms: u32,
 }
 
 impl Default for SimSection {
@@ -136,6 +152,7 @@ impl Default for SimSection {
             drop_rate: 0.0,
             corrupt_rate: 0.0,
             seed: 1,
+            boot_delay_ms: 0,
         }
     }
 }
@@ -166,6 +183,46 @@ impl Profile {
     /// The built-in simulated rig.
     pub fn simulated() -> Result<Profile, ProfileError> {
         Profile::parse(SIMULATED, SIMULATED_NAME)
+    }
+
+    /// A board on a port given without a profile: the built-in rig description (turntable and
+    /// light channels of `simulated.toml`) with the serial timing of a real board (the
+    /// `[serial]` section of `rig-profiles/example-real.toml`: 200 ms per reply, 5 re-sends, 10 s
+    /// to re-open a vanished port, and the default boot window), not the simulator's.
+    pub fn real_board_defaults(port: &Path) -> Result<Profile, ProfileError> {
+        let quoted = toml::Value::String(port.display().to_string()).to_string();
+        let serial = format!(
+            "[serial]\n\
+             # --port without --profile: a real board's timing (rig-profiles/example-real.toml)\n\
+             port = {quoted}\n\
+             baud = {}\n\
+             timeout_ms = 200\n\
+             retries = 5\n\
+             reconnect_ms = 10000\n\
+             watchdog_ms = {}\n\
+             boot_window_ms = {DEFAULT_BOOT_WINDOW_MS}\n\n",
+            default_baud(),
+            default_watchdog()
+        );
+        // The built-in profile's [serial] section is the first table, [turntable] the second.
+        let rest = SIMULATED
+            .find("[turntable]")
+            .map(|i| &SIMULATED[i..])
+            .unwrap_or(SIMULATED);
+        Profile::parse(&format!("{serial}{rest}"), REAL_BOARD_NAME)
+    }
+
+    /// The boot window (see [`SerialSection::boot_window_ms`]): the profile's, else 0 for the
+    /// simulated rig's profile (its firmware runs before its port exists) and
+    /// [`DEFAULT_BOOT_WINDOW_MS`] for a profile of a real board.
+    pub fn boot_window_ms(&self) -> u64 {
+        self.serial
+            .boot_window_ms
+            .unwrap_or(if self.is_simulated() {
+                0
+            } else {
+                DEFAULT_BOOT_WINDOW_MS
+            })
     }
 
     pub fn load(path: &Path) -> Result<Profile, ProfileError> {
@@ -221,47 +278,77 @@ impl Profile {
         if s.port.trim().is_empty() {
             return Err(self.invalid("serial", "port", "empty port path".into()));
         }
-        if s.timeout_ms == 0 || s.timeout_ms > 60_000 {
-            return Err(self.invalid("serial", "timeout_ms", "must be in 1..=60000".into()));
-        }
-        if s.retries > 100 {
-            return Err(self.invalid("serial", "retries", "must be at most 100".into()));
-        }
-        if !(100..=60_000).contains(&s.watchdog_ms) {
-            return Err(self.invalid(
-                "serial",
-                "watchdog_ms",
-                "must be in 100..=60000 (PROTOCOL.md SET_WATCHDOG)".into(),
-            ));
+        let int = |section: &str, key: &str, v: u64, lo: u64, hi: u64, why: &str| {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(self.invalid(section, key, format!("{v}: must be in [{lo}, {hi}]{why}")))
+            }
+        };
+        int("serial", "baud", s.baud.into(), 300, 4_000_000, "")?;
+        int("serial", "timeout_ms", s.timeout_ms, 1, 60_000, "")?;
+        int("serial", "retries", s.retries.into(), 0, 100, "")?;
+        int("serial", "reconnect_ms", s.reconnect_ms, 0, 600_000, "")?;
+        int(
+            "serial",
+            "watchdog_ms",
+            s.watchdog_ms.into(),
+            100,
+            60_000,
+            " (PROTOCOL.md SET_WATCHDOG)",
+        )?;
+        if let Some(b) = s.boot_window_ms {
+            int("serial", "boot_window_ms", b, 0, 60_000, "")?;
         }
         let t = &self.turntable;
-        let pos = |v: f64| v.is_finite() && v > 0.0;
-        if !pos(t.max_speed_deg_s) || t.max_speed_deg_s * 1000.0 > u32::MAX as f64 {
-            return Err(self.invalid("turntable", "max_speed_deg_s", "must be > 0".into()));
+        // The wire carries rates in millidegrees per second (squared) in 32 bits, angles in
+        // signed 32-bit millidegrees.
+        let rate_max = f64::from(u32::MAX) / 1000.0;
+        let angle_max = f64::from(i32::MAX) / 1000.0;
+        let (rate, angle) = ((0.0, true, rate_max), (-angle_max, false, angle_max));
+        for (key, v, (lo, open_lo, hi)) in [
+            ("max_speed_deg_s", t.max_speed_deg_s, rate),
+            ("max_accel_deg_s2", t.max_accel_deg_s2, rate),
+            ("min_angle_deg", t.min_angle_deg, angle),
+            ("max_angle_deg", t.max_angle_deg, angle),
+        ] {
+            let above = if open_lo { v > lo } else { v >= lo };
+            if !(v.is_finite() && above && v <= hi) {
+                let l = if open_lo { "(" } else { "[" };
+                return Err(self.invalid(
+                    "turntable",
+                    key,
+                    format!(
+                        "{}: must be in {l}{lo}, {hi}] (the wire carries millidegrees in 32 bits)",
+                        number(v)
+                    ),
+                ));
+            }
         }
-        if !pos(t.max_accel_deg_s2) || t.max_accel_deg_s2 * 1000.0 > u32::MAX as f64 {
-            return Err(self.invalid("turntable", "max_accel_deg_s2", "must be > 0".into()));
-        }
-        let lim = i32::MAX as f64 / 1000.0;
-        if !t.min_angle_deg.is_finite() || t.min_angle_deg.abs() > lim {
-            return Err(self.invalid("turntable", "min_angle_deg", "not a usable angle".into()));
-        }
-        if !t.max_angle_deg.is_finite() || t.max_angle_deg <= t.min_angle_deg {
+        if t.max_angle_deg <= t.min_angle_deg {
             return Err(self.invalid(
                 "turntable",
                 "max_angle_deg",
                 format!("must be above min_angle_deg ({})", t.min_angle_deg),
             ));
         }
-        if t.max_angle_deg.abs() > lim {
-            return Err(self.invalid("turntable", "max_angle_deg", "not a usable angle".into()));
-        }
-        if t.steps_per_rev == 0 {
-            return Err(self.invalid("turntable", "steps_per_rev", "must be > 0".into()));
-        }
-        if t.poll_ms > 1000 {
-            return Err(self.invalid("turntable", "poll_ms", "must be at most 1000".into()));
-        }
+        int(
+            "turntable",
+            "steps_per_rev",
+            t.steps_per_rev.into(),
+            1,
+            10_000_000,
+            "",
+        )?;
+        int("turntable", "poll_ms", t.poll_ms, 0, 1000, "")?;
+        int(
+            "light",
+            "warmup_timeout_ms",
+            self.light.warmup_timeout_ms,
+            0,
+            600_000,
+            "",
+        )?;
         let n = self.light.channels.len();
         if n == 0 || n > crate::protocol::messages::MAX_CHANNELS {
             return Err(self.invalid(
@@ -283,21 +370,44 @@ impl Profile {
             if !(c.max_level > 0.0 && c.max_level <= 1.0) {
                 return Err(at("max_level", "must be in (0, 1]".into()));
             }
-            if !c.azimuth_deg.is_finite() {
-                return Err(at("azimuth_deg", "must be a number".into()));
+            if !(-360.0..=360.0).contains(&c.azimuth_deg) {
+                return Err(at(
+                    "azimuth_deg",
+                    format!("{}: must be in [-360, 360]", number(c.azimuth_deg)),
+                ));
             }
             if !(-90.0..=90.0).contains(&c.elevation_deg) {
                 return Err(at("elevation_deg", "must be in [-90, 90]".into()));
             }
         }
-        let rate = |r: f64| (0.0..1.0).contains(&r);
-        if !rate(self.sim.drop_rate) {
-            return Err(self.invalid("sim", "drop_rate", "must be in [0, 1)".into()));
-        }
-        if !rate(self.sim.corrupt_rate) {
-            return Err(self.invalid("sim", "corrupt_rate", "must be in [0, 1)".into()));
-        }
+        let rate = |key: &str, r: f64| {
+            if (0.0..1.0).contains(&r) {
+                Ok(())
+            } else {
+                Err(self.invalid("sim", key, format!("{r}: must be in [0, 1)")))
+            }
+        };
+        rate("drop_rate", self.sim.drop_rate)?;
+        rate("corrupt_rate", self.sim.corrupt_rate)?;
+        int("sim", "warmup_ms", self.sim.warmup_ms.into(), 0, 60_000, "")?;
+        int(
+            "sim",
+            "boot_delay_ms",
+            self.sim.boot_delay_ms.into(),
+            0,
+            60_000,
+            "",
+        )?;
         Ok(())
+    }
+}
+
+/// A number as an operator wrote it: `1e9`, not a thousand digits.
+fn number(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
     }
 }
 
@@ -435,6 +545,74 @@ mod tests {
         let text = SIMULATED.replace("min_angle_deg = -360.0", "min_angle_deg = 400.0");
         let e = Profile::parse(&text, "x.toml").unwrap_err().to_string();
         assert!(e.contains("turntable.max_angle_deg: must be above"), "{e}");
+    }
+
+    #[test]
+    fn every_out_of_range_value_gives_the_allowed_range() {
+        for (from, to, want) in [
+            (
+                "max_speed_deg_s = 90.0",
+                "max_speed_deg_s = 1e9",
+                "turntable.max_speed_deg_s: 1e9: must be in (0, 4294967.295]",
+            ),
+            (
+                "timeout_ms = 100",
+                "timeout_ms = 0",
+                "must be in [1, 60000]",
+            ),
+            ("retries = 5", "retries = 101", "must be in [0, 100]"),
+            (
+                "reconnect_ms = 3000",
+                "reconnect_ms = 9000000",
+                "serial.reconnect_ms: 9000000: must be in [0, 600000]",
+            ),
+            ("poll_ms = 1", "poll_ms = 5000", "must be in [0, 1000]"),
+            (
+                "warmup_timeout_ms = 3000",
+                "warmup_timeout_ms = 7200000",
+                "light.warmup_timeout_ms: 7200000: must be in [0, 600000]",
+            ),
+            (
+                "drop_rate = 0.0",
+                "drop_rate = 1.0",
+                "sim.drop_rate: 1: must be in [0, 1)",
+            ),
+            (
+                "azimuth_deg = 20.0",
+                "azimuth_deg = 1e300",
+                "light.channels[0].azimuth_deg: 1e300: must be in [-360, 360]",
+            ),
+            (
+                "watchdog_ms = 2000",
+                "watchdog_ms = 2000\nboot_window_ms = 100000",
+                "serial.boot_window_ms: 100000: must be in [0, 60000]",
+            ),
+        ] {
+            assert!(SIMULATED.contains(from), "{from}");
+            let e = Profile::parse(&SIMULATED.replacen(from, to, 1), "x.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{to}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_port_without_a_profile_gets_a_real_boards_timing() {
+        let sim = Profile::simulated().unwrap();
+        assert_eq!(sim.boot_window_ms(), 0);
+        let p = Profile::real_board_defaults(Path::new("/dev/tty ACM'0")).unwrap();
+        assert_eq!(p.serial.port, "/dev/tty ACM'0");
+        assert_eq!((p.serial.timeout_ms, p.serial.retries), (200, 5));
+        assert_eq!(p.boot_window_ms(), DEFAULT_BOOT_WINDOW_MS);
+        assert_eq!(p.turntable, sim.turntable);
+        assert_eq!(p.light, sim.light);
+        assert_eq!(p.origin, REAL_BOARD_NAME);
+        // its source is what it says (a session keeps a copy; a resume reads it back)
+        assert_eq!(Profile::parse(&p.source, "copy").unwrap().serial, p.serial);
+        // a real board's own profile has the window without saying so
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("rig-profiles");
+        let real = Profile::load(&dir.join("example-real.toml")).unwrap();
+        assert_eq!(real.boot_window_ms(), DEFAULT_BOOT_WINDOW_MS);
     }
 
     #[test]

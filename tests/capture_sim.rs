@@ -207,33 +207,7 @@ fn ctrl_c_stops_cleanly_and_the_session_resumes() {
     let profile = fast_profile(tmp.path());
     let plan = tiny_plan(tmp.path(), 30);
     let out = tmp.path().join("session");
-    let child = crate::capture_util::brdf_rig(&[
-        "capture",
-        "--profile",
-        s(&profile),
-        "--plan",
-        s(&plan),
-        "--out",
-        s(&out),
-        "--unattended",
-    ])
-    .stdout(std::process::Stdio::piped())
-    .stderr(std::process::Stdio::piped())
-    .spawn()
-    .unwrap();
-    // wait until shots are being taken, then Ctrl-C
-    let journal = out.join("journal.jsonl");
-    let t0 = std::time::Instant::now();
-    while std::fs::metadata(&journal).map(|m| m.len()).unwrap_or(0) == 0 {
-        assert!(t0.elapsed().as_secs() < 30, "no shot within 30 s");
-        std::thread::sleep(std::time::Duration::from_millis(10));
-    }
-    let st = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let o = child.wait_with_output().unwrap();
+    let o = crate::capture_util::interrupt_after_first_shot(&profile, &plan, &out);
     assert_eq!(o.status.code(), Some(130), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(

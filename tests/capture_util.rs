@@ -46,9 +46,9 @@ pub fn brdf_rig(args: &[&str]) -> Command {
     c
 }
 
-/// `brdf-rig capture --profile P --plan PLAN --out OUT --unattended`, run to the end.
-pub fn capture_unattended(profile: &Path, plan: &Path, out: &Path) -> Output {
-    run(&[
+/// `capture --profile P --plan PLAN --out OUT --unattended`.
+fn unattended_args<'a>(profile: &'a Path, plan: &'a Path, out: &'a Path) -> [&'a str; 8] {
+    [
         "capture",
         "--profile",
         s(profile),
@@ -57,7 +57,12 @@ pub fn capture_unattended(profile: &Path, plan: &Path, out: &Path) -> Output {
         "--out",
         s(out),
         "--unattended",
-    ])
+    ]
+}
+
+/// `brdf-rig capture --profile P --plan PLAN --out OUT --unattended`, run to the end.
+pub fn capture_unattended(profile: &Path, plan: &Path, out: &Path) -> Output {
+    run(&unattended_args(profile, plan, out))
 }
 
 pub fn run(args: &[&str]) -> Output {
@@ -75,4 +80,34 @@ pub fn text(o: &Output) -> String {
 
 pub fn s(p: &Path) -> &str {
     p.to_str().unwrap()
+}
+
+/// A complete capture of `tiny_plan(dir, views)` on `fast_profile(dir)` into `dir/session`.
+pub fn tiny_session(dir: &Path, views: usize) -> PathBuf {
+    let out = dir.join("session");
+    let o = capture_unattended(&fast_profile(dir), &tiny_plan(dir, views), &out);
+    assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// Starts `capture --profile P --plan PLAN --out OUT --unattended`, sends it SIGINT (Ctrl-C)
+/// once its first shot is journaled, and returns what it printed and its exit status.
+pub fn interrupt_after_first_shot(profile: &Path, plan: &Path, out: &Path) -> Output {
+    let child = brdf_rig(&unattended_args(profile, plan, out))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let journal = out.join("journal.jsonl");
+    let t0 = std::time::Instant::now();
+    while std::fs::metadata(&journal).map(|m| m.len()).unwrap_or(0) == 0 {
+        assert!(t0.elapsed().as_secs() < 30, "no shot within 30 s");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    child.wait_with_output().unwrap()
 }

@@ -147,6 +147,7 @@ fn driver_settings(qemu: &Qemu, watchdog_ms: u16, heartbeat: bool) -> RigSetting
             timeout: Duration::from_millis(500),
             retries: 4,
             reconnect_timeout: Duration::from_secs(2),
+            boot_window: Duration::ZERO,
         },
         watchdog_ms,
         max_speed: 180_000,

@@ -13,7 +13,7 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
-use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 /// The firmware sources.
@@ -38,31 +38,46 @@ fn require_tool(program: &str) {
 
 /// Builds the QEMU variant (`make qemu`) into the test's target directory, once per test run.
 pub fn qemu_elf() -> PathBuf {
-    static ELF: OnceLock<Result<PathBuf, String>> = OnceLock::new();
-    let built = ELF.get_or_init(|| {
-        require_tool("avr-gcc");
-        require_tool("make");
-        let build = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("firmware-qemu");
-        let out = Command::new("make")
-            .arg("-C")
-            .arg(firmware_dir())
-            .arg("qemu")
-            .arg(format!("BUILD={}", build.display()))
-            .output()
-            .map_err(|e| format!("could not run make: {e}"))?;
-        if !out.status.success() {
-            return Err(format!(
-                "make qemu failed:\n{}\n{}",
-                String::from_utf8_lossy(&out.stdout),
-                String::from_utf8_lossy(&out.stderr)
-            ));
-        }
-        Ok(build.join("firmware.elf"))
-    });
-    match built {
-        Ok(p) => p.clone(),
-        Err(e) => panic!("{e}"),
+    qemu_elf_with(&[])
+}
+
+/// Builds the QEMU variant with extra `make` settings (e.g. `("BOOT_DELAY_MS", "1000")`) into
+/// its own folder, once per test run and settings.
+pub fn qemu_elf_with(settings: &[(&str, &str)]) -> PathBuf {
+    static BUILT: Mutex<Vec<(String, Result<PathBuf, String>)>> = Mutex::new(Vec::new());
+    let key: String = settings.iter().map(|(k, v)| format!("-{k}={v}")).collect();
+    let mut built = BUILT.lock().unwrap_or_else(|p| p.into_inner());
+    if !built.iter().any(|(k, _)| *k == key) {
+        let result = build_qemu(&key, settings);
+        built.push((key.clone(), result));
     }
+    match built.iter().find(|(k, _)| *k == key).map(|(_, r)| r) {
+        Some(Ok(p)) => p.clone(),
+        Some(Err(e)) => panic!("{e}"),
+        None => unreachable!("inserted above"),
+    }
+}
+
+fn build_qemu(key: &str, settings: &[(&str, &str)]) -> Result<PathBuf, String> {
+    require_tool("avr-gcc");
+    require_tool("make");
+    let build = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("firmware-qemu{key}"));
+    let out = Command::new("make")
+        .arg("-C")
+        .arg(firmware_dir())
+        .arg("qemu")
+        .arg(format!("BUILD={}", build.display()))
+        .args(settings.iter().map(|(k, v)| format!("{k}={v}")))
+        .output()
+        .map_err(|e| format!("could not run make: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "make qemu failed:\n{}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(build.join("firmware.elf"))
 }
 
 /// One QEMU at a time: on a 2-core machine parallel emulators slow each other's timers down.
@@ -81,12 +96,16 @@ pub struct Qemu {
 impl Qemu {
     /// Boots the QEMU build of the firmware and finds its serial pseudo-terminal.
     pub fn start() -> Qemu {
-        let elf = qemu_elf();
+        Qemu::start_elf(&qemu_elf())
+    }
+
+    /// Boots a given firmware image (see [`qemu_elf_with`]).
+    pub fn start_elf(elf: &Path) -> Qemu {
         require_tool("qemu-system-avr");
         let turn = exclusive();
         let mut child = Command::new("qemu-system-avr")
             .args(["-M", "mega2560", "-bios"])
-            .arg(&elf)
+            .arg(elf)
             .args(["-serial", "pty", "-nographic", "-monitor", "none"])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())

@@ -197,7 +197,7 @@ fn three_assumptions_beat_none_and_the_analytic_baselines() {
     assert!(!r.components.curve.is_empty());
 }
 
-fn write_small_job(dir: &Path) -> Job {
+pub fn write_small_job(dir: &Path) -> Job {
     let mats = materials();
     let truth = &mats.iter().find(|(n, _)| n == "blue-acrylic").unwrap().1;
     let mesh = spot();
@@ -210,7 +210,22 @@ fn write_small_job(dir: &Path) -> Job {
     write_scene(dir, &mesh, &mesh, truth, &spec).unwrap()
 }
 
-fn run_cli(job: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+/// A reconstruction of the small job that takes a few seconds: a coarse basis of 10
+/// components without the job's material, 3 trials of 15 samples.
+pub const QUICK_ARGS: [&str; 10] = [
+    "--exclude",
+    "blue-acrylic",
+    "--basis-stride",
+    "3,10,10",
+    "--basis-components",
+    "10",
+    "--trials",
+    "3",
+    "--samples",
+    "15",
+];
+
+pub fn run_cli(job: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     Command::new(util::bin())
         .arg("reconstruct")
         .arg(job)
@@ -290,22 +305,7 @@ fn cli_writes_merl_table_report_and_sphere() {
     let dir = tempfile::tempdir().unwrap();
     let job = write_small_job(dir.path());
     let out = dir.path().join("out");
-    let o = run_cli(
-        &job.source,
-        &out,
-        &[
-            "--exclude",
-            "blue-acrylic",
-            "--basis-stride",
-            "3,10,10",
-            "--basis-components",
-            "10",
-            "--trials",
-            "3",
-            "--samples",
-            "15",
-        ],
-    );
+    let o = run_cli(&job.source, &out, &QUICK_ARGS);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("trials") && err.contains("done in"), "{err}");

@@ -36,7 +36,8 @@ fn rig_check_prints_the_handshake() {
 
 #[test]
 fn rig_check_fails_when_nothing_answers() {
-    // A pty where no firmware listens: the handshake times out.
+    // A pty where no firmware listens: `--port` without a profile is a real board, so the
+    // handshake waits out the boot window, then times out.
     let (_master, slave) = brdf_rig::sim::runner::pty_pair().unwrap();
     let path = slave.name().unwrap();
     drop(slave);
@@ -48,6 +49,7 @@ fn rig_check_fails_when_nothing_answers() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no reply"), "{err}");
     assert!(err.contains(&path), "{err}");
+    assert!(err.contains("2500 ms boot window"), "{err}");
 }
 
 #[test]
@@ -75,15 +77,36 @@ fn light_on_waits_for_a_stable_channel() {
 
 #[test]
 fn limits_and_bad_profiles_give_clear_errors() {
+    // A level no light has is refused when the command line is parsed...
     let out = brdf_rig()
         .args(["light", "on", "0", "--level", "1.5"])
         .output()
         .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("must be a finite number in (0, 1]"), "{err}");
+    // ... and one above the channel's max_level by the driver, before anything is sent.
+    let dir = tempfile::tempdir().unwrap();
+    let capped = dir.path().join("capped.toml");
+    let text = brdf_rig::profile::SIMULATED.replacen(
+        "name = \"near\"\nmax_level = 1.0",
+        "name = \"near\"\nmax_level = 0.5",
+        1,
+    );
+    assert_ne!(text, brdf_rig::profile::SIMULATED);
+    std::fs::write(&capped, &text).unwrap();
+    let out = brdf_rig()
+        .args(["light", "on", "0", "--level", "0.8"])
+        .args(["--profile", capped.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("outside the limits"), "{err}");
+    assert!(
+        err.contains("outside the limits") && err.contains("(0, 0.5]"),
+        "{err}"
+    );
 
-    let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("typo.toml");
     let text = brdf_rig::profile::SIMULATED.replace("retries = 5", "retrys = 5");
     std::fs::write(&p, &text).unwrap();

@@ -405,3 +405,53 @@ fn a_port_gone_longer_than_the_watchdog_comes_back_with_the_light_on() {
     assert!(ev.contains(&RigEvent::WatchdogTripped), "{ev:?}");
     assert!(ev.contains(&RigEvent::LightsRestored), "{ev:?}");
 }
+
+/// A board that ignores its port for 400 ms after it starts and after every re-plug, as an
+/// Arduino's bootloader does after the reset that opening its port causes. With 20 ms x 3
+/// attempts and no boot window the handshake gives up; with a boot window it waits the board
+/// out, at start and again after the port vanished and came back.
+#[test]
+fn a_board_in_its_bootloader_is_waited_for_within_the_boot_window() {
+    let booting = [
+        ("retries = 100", "retries = 2"),
+        ("seed = 1", "seed = 1\nboot_delay_ms = 400"),
+    ];
+    let p = fast_profile(&booting);
+    assert_eq!(p.boot_window_ms(), 0, "the simulated profile has no window");
+    let e = rig::open(&p, None).err().unwrap();
+    assert!(matches!(e, DeviceError::Timeout { .. }), "{e}");
+    assert!(e.to_string().contains("20 ms per attempt"), "{e}");
+
+    let mut with_window = booting.to_vec();
+    with_window.push((
+        "watchdog_ms = 2000",
+        "watchdog_ms = 2000\nboot_window_ms = 1500",
+    ));
+    let p = fast_profile(&with_window);
+    let t = Instant::now();
+    let mut r = rig::open(&p, None).unwrap();
+    let stats = r.link_stats();
+    let first = stats.first_reply_ms.unwrap();
+    assert!(
+        first >= 400,
+        "answered {first} ms after opening, inside the bootloader"
+    );
+    assert!(stats.resends > 0, "{stats:?}");
+    assert!(
+        t.elapsed() < Duration::from_millis(1500),
+        "{:?}",
+        t.elapsed()
+    );
+    r.turntable.home().unwrap();
+    // Unplugged and back: the board boots again, and the window starts again with the port.
+    let faults = r.faults.clone().unwrap();
+    faults.unplug(Duration::from_millis(50));
+    std::thread::sleep(Duration::from_millis(10));
+    r.turntable.status().unwrap();
+    assert_eq!(r.link_stats().reconnects, 1);
+    assert!(
+        r.link_stats().first_reply_ms.unwrap() >= 300,
+        "{:?}",
+        r.link_stats()
+    );
+}

@@ -21,6 +21,7 @@ mod firmware_qemu;
 mod geometry;
 mod independent;
 mod reconstruct;
+mod regression;
 mod render;
 mod report;
 mod rig_cli;

@@ -70,6 +70,14 @@
 #define SIM_HOME_MDEG 5000L
 #endif
 
+/* BOOT_DELAY_MS > 0 (test builds): after a reset the firmware reads and discards the UART for
+ * this long before it answers, as the Mega's stk500v2 bootloader holds the UART for 1-2 s after
+ * the reset that opening the USB port causes. The QEMU tests use it to check that the host waits
+ * for such a board; a flashed board has the real bootloader and leaves this 0. */
+#ifndef BOOT_DELAY_MS
+#define BOOT_DELAY_MS 0
+#endif
+
 #ifndef FW_NAME
 #if SIM_HOME
 #define FW_NAME "brdf-mega-qemu"

@@ -304,6 +304,16 @@ int main(void)
     uart_init();
     wdt_enable(WDTO_500MS);
     sei();
+#if BOOT_DELAY_MS > 0
+    /* A bootloader's window: whatever arrives now is read and lost. */
+    while (millis() < BOOT_DELAY_MS) {
+        uint8_t c;
+        wdt_reset();
+        while (uart_getc(&c)) {
+        }
+    }
+    (void)uart_take_overflow();
+#endif
 
     struct proto_rx rx;
     proto_rx_init(&rx);

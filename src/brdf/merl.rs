@@ -53,6 +53,10 @@ pub enum MerlError {
         channel: usize,
         bin: usize,
     },
+    #[error(
+        "{path}: the MERL table has no data: every bin has a negative value in some colour channel (negative means \"no data\")"
+    )]
+    NoData { path: PathBuf },
 }
 
 /// A full MERL table; negative entries mean no data.
@@ -176,7 +180,12 @@ impl MerlTable {
             }
             data.push(raw);
         }
-        Ok(Self { data })
+        let table = Self { data };
+        // A table that answers "no data" everywhere would evaluate to 0 at every angle.
+        if !(0..MERL_BINS).any(|i| table.get(i).is_some()) {
+            return Err(MerlError::NoData { path: path_buf() });
+        }
+        Ok(table)
     }
 
     /// Reads a MERL `.binary` file.

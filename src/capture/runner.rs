@@ -5,7 +5,8 @@
 //! Guarantees: the light is switched off when the run ends, whether it finished, failed or was
 //! cancelled (Ctrl-C sets the cancel flag, checked between steps); a shot is in the session only
 //! once its image is on disk and its record is journaled (see `session`), so an interrupted run
-//! can be resumed without losing or repeating a shot.
+//! can be resumed without losing or repeating a shot. A resumed session's remaining shots include
+//! those whose image was found missing or damaged (`Session::repairs`), taken again in plan order.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -127,6 +128,8 @@ impl Default for RunOptions {
 #[derive(Clone, Debug, Default)]
 pub struct RunSummary {
     pub shots_taken: usize,
+    /// Of `shots_taken`, shots whose journaled image a resume found missing or damaged.
+    pub retakes: usize,
     pub shots_total: usize,
     pub complete: bool,
     pub wall: Duration,
@@ -357,7 +360,7 @@ fn take_shots(
             file: shot.file.clone(),
             reason,
         })?;
-        let (len, sha) = session.write_image(&shot.file, &bytes)?;
+        let (len, sha) = session.write_image(&shot.id, &shot.file, &bytes)?;
         hook(KillPhase::AfterImage);
         let (time_unix, time_utc) = now_utc();
         let record = ShotRecord {
@@ -388,6 +391,7 @@ fn take_shots(
             sha256: sha,
             time_unix,
             time_utc,
+            retake: None,
         };
         session.append(record)?;
         hook(KillPhase::AfterJournal);
@@ -399,6 +403,9 @@ fn take_shots(
         summary.storage_time += ts.elapsed();
         summary.shots_taken += 1;
         if let Some(r) = session.records().last() {
+            if r.retake.is_some() {
+                summary.retakes += 1;
+            }
             progress.shot_done(r);
         }
     }

@@ -9,6 +9,7 @@
 //! DIR/ambient/v003_e0.exr, DIR/light/v005_ch1_e2.exr, DIR/calib/sphere_ch0_e0.exr, ...
 //! DIR/sim/            simulated captures only: ground truth and what photogrammetry would give
 //! DIR/.lock           held (flock) while a capture writes, so two never write one folder
+//! DIR/set-aside/      damaged images a resume replaced, at their session path (+ `.N` if taken)
 //! ```
 //! Images are linear RGB OpenEXR (32-bit float), in the camera's units times nothing: the
 //! exposure and gain are in the record, so radiance = value / (exposure_secs * gain).
@@ -18,6 +19,12 @@
 //! every journaled record names a complete image with its checksum, and a kill at any point
 //! loses at most the shot in flight, which a resume takes again (overwriting a stray image).
 //! A torn last journal line (the kill hit the append) is dropped on resume.
+//!
+//! Repair: a resume re-checks every journaled image against its size and SHA-256 (the same
+//! check as `session verify`, [`super::verify::check_record`]). A missing or damaged image is
+//! taken again: its damaged file is first moved to `DIR/set-aside/` (never overwritten), and
+//! the new record carries `retake` (why, and where the old file went). A later record with
+//! `retake` supersedes the earlier record of its shot ([`current_records`]).
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -37,6 +44,8 @@ pub const PLAN_FILE: &str = "plan.toml";
 pub const JOURNAL_FILE: &str = "journal.jsonl";
 pub const MANIFEST_FILE: &str = "manifest.json";
 pub const LOCK_FILE: &str = ".lock";
+/// Where a resume moves a damaged image before re-taking its shot.
+pub const SET_ASIDE_DIR: &str = "set-aside";
 
 /// What the session is (written once when it is created).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -79,6 +88,48 @@ pub struct ShotRecord {
     pub sha256: String,
     pub time_unix: f64,
     pub time_utc: String,
+    /// Set when this record re-takes a shot whose journaled image was missing or damaged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retake: Option<Retake>,
+}
+
+/// Why a shot was taken again, and where its damaged image went.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Retake {
+    /// What the resume found, e.g. `checksum mismatch ...` or `missing`.
+    pub reason: String,
+    /// The damaged file, relative to the session folder (`set-aside/...`); none when it was
+    /// missing.
+    pub set_aside: Option<String>,
+}
+
+/// A journaled shot a resume found missing or damaged, to be taken again.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Repair {
+    pub id: String,
+    pub file: String,
+    pub problem: super::verify::Problem,
+}
+
+/// The record that counts for each shot, in journal order: the first record of a shot, replaced
+/// by any later record marked `retake`. Also returns the ids of plain duplicates (a record
+/// without `retake` for a shot already journaled), which this tool never writes. `session
+/// verify` and a resume both read a journal through this, so they agree on what was taken.
+pub fn current_records(records: Vec<ShotRecord>) -> (Vec<ShotRecord>, Vec<String>) {
+    let mut current: Vec<ShotRecord> = Vec::with_capacity(records.len());
+    let mut at: HashMap<String, usize> = HashMap::new();
+    let mut duplicates = Vec::new();
+    for r in records {
+        match at.get(&r.id) {
+            Some(&i) if r.retake.is_some() => current[i] = r,
+            Some(_) => duplicates.push(r.id),
+            None => {
+                at.insert(r.id.clone(), current.len());
+                current.push(r);
+            }
+        }
+    }
+    (current, duplicates)
 }
 
 /// The snapshot written by atomic rename.
@@ -156,6 +207,10 @@ pub struct Session {
     shots: Vec<PlannedShot>,
     records: Vec<ShotRecord>,
     done: HashMap<String, usize>,
+    /// Journaled shots found missing or damaged at resume, in plan order.
+    repairs: Vec<Repair>,
+    /// Shot id -> why it is re-taken and where its old file went, until the re-take is journaled.
+    pending: HashMap<String, Retake>,
     journal: File,
     // Held for the lifetime of the session; the kernel releases it if the process dies.
     _lock: File,
@@ -249,19 +304,64 @@ fn remove_stale_staging(parent: &Path, name: &str) {
 fn remove_stray_temporaries(dir: &Path) -> Result<(), CaptureError> {
     for sub in ["", "ambient", "light", "calib", "sim"] {
         let d = dir.join(sub);
-        let Ok(entries) = fs::read_dir(&d) else {
-            continue;
-        };
-        for entry in entries.flatten() {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if name.starts_with('.') && name.contains(".tmp-") {
-                let p = entry.path();
-                fs::remove_file(&p)
-                    .map_err(|e| CaptureError::io("removing a stray temporary", &p, e))?;
-            }
-        }
+        crate::imageio::remove_stray_temporaries(&d, None)
+            .map_err(|e| CaptureError::io("removing stray temporaries", &d, e))?;
     }
     Ok(())
+}
+
+/// Writes the files of a new session into `staging` (see [`Session::create`]).
+fn build_staging(
+    staging: &Path,
+    plan_text: &str,
+    header: &SessionHeader,
+    extra: &[(&str, &[u8])],
+) -> Result<(), CaptureError> {
+    for sub in ["ambient", "light", "calib"] {
+        let d = staging.join(sub);
+        fs::create_dir_all(&d).map_err(|e| CaptureError::io("creating", &d, e))?;
+    }
+    write_atomic(&staging.join(PLAN_FILE), plan_text.as_bytes())?;
+    for (file, bytes) in extra {
+        write_atomic(&staging.join(file), bytes)?;
+    }
+    let header_json = serde_json::to_vec_pretty(header).map_err(|e| CaptureError::Session {
+        path: staging.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    write_atomic(&staging.join(SESSION_FILE), &header_json)?;
+    write_atomic(&staging.join(JOURNAL_FILE), b"")
+}
+
+/// Moves `dir/file` to `dir/set-aside/file` (or `.1`, `.2`, ... beside it when that is taken);
+/// returns the new path relative to `dir`.
+fn set_aside(dir: &Path, file: &str) -> Result<String, CaptureError> {
+    let from = dir.join(file);
+    let base = format!("{SET_ASIDE_DIR}/{file}");
+    let mut rel = base.clone();
+    let mut n = 0;
+    while dir.join(&rel).exists() {
+        n += 1;
+        rel = format!("{base}.{n}");
+    }
+    let to = dir.join(&rel);
+    if let Some(parent) = to.parent() {
+        fs::create_dir_all(parent).map_err(|e| CaptureError::io("creating", parent, e))?;
+    }
+    fs::rename(&from, &to).map_err(|e| {
+        CaptureError::io(
+            format!("setting the damaged image aside to {}", to.display()),
+            &from,
+            e,
+        )
+    })?;
+    if let Some(parent) = to.parent() {
+        sync_dir(parent)?;
+    }
+    if let Some(parent) = from.parent() {
+        sync_dir(parent)?;
+    }
+    Ok(rel)
 }
 
 impl Session {
@@ -303,28 +403,27 @@ impl Session {
         remove_stale_staging(&parent, &name);
         let staging = parent.join(format!(".{name}.creating-{}", std::process::id()));
         let _ = fs::remove_dir_all(&staging);
-        for sub in ["ambient", "light", "calib"] {
-            let d = staging.join(sub);
-            fs::create_dir_all(&d).map_err(|e| CaptureError::io("creating", &d, e))?;
-        }
         let shots = plan.shots();
         header.format_version = FORMAT_VERSION;
         header.plan_name = plan.name.clone();
         header.planned_shots = shots.len();
-        write_atomic(&staging.join(PLAN_FILE), plan_text.as_bytes())?;
-        for (file, bytes) in extra {
-            write_atomic(&staging.join(file), bytes)?;
+        let built = build_staging(&staging, plan_text, &header, extra).and_then(|()| {
+            // rename(2) replaces an empty directory, so an empty --out folder is fine too.
+            fs::rename(&staging, dir)
+                .map_err(|e| CaptureError::io("moving the new session into place", dir, e))
+        });
+        if let Err(e) = built {
+            let _ = fs::remove_dir_all(&staging);
+            // The user named `dir`, not the staging folder beside it.
+            return Err(match e {
+                CaptureError::Io { what, source, .. } => CaptureError::Io {
+                    what: format!("creating the session folder ({what})"),
+                    path: dir.to_path_buf(),
+                    source,
+                },
+                other => other,
+            });
         }
-        let header_json =
-            serde_json::to_vec_pretty(&header).map_err(|e| CaptureError::Session {
-                path: dir.to_path_buf(),
-                reason: e.to_string(),
-            })?;
-        write_atomic(&staging.join(SESSION_FILE), &header_json)?;
-        write_atomic(&staging.join(JOURNAL_FILE), b"")?;
-        // rename(2) replaces an empty directory, so an empty --out folder is fine too.
-        fs::rename(&staging, dir)
-            .map_err(|e| CaptureError::io("moving the new session into place", dir, e))?;
         sync_dir(&parent)?;
         let lock = lock_folder(dir)?;
         let journal_path = dir.join(JOURNAL_FILE);
@@ -339,6 +438,8 @@ impl Session {
             shots,
             records: Vec::new(),
             done: HashMap::new(),
+            repairs: Vec::new(),
+            pending: HashMap::new(),
             journal,
             _lock: lock,
         };
@@ -347,7 +448,8 @@ impl Session {
     }
 
     /// Opens an existing session to continue it: re-reads its plan and journal, drops a torn
-    /// last journal line and stray temporaries.
+    /// last journal line and stray temporaries, and re-checks every journaled image: a missing
+    /// or damaged one is not done any more ([`Session::repairs`]), so the run takes it again.
     pub fn resume(dir: &Path) -> Result<Self, CaptureError> {
         let header_path = dir.join(SESSION_FILE);
         if !header_path.exists() {
@@ -386,6 +488,8 @@ impl Session {
             .sync_all()
             .map_err(|e| CaptureError::io("syncing the journal", &journal_path, e))?;
         remove_stray_temporaries(dir)?;
+        // A plain duplicate (never written by this tool) is ignored, as `session verify` says.
+        let (current, _duplicates) = current_records(records);
         let mut s = Self {
             dir: dir.to_path_buf(),
             header,
@@ -393,21 +497,38 @@ impl Session {
             shots,
             records: Vec::new(),
             done: HashMap::new(),
+            repairs: Vec::new(),
+            pending: HashMap::new(),
             journal,
             _lock: lock,
         };
-        for r in records {
+        for r in current {
             if !s.shots.iter().any(|p| p.id == r.id) {
                 return Err(CaptureError::Session {
                     path: dir.to_path_buf(),
                     reason: format!("journal record `{}` is not a shot of the plan", r.id),
                 });
             }
-            if s.done.contains_key(&r.id) {
-                continue; // a duplicate cannot be written by this tool; keep the first
+            match super::verify::check_record(dir, &r).1 {
+                Some(problem) => {
+                    s.pending.insert(
+                        r.id.clone(),
+                        Retake {
+                            reason: problem.what().to_string(),
+                            set_aside: None,
+                        },
+                    );
+                    s.repairs.push(Repair {
+                        id: r.id,
+                        file: r.file,
+                        problem,
+                    });
+                }
+                None => {
+                    s.done.insert(r.id.clone(), s.records.len());
+                    s.records.push(r);
+                }
             }
-            s.done.insert(r.id.clone(), s.records.len());
-            s.records.push(r);
         }
         Ok(s)
     }
@@ -436,6 +557,11 @@ impl Session {
         self.done.contains_key(id)
     }
 
+    /// Journaled shots a resume found missing or damaged; the run takes them again.
+    pub fn repairs(&self) -> &[Repair] {
+        &self.repairs
+    }
+
     /// Shots of the plan not yet in the journal, in plan order.
     pub fn remaining(&self) -> Vec<PlannedShot> {
         self.shots
@@ -445,19 +571,35 @@ impl Session {
             .collect()
     }
 
-    /// Writes an image (atomically) and returns its size and checksum. Does not journal it.
-    pub fn write_image(&self, file: &str, bytes: &[u8]) -> Result<(u64, String), CaptureError> {
+    /// Writes the image of shot `id` (atomically) and returns its size and checksum. Does not
+    /// journal it. A damaged image of a shot being re-taken is moved to `set-aside/` first.
+    pub fn write_image(
+        &mut self,
+        id: &str,
+        file: &str,
+        bytes: &[u8],
+    ) -> Result<(u64, String), CaptureError> {
         let path = self.dir.join(file);
         if let Some(parent) = path.parent() {
             fs::create_dir_all(parent).map_err(|e| CaptureError::io("creating", parent, e))?;
+        }
+        if let Some(retake) = self.pending.get_mut(id)
+            && retake.set_aside.is_none()
+            && path.exists()
+        {
+            retake.set_aside = Some(set_aside(&self.dir, file)?);
         }
         write_atomic(&path, bytes)?;
         Ok((bytes.len() as u64, sha256_hex(bytes)))
     }
 
-    /// Appends a record to the journal and fsyncs it: from here on the shot is taken.
-    pub fn append(&mut self, record: ShotRecord) -> Result<(), CaptureError> {
+    /// Appends a record to the journal and fsyncs it: from here on the shot is taken. A shot
+    /// being re-taken gets its `retake` note here.
+    pub fn append(&mut self, mut record: ShotRecord) -> Result<(), CaptureError> {
         let path = self.dir.join(JOURNAL_FILE);
+        if record.retake.is_none() {
+            record.retake = self.pending.get(&record.id).cloned();
+        }
         let mut line = serde_json::to_vec(&record).map_err(|e| CaptureError::Session {
             path: path.clone(),
             reason: e.to_string(),
@@ -470,6 +612,7 @@ impl Session {
         self.journal
             .sync_data()
             .map_err(|e| CaptureError::io("syncing the journal", &path, e))?;
+        self.pending.remove(&record.id);
         self.done.insert(record.id.clone(), self.records.len());
         self.records.push(record);
         Ok(())
@@ -538,6 +681,7 @@ mod tests {
             sha256: sha.into(),
             time_unix: 0.0,
             time_utc: format_utc(0.0),
+            retake: None,
         }
     }
 
@@ -555,7 +699,7 @@ mod tests {
         let plan = default_plan();
         let mut s = Session::create(&dir, &plan, DEFAULT_TEXT, header(), &[]).unwrap();
         let shots = s.planned().to_vec();
-        let (_, sha) = s.write_image(&shots[0].file, b"abc").unwrap();
+        let (_, sha) = s.write_image(&shots[0].id, &shots[0].file, b"abc").unwrap();
         s.append(record(&shots[0], &sha)).unwrap();
         // the folder is locked while open
         assert!(Session::resume(&dir).is_err());
@@ -576,6 +720,88 @@ mod tests {
         let (recs, _) = read_journal(&jp).unwrap();
         assert_eq!(recs.len(), 2);
         assert_eq!(recs[1].id, shots[1].id);
+    }
+
+    #[test]
+    fn resume_sets_damaged_images_aside_and_journals_the_retakes() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("s");
+        let mut s = Session::create(&dir, &default_plan(), DEFAULT_TEXT, header(), &[]).unwrap();
+        let shots = s.planned().to_vec();
+        for shot in &shots[..3] {
+            let (_, sha) = s.write_image(&shot.id, &shot.file, b"abc").unwrap();
+            s.append(record(shot, &sha)).unwrap();
+        }
+        drop(s);
+        fs::write(dir.join(&shots[1].file), b"abd").unwrap(); // same size, other bytes
+        fs::remove_file(dir.join(&shots[2].file)).unwrap();
+        let mut s = Session::resume(&dir).unwrap();
+        let repaired: Vec<&str> = s.repairs().iter().map(|r| r.id.as_str()).collect();
+        assert_eq!(repaired, [shots[1].id.as_str(), shots[2].id.as_str()]);
+        assert!(s.is_done(&shots[0].id) && !s.is_done(&shots[1].id));
+        // the damaged shots come first among the remaining ones, in plan order
+        let remaining = s.remaining();
+        assert_eq!(remaining[0].id, shots[1].id);
+        assert_eq!(remaining[1].id, shots[2].id);
+        for shot in &shots[1..3] {
+            let (_, sha) = s.write_image(&shot.id, &shot.file, b"abc").unwrap();
+            s.append(record(shot, &sha)).unwrap();
+        }
+        drop(s);
+        assert_eq!(
+            fs::read(dir.join(SET_ASIDE_DIR).join(&shots[1].file)).unwrap(),
+            b"abd"
+        );
+        let (records, _) = read_journal(&dir.join(JOURNAL_FILE)).unwrap();
+        assert_eq!(records.len(), 5);
+        let r1 = records[3].retake.as_ref().unwrap();
+        assert!(r1.reason.starts_with("checksum mismatch"), "{r1:?}");
+        assert_eq!(
+            r1.set_aside.as_deref(),
+            Some(format!("{SET_ASIDE_DIR}/{}", shots[1].file).as_str())
+        );
+        let r2 = records[4].retake.as_ref().unwrap();
+        assert_eq!(
+            (r2.reason.as_str(), r2.set_aside.as_deref()),
+            ("missing", None)
+        );
+        // the re-takes supersede the first records
+        let (current, duplicates) = current_records(records);
+        assert!(duplicates.is_empty());
+        assert_eq!(current.len(), 3);
+        assert!(current[1].retake.is_some() && current[2].retake.is_some());
+        let s = Session::resume(&dir).unwrap();
+        assert!(s.repairs().is_empty());
+        assert_eq!(s.records().len(), 3);
+    }
+
+    #[test]
+    fn a_plain_duplicate_record_does_not_replace_the_first() {
+        let shot = &default_plan().shots()[0];
+        let first = record(shot, "aa");
+        let second = record(shot, "bb");
+        let (current, duplicates) = current_records(vec![first.clone(), second]);
+        assert_eq!(current, vec![first]);
+        assert_eq!(duplicates, vec![shot.id.clone()]);
+    }
+
+    #[test]
+    fn a_new_session_that_cannot_be_built_is_named_as_given() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("s");
+        // A file where the staging folder goes: building it fails half way.
+        let staging = tmp
+            .path()
+            .join(format!(".s.creating-{}", std::process::id()));
+        fs::write(&staging, b"").unwrap();
+        let err = Session::create(&dir, &default_plan(), DEFAULT_TEXT, header(), &[])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("creating the session folder"), "{err}");
+        assert!(err.contains(&dir.display().to_string()), "{err}");
+        assert!(!err.contains(".creating-"), "{err}");
+        assert!(!dir.exists());
     }
 
     #[test]

@@ -1,6 +1,10 @@
 //! `session verify`: re-reads every image a session lists and checks its size and SHA-256, and
 //! that the journal holds exactly the planned shots. Read-only; works on a session a capture is
 //! still writing (it reads the journal prefix that is complete).
+//!
+//! [`check_record`] is the one check of an image against its record: a resume uses it to find
+//! the shots to take again, and `calibrate SESSION` to refuse a damaged image, so all three
+//! agree on what is intact. A shot taken again (`retake`) is judged by its latest record.
 
 use std::collections::HashSet;
 use std::fmt;
@@ -10,8 +14,8 @@ use std::path::Path;
 use super::error::CaptureError;
 use super::plan::parse_plan;
 use super::session::{
-    JOURNAL_FILE, MANIFEST_FILE, Manifest, PLAN_FILE, SESSION_FILE, SessionHeader, read_journal,
-    sha256_hex,
+    JOURNAL_FILE, MANIFEST_FILE, Manifest, PLAN_FILE, SESSION_FILE, SessionHeader, ShotRecord,
+    current_records, read_journal, sha256_hex,
 };
 
 /// One problem found.
@@ -42,6 +46,66 @@ pub enum Problem {
     SnapshotAhead {
         id: String,
     },
+}
+
+impl Problem {
+    /// What is wrong, without the file and shot (a re-take record's `reason`).
+    pub fn what(&self) -> String {
+        match self {
+            Problem::Missing { .. } => "missing".to_string(),
+            Problem::Mismatch {
+                expected, actual, ..
+            } => format!("checksum mismatch: journal sha256 {expected}, file {actual}"),
+            Problem::WrongSize {
+                expected, actual, ..
+            } => format!("size {actual} bytes, journal says {expected}"),
+            Problem::Duplicate { .. } => "journaled more than once".to_string(),
+            Problem::Unplanned { .. } => "not in the session's plan".to_string(),
+            Problem::SnapshotAhead { .. } => format!("in {MANIFEST_FILE} but not journaled"),
+        }
+    }
+}
+
+/// Checks the image of one record against its size and SHA-256. Returns the bytes read and
+/// the problem, if any (`Missing`, `WrongSize` or `Mismatch`).
+pub fn check_record(dir: &Path, r: &ShotRecord) -> (u64, Option<Problem>) {
+    let data = match fs::read(dir.join(&r.file)) {
+        Ok(d) => d,
+        Err(_) => {
+            return (
+                0,
+                Some(Problem::Missing {
+                    id: r.id.clone(),
+                    file: r.file.clone(),
+                }),
+            );
+        }
+    };
+    let len = data.len() as u64;
+    if len != r.bytes {
+        return (
+            len,
+            Some(Problem::WrongSize {
+                id: r.id.clone(),
+                file: r.file.clone(),
+                expected: r.bytes,
+                actual: len,
+            }),
+        );
+    }
+    let actual = sha256_hex(&data);
+    if actual != r.sha256 {
+        return (
+            len,
+            Some(Problem::Mismatch {
+                id: r.id.clone(),
+                file: r.file.clone(),
+                expected: r.sha256.clone(),
+                actual,
+            }),
+        );
+    }
+    (len, None)
 }
 
 impl fmt::Display for Problem {
@@ -88,6 +152,8 @@ pub struct VerifyReport {
     pub problems: Vec<Problem>,
     /// Planned shots not yet taken (an interrupted capture; resume it).
     pub not_taken: Vec<String>,
+    /// Shots taken again by a resume, with why (their damaged files are in `set-aside/`).
+    pub retaken: Vec<(String, super::session::Retake)>,
 }
 
 impl VerifyReport {
@@ -117,43 +183,24 @@ pub fn verify_session(dir: &Path) -> Result<VerifyReport, CaptureError> {
     let plan = parse_plan(&plan_text, &plan_path.display().to_string())?;
     let planned = plan.shots();
     let (records, _) = read_journal(&dir.join(JOURNAL_FILE))?;
-    let mut problems = Vec::new();
-    let mut seen = HashSet::new();
+    let (records, duplicates) = current_records(records);
+    let mut problems: Vec<Problem> = duplicates
+        .into_iter()
+        .map(|id| Problem::Duplicate { id })
+        .collect();
+    let seen: HashSet<String> = records.iter().map(|r| r.id.clone()).collect();
     let planned_ids: HashSet<&str> = planned.iter().map(|s| s.id.as_str()).collect();
     let mut bytes = 0;
+    let mut retaken = Vec::new();
     for r in &records {
-        if !seen.insert(r.id.clone()) {
-            problems.push(Problem::Duplicate { id: r.id.clone() });
-            continue;
-        }
         if !planned_ids.contains(r.id.as_str()) {
             problems.push(Problem::Unplanned { id: r.id.clone() });
         }
-        let path = dir.join(&r.file);
-        match fs::read(&path) {
-            Err(_) => problems.push(Problem::Missing {
-                id: r.id.clone(),
-                file: r.file.clone(),
-            }),
-            Ok(data) => {
-                bytes += data.len() as u64;
-                let actual = sha256_hex(&data);
-                if data.len() as u64 != r.bytes {
-                    problems.push(Problem::WrongSize {
-                        id: r.id.clone(),
-                        file: r.file.clone(),
-                        expected: r.bytes,
-                        actual: data.len() as u64,
-                    });
-                } else if actual != r.sha256 {
-                    problems.push(Problem::Mismatch {
-                        id: r.id.clone(),
-                        file: r.file.clone(),
-                        expected: r.sha256.clone(),
-                        actual,
-                    });
-                }
-            }
+        let (n, problem) = check_record(dir, r);
+        bytes += n;
+        problems.extend(problem);
+        if let Some(t) = &r.retake {
+            retaken.push((r.id.clone(), t.clone()));
         }
     }
     // The snapshot may lag the journal (a kill between the two) but never lead it.
@@ -182,5 +229,6 @@ pub fn verify_session(dir: &Path) -> Result<VerifyReport, CaptureError> {
         bytes,
         problems,
         not_taken,
+        retaken,
     })
 }

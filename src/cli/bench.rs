@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Args, Subcommand};
 
+use super::ranges::{Closed, Open, int_in, real_in};
 use brdf_rig::devices::bench::{self, RigBenchOptions};
 
 #[derive(Args, Debug)]
@@ -42,11 +43,14 @@ pub struct BenchRigArgs {
     /// Rig profile with `port = "sim"` (default: the built-in simulated rig).
     #[arg(long)]
     pub profile: Option<PathBuf>,
-    #[arg(long, default_value_t = 2000)]
+    /// STATUS round trips to time (1 to 1000000).
+    #[arg(long, default_value_t = 2000, value_parser = int_in(1usize, 1_000_000))]
     pub round_trips: usize,
-    #[arg(long, default_value_t = 40)]
+    /// Turntable steps to time (1 to 100000).
+    #[arg(long, default_value_t = 40, value_parser = int_in(1usize, 100_000))]
     pub steps: usize,
-    #[arg(long, default_value_t = 1.0)]
+    /// Degrees per step, in (0, 360].
+    #[arg(long, default_value_t = 1.0, value_parser = real_in(Open(0.0), Closed(360.0)))]
     pub step_deg: f64,
     /// Also write the markdown page here (e.g. docs/benchmarks-rig.md).
     #[arg(long)]

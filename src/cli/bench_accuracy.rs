@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use clap::Args;
 
+use super::ranges::int_in;
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::{basis_cache, nbrdf};
 use brdf_rig::eval::PAPER_MATERIALS;
@@ -23,25 +24,25 @@ pub struct EvalCommon {
     #[arg(long, value_delimiter = ',', default_value = "spot,bunny")]
     pub meshes: Vec<String>,
     /// Trials per reconstruction.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = int_in(1usize, 1000))]
     pub trials: usize,
     /// Sample pixels per trial.
-    #[arg(long, default_value_t = 80)]
+    #[arg(long, default_value_t = 80, value_parser = int_in(1usize, 100_000))]
     pub samples: usize,
     /// Light image size, WxH.
     #[arg(long, default_value = "128x96")]
     pub size: String,
     /// Single-light images per scene.
-    #[arg(long, default_value_t = 11)]
+    #[arg(long, default_value_t = 11, value_parser = int_in(1usize, 360))]
     pub views: usize,
     /// Basis grid stride theta_h,theta_d,phi_d (1,2,2 is the reconstruction default).
     #[arg(long, default_value = "1,2,2")]
     pub basis_stride: String,
     /// Basis components kept.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = int_in(1usize, 300))]
     pub basis_components: usize,
     /// Errors over every N-th MERL bin.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = int_in(1usize, 1000))]
     pub bin_step: usize,
     /// Folder of the neural MERL fits.
     #[arg(long)]
@@ -62,7 +63,7 @@ pub struct BenchAccuracyArgs {
     #[arg(long, value_delimiter = ',')]
     pub materials: Vec<String>,
     /// Seeds per scene (SfM-like noise and the trials' pixel draws).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = int_in(1u64, 1000))]
     pub seeds: u64,
     /// Run only "all three assumptions" (no ablation).
     #[arg(long)]

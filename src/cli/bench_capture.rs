@@ -14,12 +14,13 @@ use brdf_rig::capture::plan::DEFAULT_PLAN_TOML;
 use brdf_rig::profile::SIMULATED;
 
 use super::capture::{CaptureArgs, execute};
+use super::ranges::int_in;
 use super::rig::RigArgs;
 
 #[derive(Args, Debug)]
 pub struct BenchCaptureArgs {
     /// Ambient views of the benchmark plan (single-light shots on every fourth view).
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = 12, value_parser = int_in(1usize, 3600))]
     pub views: usize,
     /// Image sizes to measure (WIDTHxHEIGHT), with the fast turntable.
     #[arg(long, value_delimiter = ',', default_value = "64x48,160x120,320x240")]
@@ -81,7 +82,7 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
         }
         std::fs::write(&plan_path, text).context("writing the plan")?;
         let out = tmp.path().join(format!("session-{i}"));
-        let (result, _) = execute(CaptureArgs {
+        let outcome = execute(CaptureArgs {
             rig: RigArgs {
                 profile: Some(ppath),
                 port: None,
@@ -92,7 +93,7 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
             unattended: true,
             snapshot_every: 16,
         })?;
-        let s = result?;
+        let s = outcome.result?;
         let n = s.shots_taken.max(1) as f64;
         let ms = |d: std::time::Duration| 1000.0 * d.as_secs_f64() / n;
         rows.push(Row {

@@ -7,6 +7,7 @@
 //! The timed run is a child process (`brdf-rig reconstruct`), so its VmHWM is the
 //! reconstruction's alone, not the scene rendering's or the basis build's.
 
+use super::ranges::int_in;
 use anyhow::{Context, bail};
 use brdf_rig::brdf::BinValues;
 use brdf_rig::brdf::basis::{Basis, GridStride};
@@ -43,22 +44,32 @@ pub struct BenchReconstructArgs {
     /// Material of the timed run (always left out of its basis).
     #[arg(long, default_value = "alum-bronze")]
     pub material: String,
-    #[arg(long, default_value_t = 11)]
+    #[arg(long, default_value_t = 11, value_parser = int_in(1usize, 360))]
     pub views: usize,
-    #[arg(long, default_value_t = 640)]
+    #[arg(long, default_value_t = 640, value_parser = int_in(8usize, 8192))]
     pub width: usize,
-    #[arg(long, default_value_t = 480)]
+    #[arg(long, default_value_t = 480, value_parser = int_in(8usize, 8192))]
     pub height: usize,
     /// Basis grid stride (theta_h, theta_d, phi_d).
-    #[arg(long, value_delimiter = ',', default_values_t = [1usize, 2, 2])]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_values_t = [1usize, 2, 2],
+        value_parser = int_in(1usize, 90)
+    )]
     pub basis_stride: Vec<usize>,
-    #[arg(long, default_value_t = 80)]
+    #[arg(long, default_value_t = 80, value_parser = int_in(1usize, 300))]
     pub basis_components: usize,
     /// Also run the accuracy study over these materials (comma-separated; `paper` = the six).
     #[arg(long, value_delimiter = ',')]
     pub study: Vec<String>,
     /// Image size of the study's scenes (smaller than the timed run: 6 materials x 5 runs).
-    #[arg(long, value_delimiter = ',', default_values_t = [320usize, 240])]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_values_t = [320usize, 240],
+        value_parser = int_in(8usize, 8192)
+    )]
     pub study_size: Vec<usize>,
     /// Write the markdown page here (e.g. docs/benchmarks-reconstruct.md).
     #[arg(long)]

@@ -11,6 +11,7 @@ use anyhow::Context;
 use clap::Args;
 use nalgebra::{Point3, Vector3};
 
+use super::ranges::int_in;
 use brdf_rig::brdf::analytic::Lambert;
 use brdf_rig::brdf::nbrdf::{self, Nbrdf};
 use brdf_rig::geometry::bvh::Bvh;
@@ -26,7 +27,7 @@ use brdf_rig::render::sphere::{Sphere, render_sphere};
 #[derive(Args, Debug)]
 pub struct BenchRenderArgs {
     /// Repetitions of each timed step (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = int_in(1usize, 1000))]
     pub runs: usize,
     /// Also write the markdown page here (e.g. docs/benchmarks-render.md).
     #[arg(long)]

@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use clap::Args;
 
+use super::ranges::int_in;
 use brdf_rig::eval::sweeps::{
     Point, Runner, Setting, Summary, base_setting, speed_settings, stability_settings, summarise,
 };
@@ -27,7 +28,7 @@ pub struct BenchSweepArgs {
     #[arg(long, default_value = "spot")]
     pub mesh: String,
     /// Seeds per setting (SfM-like noise, trials; for stability also image noise and light error).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = int_in(1u64, 1000))]
     pub seeds: u64,
     /// Materials of the "flat BRDF" sweep (stability only).
     #[arg(
@@ -39,7 +40,7 @@ pub struct BenchSweepArgs {
     /// Only these sweeps (names as in the table, substring match).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = int_in(1usize, 1000))]
     pub bin_step: usize,
     #[arg(long)]
     pub basis_cache: Option<PathBuf>,

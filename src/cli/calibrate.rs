@@ -12,6 +12,8 @@ use clap::{Args, Subcommand};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
+use super::ranges::{Open, Unbounded, real32_in};
+
 /// `brdf-rig calibrate SESSION` calibrates a capture session folder; the subcommands measure
 /// images from elsewhere.
 #[derive(Args, Debug)]
@@ -52,15 +54,15 @@ pub struct SphereArgs {
         allow_hyphen_values = true
     )]
     pub intrinsics: String,
-    /// Clip level of the camera, in image units (default: detected).
-    #[arg(long)]
+    /// Clip level of the camera, in image units, > 0 (default: detected).
+    #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
     /// Normal-incidence Fresnel reflectance of the sphere, to correct the outline for its rim
     /// fading into the backdrop; "none" for a chrome sphere or a matte outline image.
     #[arg(long = "rim-f0", default_value = "0.04", value_name = "F0|none")]
     pub rim_f0: String,
-    /// Scale of 16-bit PNG/TIFF images.
-    #[arg(long, default_value_t = 1.0)]
+    /// Scale of 16-bit PNG/TIFF images, > 0.
+    #[arg(long, default_value_t = 1.0, value_parser = real32_in(Open(0.0), Unbounded))]
     pub scale: f32,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -84,11 +86,11 @@ pub struct WhiteArgs {
     /// Region of interest in pixels: x,y,width,height (default: the board is detected).
     #[arg(long, value_name = "X,Y,W,H")]
     pub roi: Option<String>,
-    /// Clip level of the camera, in image units (default: detected).
-    #[arg(long)]
+    /// Clip level of the camera, in image units, > 0 (default: detected).
+    #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
-    /// Scale of 16-bit PNG/TIFF images.
-    #[arg(long, default_value_t = 1.0)]
+    /// Scale of 16-bit PNG/TIFF images, > 0.
+    #[arg(long, default_value_t = 1.0, value_parser = real32_in(Open(0.0), Unbounded))]
     pub scale: f32,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -126,21 +128,9 @@ fn vector(field: &str, text: &str) -> Result<Vector3<f64>> {
     Ok(v.normalize())
 }
 
-fn check_saturation(s: Option<f32>) -> Result<()> {
-    if let Some(s) = s
-        && !(s.is_finite() && s > 0.0)
-    {
-        bail!("--saturation: must be a positive number, got {s}");
-    }
-    Ok(())
-}
-
 /// Reads a linear image (EXR, or 16-bit PNG/TIFF as `value / 65535 * scale`); the error names
 /// the file.
 fn read_image(path: &Path, scale: f32) -> Result<LinearImage> {
-    if !(scale.is_finite() && scale > 0.0) {
-        bail!("--scale: must be a positive number, got {scale}");
-    }
     Ok(brdf_rig::imageio::read_linear(path, scale)?)
 }
 
@@ -182,7 +172,6 @@ fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
             a.outline_images.len()
         );
     }
-    check_saturation(a.saturation)?;
     let rim_fresnel_f0 = match a.rim_f0.trim() {
         "none" => None,
         t => match t.parse::<f64>() {
@@ -361,7 +350,6 @@ fn white_config(a: &WhiteArgs) -> Result<WhiteConfig> {
         }
         None => BoardRegion::Detect,
     };
-    check_saturation(a.saturation)?;
     Ok(WhiteConfig {
         albedo,
         light_dir,

@@ -6,6 +6,8 @@ use brdf_rig::pipeline::session_calib::{SessionCalibOptions, calibrate_session};
 use clap::Args;
 use std::path::PathBuf;
 
+use super::ranges::{Closed, Open, real_in};
+
 #[derive(Args, Debug)]
 pub struct SessionArgs {
     /// Capture session folder (from `brdf-rig capture`).
@@ -17,8 +19,8 @@ pub struct SessionArgs {
     /// Mesh from photogrammetry, PLY or OBJ (default: a simulated session's `sim/mesh_sfm.ply`).
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,
-    /// Albedo of the white reference (default: a simulated session's scene albedo).
-    #[arg(long, value_name = "A")]
+    /// Albedo of the white reference, in (0, 1.5] (default: a simulated session's scene albedo).
+    #[arg(long, value_name = "A", value_parser = real_in(Open(0.0), Closed(1.5)))]
     pub albedo: Option<f64>,
     /// Print the calibration as JSON.
     #[arg(long)]
@@ -31,11 +33,6 @@ pub fn run(a: SessionArgs) -> Result<()> {
             "give a session folder (`brdf-rig calibrate SESSION`) or a subcommand (sphere, white)"
         );
     };
-    if let Some(al) = a.albedo
-        && !(al.is_finite() && al > 0.0 && al <= 1.5)
-    {
-        bail!("--albedo {al}: must be in (0, 1.5]");
-    }
     let opts = SessionCalibOptions {
         cameras: a.cameras,
         mesh: a.mesh,

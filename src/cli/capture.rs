@@ -1,9 +1,12 @@
 //! `brdf-rig capture`: a capture session, new (`--out DIR`) or continued (`--resume DIR`).
 //!
-//! Order of checks, so that nothing moves before everything is known to be there: plan and
-//! profile parse, guided mode needs a terminal, the output folder is usable and has room, the rig
-//! answers (a missing port fails here), the plan's channels exist, the camera opens. Only then is
-//! the session folder created and the turntable homed.
+//! Order of checks, so that nothing moves and nothing is written before everything is known to be
+//! there: plan and profile parse, the simulated scene loads, guided mode needs a terminal, the
+//! output folder is new or empty and its parent takes new files (or, resuming, every journaled
+//! image is checked against its checksum), there is room, the rig answers (a missing port fails
+//! here), the plan's channels exist, the camera opens. Only then is the session folder created
+//! and the turntable homed. A new session whose start fails before its first shot is removed
+//! again, so the same command can simply be run again.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -29,6 +32,7 @@ use brdf_rig::profile::Profile;
 use brdf_rig::sim::render::ObjectScene;
 use brdf_rig::sim::scene::StageState;
 
+use super::ranges::int_in;
 use super::rig::RigArgs;
 
 /// Name of the copy of the profile kept in the session folder (a resume uses it).
@@ -52,8 +56,8 @@ pub struct CaptureArgs {
     #[arg(long)]
     pub unattended: bool,
     /// Write manifest.json every N shots (it is also written at every stage change and at the
-    /// end; the journal is written after every shot regardless).
-    #[arg(long, default_value_t = 16)]
+    /// end; the journal is written after every shot regardless). 1 to 100000.
+    #[arg(long, default_value_t = 16, value_parser = int_in(1usize, 100_000))]
     pub snapshot_every: usize,
 }
 
@@ -266,16 +270,62 @@ fn open_camera(
 }
 
 pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
-    let (result, dir) = execute(args)?;
-    report(result, &dir)
+    let outcome = execute(args)?;
+    report(outcome)
 }
 
-/// Prepares everything and runs the session; the outcome of the run and the session folder.
-pub fn execute(
-    args: CaptureArgs,
-) -> anyhow::Result<(Result<brdf_rig::capture::RunSummary, CaptureError>, PathBuf)> {
+/// What a capture command did: the run's result, its session folder, and how to continue it.
+pub struct Outcome {
+    pub result: Result<brdf_rig::capture::RunSummary, CaptureError>,
+    pub dir: PathBuf,
+    /// The command that continues this session, as the user should type it.
+    pub resume_command: String,
+    /// A new session that failed before any shot was taken was removed again.
+    pub removed: bool,
+}
+
+/// `brdf-rig capture --resume DIR`, with the options a resume cannot read from the session:
+/// `--unattended` (without a terminal a guided resume refuses to start) and `--port`.
+fn resume_command(args: &CaptureArgs, dir: &Path) -> String {
+    let quote = |p: &Path| {
+        let s = p.display().to_string();
+        if s.contains(|c: char| c.is_whitespace() || "'\"$\\`;&|<>()*?".contains(c)) {
+            format!("'{}'", s.replace('\'', r"'\''"))
+        } else {
+            s
+        }
+    };
+    let mut cmd = format!("brdf-rig capture --resume {}", quote(dir));
+    if let Some(port) = &args.rig.port {
+        cmd.push_str(&format!(" --port {}", quote(port)));
+    }
+    if args.unattended {
+        cmd.push_str(" --unattended");
+    }
+    cmd
+}
+
+/// Removes a session folder this command created (the start failed before any shot); puts back
+/// the empty folder the user gave, if there was one.
+fn remove_new_session(dir: &Path, was_empty_folder: bool) -> anyhow::Result<()> {
+    std::fs::remove_dir_all(dir).with_context(|| {
+        format!(
+            "removing the new session folder {} after a failed start",
+            dir.display()
+        )
+    })?;
+    if was_empty_folder {
+        std::fs::create_dir(dir)
+            .with_context(|| format!("putting back the empty folder {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+/// Prepares everything and runs the session. Everything that can be checked is checked before
+/// the session folder is written; a new session whose start fails is removed again.
+pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
     let resuming = args.resume.is_some();
-    // 1. Plan and profile.
+    // 1. Plan and profile, the camera and scene sections, the simulated scene.
     let (dir, plan, plan_text, profile) = match (&args.resume, &args.out) {
         (Some(dir), _) => {
             let plan_path = dir.join(brdf_rig::capture::session::PLAN_FILE);
@@ -305,9 +355,22 @@ pub fn execute(
         }
         (None, None) => bail!("give --out DIR for a new capture or --resume DIR"),
     };
+    let resume_cmd = resume_command(&args, &dir);
     let (camera_cfg, scene_cfg) =
         parse_sections(&profile.source, &profile.origin).map_err(anyhow::Error::msg)?;
     let lab = lab_of(&profile, &camera_cfg);
+    let object = if camera_cfg.backend == "sim" {
+        Some(std::sync::Arc::new(
+            ObjectScene::load(&scene_cfg).with_context(|| {
+                format!(
+                    "loading the simulated scene of {} ([scene] section)",
+                    profile.origin
+                )
+            })?,
+        ))
+    } else {
+        None
+    };
     eprint!("{}", plan.summary(&lab));
 
     // 2. Guided mode needs someone at a terminal.
@@ -319,29 +382,38 @@ pub fn execute(
         );
     }
 
-    // 3. The folder and its free space.
+    // 3. The folder and its free space. A resumed session is opened (and locked) here: every
+    // journaled image is checked against its checksum, and damaged ones are taken again.
+    let mut resumed = None;
+    let was_empty_folder = !resuming && dir.is_dir();
     let remaining = if resuming {
+        eprintln!(
+            "checking every journaled image of {} against its checksum",
+            dir.display()
+        );
         let s = Session::resume(&dir)?;
+        if !s.repairs().is_empty() {
+            eprintln!(
+                "resume: {} journaled shot(s) are missing or damaged and will be taken again \
+                 (a damaged file is kept in {}):",
+                s.repairs().len(),
+                dir.join(brdf_rig::capture::session::SET_ASIDE_DIR)
+                    .display()
+            );
+            for r in s.repairs() {
+                eprintln!("  {}: {} (shot {})", r.file, r.problem.what(), r.id);
+            }
+        }
         let n = s.remaining().len();
-        drop(s);
+        resumed = Some(s);
         n
     } else {
-        if dir.exists()
-            && std::fs::read_dir(&dir)
-                .with_context(|| format!("listing {}", dir.display()))?
-                .next()
-                .is_some()
-        {
-            bail!(
-                "{} exists and is not empty; choose a new --out, or continue it with --resume",
-                dir.display()
-            );
-        }
+        check_output_folder(&dir)?;
         plan.shots().len()
     };
     check_disk_space(&dir, remaining, plan.camera.width, plan.camera.height)?;
 
-    // 4. Devices, before anything moves.
+    // 4. Devices, before anything moves or is written.
     let rig = rigdev::open(&profile, args.rig.port.as_deref()).with_context(|| {
         format!(
             "opening the rig of {} (port {}); nothing has moved",
@@ -359,36 +431,6 @@ pub fn execute(
             .map_err(|e| anyhow::anyhow!("the plan does not fit the rig: {e}"))?;
     }
     let stage = StageState::default();
-
-    // 5. The session.
-    let mut session = if resuming {
-        Session::resume(&dir)?
-    } else {
-        let header = SessionHeader {
-            format_version: 0,
-            tool: format!("brdf-rig {}", env!("CARGO_PKG_VERSION")),
-            plan_name: String::new(),
-            planned_shots: 0,
-            profile: profile.origin.clone(),
-            camera_backend: camera_cfg.backend.clone(),
-            created_utc: brdf_rig::capture::session::now_utc().1,
-            simulated: camera_cfg.backend == "sim",
-        };
-        Session::create(
-            &dir,
-            &plan,
-            &plan_text,
-            header,
-            &[(PROFILE_COPY, profile.source.as_bytes())],
-        )?
-    };
-    let object = if camera_cfg.backend == "sim" {
-        Some(std::sync::Arc::new(
-            ObjectScene::load(&scene_cfg).context("loading the simulated scene")?,
-        ))
-    } else {
-        None
-    };
     let mut camera = open_camera(
         &camera_cfg,
         &plan,
@@ -401,24 +443,58 @@ pub fn execute(
         &rig,
         &dir,
     )?;
-    // Deterministic and cheap: written again on resume in case a kill interrupted it.
-    if let Some(object) = &object {
-        brdf_rig::sim::truth::write_ground_truth(&dir, &plan, &lab, object, &scene_cfg)
-            .map_err(anyhow::Error::msg)
-            .context("writing the simulated ground truth (sim/)")?;
-    }
-
-    // 6. Run.
     let options = RunOptions {
         kill_hook: kill_hook()?,
         snapshot_every: args.snapshot_every,
-        lab: Some(lab),
+        lab: Some(lab.clone()),
         angle_range: Some((
             profile.turntable.min_angle_deg,
             profile.turntable.max_angle_deg,
         )),
         ..RunOptions::default()
     };
+
+    // 5. The session: everything is checked, so it is written now.
+    let mut session = match resumed {
+        Some(s) => s,
+        None => {
+            let header = SessionHeader {
+                format_version: 0,
+                tool: format!("brdf-rig {}", env!("CARGO_PKG_VERSION")),
+                plan_name: String::new(),
+                planned_shots: 0,
+                profile: profile.origin.clone(),
+                camera_backend: camera_cfg.backend.clone(),
+                created_utc: brdf_rig::capture::session::now_utc().1,
+                simulated: camera_cfg.backend == "sim",
+            };
+            Session::create(
+                &dir,
+                &plan,
+                &plan_text,
+                header,
+                &[(PROFILE_COPY, profile.source.as_bytes())],
+            )?
+        }
+    };
+    // Deterministic and cheap: written again on resume in case a kill interrupted it.
+    if let Some(object) = &object
+        && let Err(e) =
+            brdf_rig::sim::truth::write_ground_truth(&dir, &plan, &lab, object, &scene_cfg)
+    {
+        let e = anyhow::Error::msg(e).context("writing the simulated ground truth (sim/)");
+        if !resuming {
+            drop(session);
+            remove_new_session(&dir, was_empty_folder)?;
+            return Err(e.context(format!(
+                "nothing was captured; the new session folder {} was removed",
+                dir.display()
+            )));
+        }
+        return Err(e);
+    }
+
+    // 6. Run.
     let cancel = options.cancel.clone();
     let _ = ctrlc::set_handler(move || {
         cancel.store(true, Ordering::SeqCst);
@@ -446,13 +522,102 @@ pub fn execute(
         &mut bars,
         &options,
     );
-    Ok((result, dir))
+    // A new session that stopped before its first shot holds nothing worth resuming.
+    let removed = !resuming && result.is_err() && session.records().is_empty();
+    drop(session);
+    if removed {
+        remove_new_session(&dir, was_empty_folder)?;
+    }
+    Ok(Outcome {
+        result,
+        dir,
+        resume_command: resume_cmd,
+        removed,
+    })
 }
 
-fn report(
-    result: Result<brdf_rig::capture::RunSummary, CaptureError>,
-    dir: &Path,
-) -> anyhow::Result<ExitCode> {
+/// Refuses an output folder that exists and is not empty, or whose nearest existing ancestor is
+/// not a writable folder; the error names `dir` as given. Writes nothing that stays.
+fn check_output_folder(dir: &Path) -> anyhow::Result<()> {
+    if dir.exists() {
+        if !dir.is_dir() {
+            bail!(
+                "{} exists and is not a folder; choose a new --out",
+                dir.display()
+            );
+        }
+        if std::fs::read_dir(dir)
+            .with_context(|| format!("listing {}", dir.display()))?
+            .next()
+            .is_some()
+        {
+            bail!(
+                "{} exists and is not empty; choose a new --out, or continue it with --resume",
+                dir.display()
+            );
+        }
+    }
+    // The session is built beside `dir` and renamed into place: its parent (or the nearest
+    // folder that exists above it) must take new entries.
+    let mut probe = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    while !probe.exists() {
+        match probe.parent() {
+            Some(p) if !p.as_os_str().is_empty() => probe = p.to_path_buf(),
+            _ => probe = PathBuf::from("."),
+        }
+    }
+    if !probe.is_dir() {
+        bail!(
+            "cannot create the session folder {}: {} is not a folder",
+            dir.display(),
+            probe.display()
+        );
+    }
+    // A folder made and removed at once: the only sure test of write permission (root, ACLs,
+    // read-only mounts and immutable folders all answer differently to a look at the mode bits).
+    let test = probe.join(format!(".brdf-rig-write-test-{}", std::process::id()));
+    match std::fs::create_dir(&test) {
+        Ok(()) => {
+            let _ = std::fs::remove_dir(&test);
+            Ok(())
+        }
+        Err(e) => bail!(
+            "cannot create the session folder {}: {} does not accept new files ({e})",
+            dir.display(),
+            probe.display()
+        ),
+    }
+}
+
+fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
+    let Outcome {
+        result,
+        dir,
+        resume_command,
+        removed,
+    } = outcome;
+    if removed {
+        let why = match &result {
+            Err(CaptureError::Interrupted { .. }) => {
+                eprintln!(
+                    "interrupted before the first shot; the light is off and the new session \
+                     folder {} was removed",
+                    dir.display()
+                );
+                return Ok(ExitCode::from(130));
+            }
+            Err(e) => e.to_string(),
+            Ok(_) => String::new(),
+        };
+        bail!(
+            "capture into {} stopped before its first shot ({why}); the light is off and the new \
+             session folder was removed: run the same command again",
+            dir.display()
+        );
+    }
     match result {
         Ok(summary) => {
             eprintln!(
@@ -464,6 +629,14 @@ fn report(
                 summary.shots_taken as f64 / summary.wall.as_secs_f64().max(1e-9),
                 dir.display()
             );
+            if summary.retakes > 0 {
+                eprintln!(
+                    "  {} of them re-taken because their journaled image was missing or damaged \
+                     (damaged files are kept in {})",
+                    summary.retakes,
+                    dir.join(brdf_rig::capture::session::SET_ASIDE_DIR).display()
+                );
+            }
             let per = |d: Duration| 1000.0 * d.as_secs_f64() / summary.shots_taken.max(1) as f64;
             eprintln!(
                 "  per shot: {:.1} ms wall = devices {:.1} ms (camera {:.1}, settle {:.1}) + storage {:.1} ms + controller {:.2} ms",
@@ -478,16 +651,14 @@ fn report(
         }
         Err(CaptureError::Interrupted { done, total }) => {
             eprintln!(
-                "interrupted: {done} of {total} shots are in {}; the light is off. Continue with `brdf-rig capture --resume {}`",
+                "interrupted: {done} of {total} shots are in {}; the light is off. Continue with `{resume_command}`",
                 dir.display(),
-                dir.display()
             );
             Ok(ExitCode::from(130))
         }
         Err(e) => Err(anyhow::Error::new(e).context(format!(
-            "capture into {} stopped; the light is off and the session is consistent: continue with `brdf-rig capture --resume {}`",
+            "capture into {} stopped; the light is off and the session is consistent: continue with `{resume_command}`",
             dir.display(),
-            dir.display()
         ))),
     }
 }

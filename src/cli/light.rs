@@ -11,6 +11,9 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 
 use brdf_rig::devices::Light;
+use brdf_rig::protocol::messages::MAX_CHANNELS;
+
+use super::ranges::{Closed, Open, int_in, real_in};
 
 use super::rig::RigArgs;
 
@@ -26,19 +29,23 @@ pub struct LightArgs {
 pub enum LightCommand {
     /// Switch CHANNEL on (every other channel off unless --add) and wait until it is stable.
     On {
+        #[arg(value_parser = int_in(0usize, MAX_CHANNELS - 1))]
         channel: usize,
         /// Level in (0, 1], at most the channel's `max_level` in the profile.
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, value_parser = real_in(Open(0.0), Closed(1.0)))]
         level: f64,
         /// Keep the other channels as they are.
         #[arg(long)]
         add: bool,
-        /// Stay connected this many seconds, so the watchdog keeps the light on.
-        #[arg(long, default_value_t = 0.0)]
+        /// Stay connected this many seconds, so the watchdog keeps the light on (0 to 86400).
+        #[arg(long, default_value_t = 0.0, value_parser = real_in(Closed(0.0), Closed(86_400.0)))]
         hold: f64,
     },
     /// Switch CHANNEL off, or every channel.
-    Off { channel: Option<usize> },
+    Off {
+        #[arg(value_parser = int_in(0usize, MAX_CHANNELS - 1))]
+        channel: Option<usize>,
+    },
     /// Print each channel's level and whether it is stable.
     Status,
 }
@@ -56,7 +63,7 @@ pub fn run(args: LightArgs) -> anyhow::Result<ExitCode> {
             light
                 .on(channel, level, !add)
                 .with_context(|| format!("switching light channel {channel} on at {level}"))?;
-            if hold > 0.0 && hold.is_finite() {
+            if hold > 0.0 {
                 print_status(light, &profile)?;
                 std::thread::sleep(Duration::from_secs_f64(hold));
             }

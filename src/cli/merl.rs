@@ -50,11 +50,33 @@ fn direction(theta_deg: f64, phi_deg: f64, what: &str) -> anyhow::Result<Vector3
     Ok(Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
 }
 
-fn load(file: &Path) -> anyhow::Result<Box<dyn Brdf>> {
+/// A BRDF file: a neural fit (evaluated exactly) or a MERL table (nearest bin, may lack data).
+enum Loaded {
+    Neural(Nbrdf),
+    Table(MerlTable),
+}
+
+impl Loaded {
+    fn as_merl(&self) -> Option<&MerlTable> {
+        match self {
+            Loaded::Table(t) => Some(t),
+            Loaded::Neural(_) => None,
+        }
+    }
+
+    fn eval_local(&self, wi: &Vector3<f64>, wo: &Vector3<f64>) -> [f64; 3] {
+        match self {
+            Loaded::Neural(n) => n.eval_local(wi, wo),
+            Loaded::Table(t) => t.eval_local(wi, wo),
+        }
+    }
+}
+
+fn load(file: &Path) -> anyhow::Result<Loaded> {
     if file.extension().is_some_and(|e| e == "f32") {
-        Ok(Box::new(Nbrdf::load(file)?))
+        Ok(Loaded::Neural(Nbrdf::load(file)?))
     } else {
-        Ok(Box::new(MerlTable::read(file)?))
+        Ok(Loaded::Table(MerlTable::read(file)?))
     }
 }
 
@@ -70,6 +92,17 @@ pub fn run(args: MerlArgs) -> anyhow::Result<ExitCode> {
             let wi = direction(theta_in, phi_in, "light direction")?;
             let wo = direction(theta_out, phi_out, "view direction")?;
             let brdf = load(&file).with_context(|| format!("loading BRDF {}", file.display()))?;
+            if let Some(table) = brdf.as_merl()
+                && table
+                    .lookup(&brdf_rig::brdf::coords::HalfDiff::from_directions(&wi, &wo))
+                    .is_none()
+            {
+                eprintln!(
+                    "warning: {}: the table has no data (a negative value) in the bin of these \
+                     directions; f_r is given as 0",
+                    file.display()
+                );
+            }
             let [r, g, b] = brdf.eval_local(&wi, &wo);
             println!("{r:.9e} {g:.9e} {b:.9e}");
         }

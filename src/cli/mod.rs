@@ -5,6 +5,7 @@ pub mod calibrate;
 mod calibrate_session;
 mod demo;
 mod merl;
+mod ranges;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -90,5 +91,47 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every command parses with its defaults: each range-checked default is in its range, and
+    /// each value parser yields the type its field has (a mismatch would panic here, not at a
+    /// user's command line).
+    #[test]
+    fn every_command_parses_its_defaults() {
+        Cli::command().debug_assert();
+        for args in [
+            "capture --out o",
+            "capture --resume o",
+            "reconstruct j.toml --out o",
+            "reconstruct j.toml --out o --components 3",
+            "calibrate s",
+            "calibrate sphere --image a.exr --intrinsics 1,1,1,1",
+            "calibrate white --image a.exr --albedo 1 --light-dir 0,0,1",
+            "light on 0",
+            "light off",
+            "light off 2",
+            "turntable move -5",
+            "report d",
+            "merl eval f 1 2 3 4",
+            "bench rig",
+            "bench accuracy",
+            "bench speed",
+            "bench stability",
+            "bench render",
+            "bench capture",
+            "bench reconstruct",
+        ] {
+            let argv = std::iter::once("brdf-rig").chain(args.split(' '));
+            if let Err(e) = Cli::try_parse_from(argv) {
+                panic!("{args}: {e}");
+            }
+        }
     }
 }

@@ -8,6 +8,11 @@ use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
 use brdf_rig::reconstruct::ladder::Family;
 use brdf_rig::reconstruct::{self, Job, Settings};
 use clap::Args as ClapArgs;
+
+use super::ranges::{Closed, Open, Unbounded, int_in, real_in};
+
+/// Columns of the basis: 100 materials times 3 colour channels.
+const MAX_COMPONENTS: usize = 300;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -18,26 +23,32 @@ pub struct Args {
     /// Output folder (created): brdf.binary, report.json, sphere.exr, sphere.png.
     #[arg(long)]
     pub out: PathBuf,
-    /// Random trials, the best chosen by cosine similarity with the captured images.
-    #[arg(long, default_value_t = 10)]
+    /// Random trials, the best chosen by cosine similarity with the captured images (1 to 1000).
+    #[arg(long, default_value_t = 10, value_parser = int_in(1usize, 1000))]
     pub trials: usize,
-    /// Sample pixels per trial.
-    #[arg(long, default_value_t = 80)]
+    /// Sample pixels per trial (1 to 100000).
+    #[arg(long, default_value_t = 80, value_parser = int_in(1usize, 100_000))]
     pub samples: usize,
-    /// Fraction of the reliable pixels each trial draws.
-    #[arg(long, default_value_t = 0.5)]
+    /// Fraction of the reliable pixels each trial draws, in (0, 1].
+    #[arg(long, default_value_t = 0.5, value_parser = real_in(Open(0.0), Closed(1.0)))]
     pub subset: f64,
-    /// Basis components; default: chosen by validation on held-back pixels.
-    #[arg(long)]
+    /// Basis components, 1 to --basis-components; default: chosen by validation on held-back
+    /// pixels.
+    #[arg(long, value_parser = int_in(1usize, MAX_COMPONENTS))]
     pub components: Option<usize>,
-    /// Ridge weight eta with --components (validation chooses it otherwise).
-    #[arg(long, default_value_t = 40.0)]
+    /// Ridge weight eta with --components (validation chooses it otherwise), in [0, 1e9].
+    #[arg(long, default_value_t = 40.0, value_parser = real_in(Closed(0.0), Closed(1e9)))]
     pub eta: f64,
-    /// Keep pixels whose |mean curvature| is at or below this quantile (0..1).
-    #[arg(long, default_value_t = 0.5, conflicts_with = "curvature_max")]
+    /// Keep pixels whose |mean curvature| is at or below this quantile, in (0, 1].
+    #[arg(
+        long,
+        default_value_t = 0.5,
+        conflicts_with = "curvature_max",
+        value_parser = real_in(Open(0.0), Closed(1.0))
+    )]
     pub curvature_quantile: f64,
-    /// Keep pixels whose |mean curvature| is at or below this (1 / mesh unit) instead.
-    #[arg(long)]
+    /// Keep pixels whose |mean curvature| is at or below this (1 / mesh unit) instead, >= 0.
+    #[arg(long, value_parser = real_in(Closed(0.0), Unbounded))]
     pub curvature_max: Option<f64>,
     /// Ablation: switch off assumption 1 (curvature).
     #[arg(long)]
@@ -57,15 +68,21 @@ pub struct Args {
     /// Basis cache folder (built on first use).
     #[arg(long, env = "BRDF_RIG_BASIS_CACHE")]
     pub basis_cache: Option<PathBuf>,
-    /// Pixel values at or above this are clipped (dropped); default: 1.0 for 16-bit files,
+    /// Pixel values at or above this are clipped (dropped), > 0; default: 1.0 for 16-bit files,
     /// none for EXR.
-    #[arg(long)]
+    #[arg(long, value_parser = real_in(Open(0.0), Unbounded))]
     pub saturation: Option<f64>,
-    /// Basis grid stride along theta_h, theta_d, phi_d (coarser = faster, less exact).
-    #[arg(long, value_delimiter = ',', default_values_t = [1usize, 2, 2])]
+    /// Basis grid stride along theta_h, theta_d, phi_d (coarser = faster, less exact), each 1
+    /// to 90.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_values_t = [1usize, 2, 2],
+        value_parser = int_in(1usize, 90)
+    )]
     pub basis_stride: Vec<usize>,
-    /// Components kept in the basis.
-    #[arg(long, default_value_t = 80)]
+    /// Components kept in the basis (1 to 300: 100 materials x 3 colour channels).
+    #[arg(long, default_value_t = 80, value_parser = int_in(1usize, MAX_COMPONENTS))]
     pub basis_components: usize,
     /// How the reported trial is chosen: `similarity` (the paper's eq. 3, cosine similarity with
     /// the images) or `pixel-error` (lowest relative error over every observed pixel).
@@ -119,6 +136,13 @@ fn parse_level(s: &str) -> Result<Level, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if let Some(k) = args.components {
+        anyhow::ensure!(
+            k <= args.basis_components,
+            "--components {k}: must be in [1, {}] (at most --basis-components)",
+            args.basis_components
+        );
+    }
     let job = Job::from_file(&args.job)?;
     for w in &job.warnings {
         eprintln!("warning: {w}");

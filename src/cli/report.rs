@@ -7,6 +7,8 @@ use brdf_rig::report::gather::ReportOptions;
 use brdf_rig::report::inplane::InPlaneSettings;
 use clap::Args;
 use std::path::PathBuf;
+
+use super::ranges::{Open, real_in};
 use std::process::ExitCode;
 
 #[derive(Args, Debug)]
@@ -26,7 +28,13 @@ pub struct ReportArgs {
     pub linear: bool,
     /// Light angle of the in-plane plot, degrees from the +x axis (135 = theta_i 45 degrees, the
     /// paper's).
-    #[arg(long, value_name = "DEG", default_value_t = 135.0)]
+    /// Strictly between 0 and 180 (above the surface).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 135.0,
+        value_parser = real_in(Open(0.0), Open(180.0))
+    )]
     pub light_deg: f64,
     /// Do not re-read session images to check their SHA-256 (faster on big sessions).
     #[arg(long)]
@@ -35,12 +43,6 @@ pub struct ReportArgs {
 
 /// Raw arguments to a checked configuration, before any file is read.
 fn options(a: &ReportArgs) -> anyhow::Result<ReportOptions> {
-    if !(a.light_deg.is_finite() && a.light_deg > 0.0 && a.light_deg < 180.0) {
-        bail!(
-            "--light-deg must be strictly between 0 and 180 degrees (above the surface), got {}",
-            a.light_deg
-        );
-    }
     let mut compare = Vec::new();
     for c in &a.compare {
         let Some((label, path)) = c.split_once('=') else {

@@ -16,7 +16,9 @@ use brdf_rig::protocol::caps;
 pub struct RigArgs {
     /// Rig profile (TOML). Default: the built-in simulated rig, which spawns a simulated firmware
     /// for this one command (state such as homed, angle or lights does not persist between
-    /// invocations; run `brdf-rig-simfw` and pass its path with --port for that).
+    /// invocations; run `brdf-rig-simfw` and pass its path with --port for that). With --port
+    /// and no profile: the built-in rig with a real board's serial timing (200 ms per reply, 5
+    /// re-sends, a 2.5 s boot window after the port opens).
     #[arg(long, global = true, env = "BRDF_RIG_PROFILE")]
     pub profile: Option<PathBuf>,
     /// Serial port path, overriding the profile's `[serial] port`.
@@ -26,9 +28,10 @@ pub struct RigArgs {
 
 impl RigArgs {
     pub fn profile(&self) -> anyhow::Result<Profile> {
-        Ok(match &self.profile {
-            Some(p) => Profile::load(p)?,
-            None => Profile::simulated()?,
+        Ok(match (&self.profile, &self.port) {
+            (Some(p), _) => Profile::load(p)?,
+            (None, Some(port)) => Profile::real_board_defaults(port)?,
+            (None, None) => Profile::simulated()?,
         })
     }
 
@@ -81,6 +84,16 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
     let (profile, mut r) = args.open()?;
     let h = &r.hello;
     println!("port:       {}", r.port.display());
+    let settings = r.settings();
+    let link = &settings.link;
+    println!(
+        "link:       first reply {} ms after opening the port (boot window {} ms, then {} ms per \
+         reply x {} attempts)",
+        r.link_stats().first_reply_ms.unwrap_or(0),
+        link.boot_window.as_millis(),
+        link.timeout.as_millis(),
+        link.retries + 1
+    );
     println!("firmware:   {}", h.name);
     println!("protocol:   {}.{}", h.major, h.minor);
     println!("boot:       {}", h.boot);

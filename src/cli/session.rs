@@ -41,6 +41,17 @@ fn verify(dir: PathBuf) -> anyhow::Result<ExitCode> {
         report.planned,
         report.bytes as f64 / (1024.0 * 1024.0)
     );
+    for (id, retake) in &report.retaken {
+        println!(
+            "  re-taken by a resume: {id} ({}{})",
+            retake.reason,
+            retake
+                .set_aside
+                .as_ref()
+                .map(|f| format!("; the damaged file is {f}"))
+                .unwrap_or_default()
+        );
+    }
     for p in &report.problems {
         println!("  BAD  {p}");
     }

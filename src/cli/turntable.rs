@@ -9,6 +9,11 @@ use brdf_rig::devices::Turntable;
 
 use super::rig::RigArgs;
 
+use super::ranges::{Closed, real_in};
+
+/// The widest angle the wire carries: millidegrees in a signed 32-bit number.
+const MAX_DEG: f64 = 2_147_483.0;
+
 #[derive(Args, Debug)]
 pub struct TurntableArgs {
     #[command(flatten)]
@@ -23,8 +28,11 @@ pub enum TurntableCommand {
     Home,
     /// Move to ANGLE degrees (homes first when the turntable is not homed).
     Move {
-        /// Degrees (negative values are fine: `move -45`).
-        #[arg(allow_negative_numbers = true)]
+        /// Degrees (negative values are fine: `move -45`); the profile's travel limits apply.
+        #[arg(
+            allow_negative_numbers = true,
+            value_parser = real_in(Closed(-MAX_DEG), Closed(MAX_DEG))
+        )]
         angle: f64,
         /// ANGLE is relative to the current position.
         #[arg(long)]

@@ -27,6 +27,11 @@ pub struct LinkConfig {
     pub retries: u32,
     /// How long to keep trying to re-open a port that vanished.
     pub reconnect_timeout: Duration,
+    /// After the port is opened (or re-opened), how long the board may stay silent while it
+    /// boots: a request that gets no reply is re-sent every `timeout` until this has passed,
+    /// and only then do `retries` start counting. Opening the port of an Arduino resets it
+    /// (DTR), and its bootloader holds the UART for 1-2 s before the firmware runs.
+    pub boot_window: Duration,
 }
 
 /// Counters, for tests, `rig check` and the bench.
@@ -40,6 +45,9 @@ pub struct LinkStats {
     pub rejected: u64,
     /// Replies whose id did not match the request in flight (late replies to earlier tries).
     pub stale: u64,
+    /// Milliseconds from the last opening of the port to the first reply after it (the board's
+    /// boot time as the host sees it, within one reply timeout).
+    pub first_reply_ms: Option<u64>,
 }
 
 pub struct SerialLink {
@@ -50,6 +58,8 @@ pub struct SerialLink {
     last_tx: Instant,
     stats: LinkStats,
     last_io_error: String,
+    /// When the port was last opened (the boot window counts from here).
+    opened_at: Instant,
 }
 
 /// What went wrong while waiting for one reply.
@@ -76,6 +86,7 @@ impl SerialLink {
             last_tx: Instant::now(),
             stats: LinkStats::default(),
             last_io_error: String::new(),
+            opened_at: Instant::now(),
         };
         link.connect().map_err(|reason| DeviceError::Disconnected {
             device: format!("{DEVICE} on {}", link.cfg.path.display()),
@@ -111,6 +122,8 @@ impl SerialLink {
         let _ = port.clear(ClearBuffer::Input);
         self.decoder.clear();
         self.port = Some(port);
+        self.opened_at = Instant::now();
+        self.stats.first_reply_ms = None;
         Ok(())
     }
 
@@ -153,7 +166,9 @@ impl SerialLink {
     }
 
     /// Sends `req` and returns the firmware's reply (an ACK, a NAK, or data). Lost frames are
-    /// retried with the same id; a vanished port is re-opened and the same id sent again.
+    /// retried with the same id; a vanished port is re-opened and the same id sent again. While
+    /// the port's boot window is open, silence is the board booting: the request is re-sent
+    /// without counting against `retries`.
     pub fn request(&mut self, req: Request) -> Result<Reply, DeviceError> {
         let id = self.new_id();
         let what = req.name();
@@ -165,6 +180,7 @@ impl SerialLink {
         })?);
         self.stats.requests += 1;
         let mut timeouts = 0;
+        let mut attempts = 0;
         let mut reconnects = 0;
         let mut first = true;
         loop {
@@ -183,14 +199,35 @@ impl SerialLink {
             }
             first = false;
             match self.send_and_wait(&wire, id) {
-                Ok(reply) => return Ok(reply),
+                Ok(reply) => {
+                    if self.stats.first_reply_ms.is_none() {
+                        self.stats.first_reply_ms =
+                            Some(self.opened_at.elapsed().as_millis() as u64);
+                    }
+                    return Ok(reply);
+                }
                 Err(Wait::Timeout) => {
+                    attempts += 1;
+                    if self.opened_at.elapsed() < self.cfg.boot_window {
+                        continue;
+                    }
                     timeouts += 1;
                     if timeouts > self.cfg.retries {
+                        let boot = if self.cfg.boot_window.is_zero() {
+                            String::new()
+                        } else {
+                            format!(
+                                ", after a {} ms boot window from opening the port",
+                                self.cfg.boot_window.as_millis()
+                            )
+                        };
                         return Err(DeviceError::Timeout {
                             device: self.device(),
-                            attempts: timeouts,
-                            what: format!("{what} id {id}"),
+                            attempts,
+                            what: format!(
+                                "{what} id {id}, {} ms per attempt{boot}",
+                                self.cfg.timeout.as_millis()
+                            ),
                         });
                     }
                 }

@@ -55,6 +55,7 @@ impl RigSettings {
                 timeout: Duration::from_millis(p.serial.timeout_ms),
                 retries: p.serial.retries,
                 reconnect_timeout: Duration::from_millis(p.serial.reconnect_ms),
+                boot_window: Duration::from_millis(p.boot_window_ms()),
             },
             watchdog_ms: p.serial.watchdog_ms,
             max_speed: (t.max_speed_deg_s * 1000.0).round() as u32,
@@ -765,6 +766,11 @@ impl Rig {
         lock(&self.ctl).link_stats()
     }
 
+    /// The settings the rig was opened with (link timing, limits).
+    pub fn settings(&self) -> RigSettings {
+        lock(&self.ctl).settings().clone()
+    }
+
     /// The drivers as trait objects (the simulated firmware and the heartbeat live as long as
     /// either of them).
     pub fn into_boxes(self) -> (Box<dyn Turntable + Send>, Box<dyn Light + Send>) {
@@ -794,6 +800,7 @@ pub fn sim_config(p: &Profile) -> SimConfig {
             ..LinkFaults::default()
         },
         seed: p.sim.seed,
+        boot_delay: Duration::from_millis(p.sim.boot_delay_ms.into()),
         link_path: None,
     }
 }

@@ -3,7 +3,11 @@
 //! channel, and the reconstruction job that the `reconstruct` step reads.
 //!
 //! This is an edge: it reads the session (manifest, EXR images, the simulated ground truth when
-//! there is one) and writes `hdr/`, `calibration.json` and `job.toml` into it. The measuring
+//! there is one) and writes `hdr/`, `calibration.json` and `job.toml` into it. Every image the
+//! manifest lists is checked against its size and SHA-256 first (the same check as `session
+//! verify`), and a damaged one is refused by name before anything is written. While it writes it
+//! holds `.calibrate.lock`, and it removes the temporaries a killed run left (`.NAME.tmp-*` in
+//! `hdr/` and beside `job.toml`). The measuring
 //! itself is `crate::calib` (pure); the job format is `crate::reconstruct::job`.
 //!
 //! Conventions:
@@ -108,6 +112,53 @@ fn read_manifest(dir: &Path) -> Result<Manifest, SessionCalibError> {
         path,
         reason: format!("malformed manifest: {e}"),
     })
+}
+
+/// Checks every image the manifest lists against its size and SHA-256; the first damaged or
+/// missing one is an error naming it.
+fn verify_images(dir: &Path, manifest: &Manifest) -> Result<(), SessionCalibError> {
+    for s in &manifest.shots {
+        if let (_, Some(problem)) = crate::capture::verify::check_record(dir, s) {
+            return Err(SessionCalibError::File {
+                path: dir.join(&s.file),
+                reason: format!(
+                    "{} (shot {}): the image is not the one the capture recorded; `brdf-rig \
+                     capture --resume {}` takes it again (the damaged file is kept aside)",
+                    problem.what(),
+                    s.id,
+                    dir.display()
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Takes `.calibrate.lock` (two calibrations of one session would write the same files) and
+/// removes what a killed calibration left: temporaries of atomic writes in `hdr/` and beside
+/// `job.toml` and `calibration.json`. The lock is held while the returned file lives.
+fn lock_and_clean(dir: &Path, hdr_dir: &Path) -> Result<std::fs::File, SessionCalibError> {
+    let path = dir.join(".calibrate.lock");
+    let file_err = |path: &Path, e: std::io::Error| SessionCalibError::File {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    };
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(|e| file_err(&path, e))?;
+    if fs4::FileExt::try_lock(&lock).is_err() {
+        return Err(SessionCalibError::Session {
+            dir: dir.into(),
+            reason: "another `brdf-rig calibrate` is writing to this session".into(),
+        });
+    }
+    crate::imageio::remove_stray_temporaries(hdr_dir, None).map_err(|e| file_err(hdr_dir, e))?;
+    crate::imageio::remove_stray_temporaries(dir, Some(&["job.toml", "calibration.json"]))
+        .map_err(|e| file_err(dir, e))?;
+    Ok(lock)
 }
 
 /// Merges one bracket into an HDR image in the session's radiance unit.
@@ -225,7 +276,9 @@ pub fn calibrate_session(
             .or_default()
             .push(s);
     }
+    verify_images(dir, &manifest)?;
     let hdr_dir = dir.join("hdr");
+    let _lock = lock_and_clean(dir, &hdr_dir)?;
     std::fs::create_dir_all(&hdr_dir).map_err(|e| SessionCalibError::File {
         path: hdr_dir.clone(),
         reason: e.to_string(),

@@ -380,12 +380,25 @@ pub fn prepare(
     let mut timings = Vec::new();
     let t = Instant::now();
     progress("loading mesh, cameras, images");
-    let scene = load_scene(job, settings)?;
+    let mut scene = load_scene(job, settings)?;
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
     progress("rasterising and observing");
     let observed = observe_scene(&scene, &settings.observe);
     timings.push(("observe".to_string(), t.elapsed().as_secs_f64()));
+    // An image that gives no observation is worth a warning: a wrong light direction (the
+    // light behind every surface), a black, NaN or negative image, a wrong mask.
+    for (i, c) in observed.images.iter().enumerate() {
+        if c.observed == 0 {
+            scene.warnings.push(format!(
+                "light image {i} ({}) contributes nothing: no usable pixel (mesh seen on {} \
+                 pixels; dropped: {:?}); check its light direction, mask and exposure",
+                c.file.display(),
+                c.covered,
+                c.dropped
+            ));
+        }
+    }
     if observed.observations.is_empty() {
         return Err(ReconstructError::NoLitPixels {
             job: job.source.clone(),

@@ -51,6 +51,10 @@ pub struct SimConfig {
     pub faults: LinkFaults,
     /// Seed of the fault RNG.
     pub seed: u64,
+    /// After it starts, and after the port comes back from an unplug, the board ignores what
+    /// it receives for this long, as an Arduino's bootloader holds the UART after the reset
+    /// that opening (or plugging in) its port causes.
+    pub boot_delay: Duration,
     /// Where to put the port symlink; a fresh temporary directory when `None`.
     pub link_path: Option<PathBuf>,
 }
@@ -61,6 +65,7 @@ impl Default for SimConfig {
             firmware: FirmwareConfig::default(),
             faults: LinkFaults::default(),
             seed: 1,
+            boot_delay: Duration::ZERO,
             link_path: None,
         }
     }
@@ -239,6 +244,8 @@ impl SimRig {
             rng: ChaCha8Rng::seed_from_u64(config.seed),
             rx: Vec::new(),
             outbox: VecDeque::new(),
+            boot_delay: config.boot_delay,
+            booted_at: Instant::now() + config.boot_delay,
         };
         let thread = std::thread::Builder::new()
             .name("brdf-sim-firmware".into())
@@ -277,6 +284,9 @@ struct Server {
     rx: Vec<u8>,
     /// Replies waiting for their delay, with the time they leave.
     outbox: VecDeque<(Instant, Vec<u8>)>,
+    boot_delay: Duration,
+    /// Until then the bootloader runs: received bytes are discarded.
+    booted_at: Instant,
 }
 
 impl Server {
@@ -299,6 +309,10 @@ impl Server {
                     0
                 }
             };
+            if Instant::now() < self.booted_at {
+                // The bootloader reads the UART and finds no programmer: the bytes are gone.
+                continue;
+            }
             self.rx.extend_from_slice(&buf[..n]);
             let mut to_fw = Vec::new();
             while let Some(pos) = self.rx.iter().position(|&b| b == 0) {
@@ -383,6 +397,7 @@ impl Server {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
+        self.booted_at = Instant::now() + self.boot_delay;
         self.faults.lock().unplugged = false;
     }
 }
