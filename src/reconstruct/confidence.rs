@@ -41,6 +41,26 @@ fn probe() -> &'static SphereProbe {
     })
 }
 
+/// The median, over `others`, of the relative difference between their rendered sphere and
+/// that of `reference` (values at the probe's bins, `probe().bins()`), in the confidence's small
+/// probe under the standard environment. `None` without others.
+fn render_disagreement_of(reference: &[[f64; 3]], others: &[&dyn Candidate]) -> Option<f64> {
+    let probe = probe();
+    let reference = probe.render_values(reference);
+    let mut diffs: Vec<f64> = others
+        .iter()
+        .map(|c| compare(&reference, &probe.render(&CandidateValues(*c))).environment)
+        .filter(|d| d.is_finite())
+        .collect();
+    crate::calib::robust::median(&mut diffs)
+}
+
+/// How much fits disagree as images see them: the median relative difference of `others`'
+/// rendered sphere from `reference`'s (the confidence's probe, standard environment).
+pub fn render_disagreement(reference: &dyn BinValues, others: &[&dyn Candidate]) -> Option<f64> {
+    render_disagreement_of(&reference.values_at(probe().bins()), others)
+}
+
 /// Overall verdict.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -119,13 +139,7 @@ pub fn assess(
 ) -> Confidence {
     let probe = probe();
     let values = result.values_at(probe.bins());
-    let reference = probe.render_values(&values);
-    let mut diffs: Vec<f64> = others
-        .iter()
-        .map(|c| compare(&reference, &probe.render(&CandidateValues(*c))).environment)
-        .filter(|d| d.is_finite())
-        .collect();
-    let trial_disagreement = crate::calib::robust::median(&mut diffs);
+    let trial_disagreement = render_disagreement_of(&values, others);
 
     let mut theta_d: Vec<f64> = reliable
         .iter()

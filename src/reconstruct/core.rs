@@ -5,14 +5,14 @@
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
-use super::confidence::{Confidence, ConfidenceSettings, assess};
+use super::confidence::{Confidence, ConfidenceSettings, assess, render_disagreement};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, WithPeak, climb, fit_peak,
     subset,
 };
 use super::observe::Observation;
 use super::plausible::{Plausibility, PlausibleSettings, make_plausible};
-use super::prior::{Candidate, Prior};
+use super::prior::{Candidate, CandidateValues, Prior};
 use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
 use crate::brdf::analytic::LambertGgx;
@@ -201,7 +201,7 @@ pub fn reconstruct_observations(
     // The model ladder: every family scored on held-out images (or blocks).
     let t = Instant::now();
     let images = observations.iter().map(|o| o.image + 1).max().unwrap_or(0);
-    let ladder = match settings.fixed_components {
+    let mut ladder = match settings.fixed_components {
         Some(_) => None,
         None => {
             progress("model ladder (held-out images or blocks)");
@@ -277,6 +277,35 @@ pub fn reconstruct_observations(
             .map(|(i, _)| i),
     }
     .ok_or(CoreError::AllTrialsFailed)?;
+    // A basis whose trials disagree cannot be trusted beyond the pixels, whatever the held-out
+    // images say (`LadderSettings::max_trial_disagreement`).
+    let (mut family, mut reason) = (family, reason);
+    if matches!(settings.model, ModelSelection::Auto)
+        && matches!(family, Family::Basis | Family::Hybrid)
+        && let Some(l) = ladder.as_mut()
+        && let Some(reference) = trials[chosen].candidate.as_deref()
+    {
+        let others: Vec<&dyn Candidate> = trials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != chosen)
+            .filter_map(|(_, t)| t.candidate.as_deref())
+            .collect();
+        if let Some(d) = render_disagreement(&CandidateValues(reference), &others)
+            && d > settings.ladder.max_trial_disagreement
+        {
+            let why = format!(
+                "the basis trials disagree by {:.0} % in a rendered sphere (more than {:.0} %): \
+                 which pixels were drawn decides the basis's extrapolation",
+                100.0 * d,
+                100.0 * settings.ladder.max_trial_disagreement
+            );
+            if l.choose_analytic(&settings.ladder, &why) {
+                family = l.chosen().family;
+                reason = l.reason.clone();
+            }
+        }
+    }
     let basis_fit = trials[chosen]
         .candidate
         .take()

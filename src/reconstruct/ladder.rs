@@ -93,6 +93,15 @@ pub struct LadderSettings {
     pub rule: ChoiceRule,
     /// Which held-out error the choice reads.
     pub metric: HeldOutMetric,
+    /// The basis families are set aside for the analytic rungs when the eq. 3 trials (basis
+    /// fits to different random pixel samples) differ from the chosen one by more than this in
+    /// a rendered sphere (median relative L2, `confidence::render_disagreement`): which pixels
+    /// were drawn then decides the basis's extrapolation, and held-out images that share the
+    /// training images' theta_d (one light fixed to the camera) cannot see it. 0.3 from the
+    /// accuracy grid (docs/evaluation.md): the trials of scenes where the basis lost to
+    /// Lambert + GGX by 1.5-2.6x disagreed by 0.31-0.49, those of spread-light scenes by at
+    /// most 0.19.
+    pub max_trial_disagreement: f64,
 }
 
 /// The held-out error a choice reads.
@@ -130,6 +139,7 @@ impl Default for LadderSettings {
             hybrid: true,
             rule: ChoiceRule::Paired,
             metric: HeldOutMetric::Log,
+            max_trial_disagreement: 0.3,
         }
     }
 }
@@ -212,6 +222,31 @@ pub struct Ladder {
 impl Ladder {
     pub fn chosen(&self) -> &Rung {
         &self.rungs[self.chosen]
+    }
+
+    /// Chooses again among the analytic rungs only, by the same metric and rule, when the
+    /// basis rungs cannot be trusted (`why`, which leads the new reason). False, and nothing
+    /// changed, when no analytic rung was scored.
+    pub fn choose_analytic(&mut self, settings: &LadderSettings, why: &str) -> bool {
+        let idx: Vec<usize> = (0..self.rungs.len())
+            .filter(|&i| {
+                matches!(self.rungs[i].family, Family::Lambert | Family::LambertGgx)
+                    && self.rungs[i].error.is_some()
+            })
+            .collect();
+        let view: Vec<Rung> = idx
+            .iter()
+            .map(|&i| match settings.metric {
+                HeldOutMetric::Linear => self.rungs[i].clone(),
+                HeldOutMetric::Log => self.rungs[i].as_log(),
+            })
+            .collect();
+        let Some((c, reason)) = choose(&view, settings.rule) else {
+            return false;
+        };
+        self.chosen = idx[c];
+        self.reason = format!("{why}; among the analytic models, {reason}");
+        true
     }
 }
 
