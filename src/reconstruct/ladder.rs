@@ -26,8 +26,12 @@
 //! The choice, in two stages: (1) among the analytic and basis rungs, the simplest (fewest
 //! parameters, then the most regularised) whose fold-by-fold excess over the best is within one
 //! standard error of that paired difference; (2) a chosen basis rung gets the GGX peak (the
-//! hybrid) unless that raises the held-out error beyond noise. docs/reconstruction.md gives
-//! the measurements behind both choices.
+//! hybrid) unless that raises the held-out error beyond noise; (3, in `core`, after the
+//! eq. 3 trials) a basis family is set aside for the best analytic rung when its trials
+//! disagree in a rendered sphere by more than `max_trial_disagreement`
+//! ([`Ladder::choose_analytic`]): held-out images that share the training images' theta_d
+//! cannot see an extrapolation that depends on which pixels were drawn. docs/reconstruction.md
+//! gives the measurements behind these choices.
 //!
 //! Pure: no I/O. Deterministic for a seed.
 

@@ -74,6 +74,7 @@ pub struct SettingsReport {
 
 #[derive(Serialize)]
 pub struct Report {
+    /// The job file, absolute.
     pub job: PathBuf,
     pub settings: SettingsReport,
     pub basis: BasisReport,
@@ -121,7 +122,9 @@ impl Report {
             warnings.push(format!("components: {note}"));
         }
         Self {
-            job: job.source.clone(),
+            // Absolute, so the report finds the job (and its session) from any folder: a path
+            // relative to the caller's folder means nothing beside report.json.
+            job: std::path::absolute(&job.source).unwrap_or_else(|_| job.source.clone()),
             settings: SettingsReport {
                 observe: settings.observe,
                 core: settings.core.clone(),
