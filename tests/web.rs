@@ -52,6 +52,12 @@ fn assert_exactly_the_planned_shots(session: &Path) {
     assert!(v.status.success(), "{}", text(&v));
 }
 
+/// `BRDF_RIG_WRITE_SCREENSHOT=1`: the guided test writes docs/web-page.png (and the page at
+/// the end to target/web-page-end.png).
+fn write_screenshots() -> bool {
+    std::env::var_os("BRDF_RIG_WRITE_SCREENSHOT").is_some()
+}
+
 fn take_control(b: &Browser, name: &str) {
     b.fill("#client-name", name);
     b.click("#take-control");
@@ -160,10 +166,23 @@ fn a_guided_capture_runs_to_the_end_from_clicks_in_headless_chromium() {
             } else if !shot_taken {
                 shot_taken = journal_lines(&session) > 0;
             }
-            if steps.iter().any(|s| s.contains("black glossy sphere"))
-                && std::env::var_os("BRDF_RIG_WRITE_SCREENSHOT").is_some()
-            {
-                // docs/web-page.png: the page at the sphere instruction (see docs/web.md)
+            let now_steps = page["steps"].to_string();
+            if now_steps.contains("room lights OFF") {
+                // the 6 ambient shots are done; the sessions list shows the run's own count
+                b.wait(
+                    "the session being captured in the list",
+                    10,
+                    "return document.querySelector('#sessions').textContent.includes('6 / 30capturing')",
+                );
+            }
+            if now_steps.contains("room lights OFF") && write_screenshots() {
+                // docs/web-page.png: the page asking for the room light to go off, the object
+                // still lit by it in the live preview (see docs/web.md)
+                b.wait(
+                    "a live frame of the object",
+                    10,
+                    "return document.querySelector('#preview-source').textContent.startsWith('live')",
+                );
                 std::fs::write(
                     Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/web-page.png"),
                     b.screenshot(),
@@ -212,7 +231,15 @@ fn a_guided_capture_runs_to_the_end_from_clicks_in_headless_chromium() {
     );
 
     // what the page shows is the browser's own rendering, and not blank
-    let shot = image::load_from_memory(&b.screenshot()).unwrap().to_rgb8();
+    let png = b.screenshot();
+    if write_screenshots() {
+        std::fs::write(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("target/web-page-end.png"),
+            &png,
+        )
+        .unwrap();
+    }
+    let shot = image::load_from_memory(&png).unwrap().to_rgb8();
     let mut colours: Vec<[u8; 3]> = shot.pixels().map(|p| p.0).collect();
     colours.sort_unstable();
     colours.dedup();

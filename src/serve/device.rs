@@ -269,6 +269,7 @@ impl RigThread {
             .kit
             .create_session(&dir, &plan, &text, was_empty_folder)
             .map_err(|e| e.to_string())?;
+        self.refresh_lists();
         Ok(Prepared {
             session,
             camera,
