@@ -174,9 +174,18 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
         println!("{p}");
     }
     if let Some(path) = args.write {
+        // the command that makes this page, as it was run
+        let mut command = String::from("brdf-rig bench capture");
+        if args.views != 12 {
+            let _ = write!(command, " --views {}", args.views);
+        }
+        if args.page {
+            let _ = write!(command, " --page --reps {}", args.reps);
+        }
+        let _ = write!(command, " --write {}", path.display());
         let page = format!(
             "# Capture benchmark: shots per second on the simulated rig\n\n\
-             Made by `brdf-rig bench capture --write {}` (plan: the default plan scaled to {} ambient views,\n\
+             Made by `{command}` (plan: the default plan scaled to {} ambient views,\n\
              single-light shots on every {}th view under 3 channels with a 3-step bracket, sphere and\n\
              white reference under each channel; unattended; release build).\n\
              Machine: {}.\n\n{md}\n\
@@ -189,13 +198,10 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
              Reading: on the built-in simulated rig the turntable's motion (90 deg/s, 180 deg/s^2)\n\
              dominates; with a fast turntable the camera's rendering dominates and grows with the\n\
              image size; the controller's own overhead stays well under a millisecond per shot.\n{}",
-            path.display(),
             args.views,
             (args.views / 3).max(1),
-            machine(),
-            page.as_ref()
-                .map(|p| page_section(p, &path))
-                .unwrap_or_default()
+            super::bench::machine(),
+            page.as_ref().map(|p| page_section(p)).unwrap_or_default()
         );
         std::fs::write(&path, page).with_context(|| format!("writing {}", path.display()))?;
     }
@@ -203,33 +209,14 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// The lab page's section of the markdown page.
-fn page_section(table: &str, path: &std::path::Path) -> String {
+fn page_section(table: &str) -> String {
     format!(
         "\n## The lab page (`brdf-rig serve`)\n\n\
-         Made by `brdf-rig bench capture --page --write {}` (the fast turntable, 320x240 row's plan\n\
+         Measured by the `--page` part of the command above (the fast turntable, 320x240 row's plan\n\
          and profile; the server in the benchmark's process, a headless Chromium showing the page;\n\
          the simulated camera's live preview at 640x480).\n\n{table}\n\
          The preview rate is what reaches the page; the scene at rest renders once and each frame\n\
          is a new sensor exposure (noise), a shrink-mark-histogram pass and a JPEG. While a capture\n\
-         runs the page is sent the shots themselves (at most at the preview rate), not live frames.\n",
-        path.display()
-    )
-}
-
-fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
-    format!(
-        "{cpu}, {} logical CPUs",
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
+         runs the page is sent the shots themselves (at most at the preview rate), not live frames.\n"
     )
 }

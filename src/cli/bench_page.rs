@@ -66,6 +66,54 @@ impl Drop for Page {
     }
 }
 
+/// CPU seconds (user + system) of this process, all its threads: the capture, and the server
+/// when it runs here. Linux counts in USER_HZ = 100 ticks per second.
+fn own_cpu_secs() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = stat
+        .rsplit_once(')')
+        .map(|(_, rest)| rest.split_whitespace().collect())
+        .unwrap_or_default();
+    let num = |i: usize| f.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+    (num(11) + num(12)) as f64 / 100.0
+}
+
+/// CPU seconds (user + system, with reaped children) of process `pid` and its descendants,
+/// from /proc; 0 for processes already gone.
+fn tree_cpu_secs(pid: u32) -> f64 {
+    let mut procs = Vec::new();
+    if let Ok(dir) = std::fs::read_dir("/proc") {
+        for e in dir.flatten() {
+            let Some(id) = e.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else {
+                continue;
+            };
+            let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) else {
+                continue;
+            };
+            // fields after the command name (which may hold spaces): state ppid ... utime(14th)
+            let Some((_, rest)) = stat.rsplit_once(')') else {
+                continue;
+            };
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            let num = |i: usize| f.get(i).and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+            procs.push((id, num(1) as u32, num(11) + num(12) + num(13) + num(14)));
+        }
+    }
+    let mut tree = vec![pid];
+    let mut ticks = 0;
+    while let Some(p) = tree.pop() {
+        for &(id, parent, t) in &procs {
+            if id == p {
+                ticks += t;
+            }
+            if parent == p {
+                tree.push(id);
+            }
+        }
+    }
+    ticks as f64 / 100.0
+}
+
 fn wait_for(what: &str, secs: u64, mut ok: impl FnMut() -> bool) -> anyhow::Result<()> {
     let t = Instant::now();
     while !ok() {
@@ -165,19 +213,30 @@ pub fn measure(
     }
 
     let (mut cli, mut bare, mut with_page) = (Vec::new(), Vec::new(), Vec::new());
+    // CPU seconds of this process (capture and server) per run, and of the browser
+    let (mut cli_cpu, mut bare_cpu, mut page_cpu, mut browser_cpu) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let server = serve(&profile, tmp.path(), 8.0)?;
     for r in 0..reps {
+        let c0 = own_cpu_secs();
         cli.push(cli_capture(r)?);
+        cli_cpu.push(own_cpu_secs() - c0);
+        let c0 = own_cpu_secs();
         bare.push(served_capture(&server, "bench.toml", &format!("bare-{r}"))?);
+        bare_cpu.push(own_cpu_secs() - c0);
         let page = Page::open(&format!("http://{}/", server.addr()))?;
         let hub = server.hub().clone();
         wait_for("the page connects", 60, || !hub.frames_sent().is_empty())?;
+        let (c0, b0) = (own_cpu_secs(), tree_cpu_secs(page.child.id()));
         with_page.push(served_capture(&server, "bench.toml", &format!("page-{r}"))?);
+        page_cpu.push(own_cpu_secs() - c0);
+        browser_cpu.push(tree_cpu_secs(page.child.id()) - b0);
         let frames: u64 = hub.frames_sent().iter().map(|&(_, n)| n).sum();
         drop(page);
         eprintln!(
-            "rep {r}: capture {:.2} s, served {:.2} s, served with a page {:.2} s ({frames} frames sent)",
-            cli[r], bare[r], with_page[r]
+            "rep {r}: capture {:.2} s ({:.2} s CPU), served {:.2} s ({:.2} s CPU), served with a page \
+             {:.2} s ({:.2} s CPU, browser {:.2} s CPU; {frames} frames sent)",
+            cli[r], cli_cpu[r], bare[r], bare_cpu[r], with_page[r], page_cpu[r], browser_cpu[r]
         );
     }
     server.stop();
@@ -199,19 +258,27 @@ pub fn measure(
     let _ = writeln!(md);
     let _ = writeln!(
         md,
-        "| the same unattended capture ({reps} runs each, median) | wall (s) | vs `capture` |"
+        "| the same unattended capture ({reps} runs each, median) | wall (s) | vs `capture` | \
+         CPU of brdf-rig (s) | CPU of the browser (s) |"
     );
-    let _ = writeln!(md, "|---|---:|---:|");
-    let _ = writeln!(md, "| `brdf-rig capture --unattended` | {c:.2} | |");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
     let _ = writeln!(
         md,
-        "| `brdf-rig serve`, no page connected | {b:.2} | {:+.1} % |",
-        100.0 * (b / c - 1.0)
+        "| `brdf-rig capture --unattended` | {c:.2} | | {:.2} | |",
+        median(cli_cpu)
     );
     let _ = writeln!(
         md,
-        "| `brdf-rig serve`, headless Chromium showing the page | {p:.2} | {:+.1} % |",
-        100.0 * (p / c - 1.0)
+        "| `brdf-rig serve`, no page connected | {b:.2} | {:+.1} % | {:.2} | |",
+        100.0 * (b / c - 1.0),
+        median(bare_cpu)
+    );
+    let _ = writeln!(
+        md,
+        "| `brdf-rig serve`, headless Chromium showing the page | {p:.2} | {:+.1} % | {:.2} | {:.2} |",
+        100.0 * (p / c - 1.0),
+        median(page_cpu),
+        median(browser_cpu)
     );
     let list = |v: &[f64]| {
         v.iter()
