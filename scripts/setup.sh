@@ -5,9 +5,10 @@
 #   pkg-config          finds libudev
 #   gcc-avr avr-libc    builds the reference firmware for the ATmega2560
 #   qemu-system-misc    qemu-system-avr, runs that firmware in the tests
-#   chromium            headless browser for the HTML report test
+#   chromium            headless browser for the HTML report test and the lab page tests
+#   chromium-driver     chromedriver (WebDriver), to click through the lab page in the tests
 set -euo pipefail
-pkgs=(libclang-dev libudev-dev pkg-config gcc-avr avr-libc binutils-avr qemu-system-misc chromium)
+pkgs=(libclang-dev libudev-dev pkg-config gcc-avr avr-libc binutils-avr qemu-system-misc chromium chromium-driver)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

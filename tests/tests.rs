@@ -28,3 +28,5 @@ mod rig_cli;
 mod rig_sim;
 mod rig_vectors;
 mod util;
+mod web;
+mod web_util;

@@ -463,6 +463,26 @@ impl CapturePlan {
         shots
     }
 
+    /// `(channel, theta_d in degrees)` of each single-light channel on a rig of this geometry
+    /// (channels the rig lacks are left out; [`Self::check_rig`] refuses them).
+    pub fn theta_d(&self, lab: &LabGeometry) -> Vec<(usize, f64)> {
+        self.single_light
+            .channels
+            .iter()
+            .filter_map(|&ch| Some((ch, lab.theta_d_deg(ch)?)))
+            .collect()
+    }
+
+    /// The theta_d range `(lowest, highest)` the single-light channels cover, in degrees.
+    pub fn theta_d_range(&self, lab: &LabGeometry) -> Option<(f64, f64)> {
+        self.theta_d(lab)
+            .into_iter()
+            .fold(None, |range, (_, td)| match range {
+                None => Some((td, td)),
+                Some((lo, hi)) => Some((f64::min(lo, td), f64::max(hi, td))),
+            })
+    }
+
     /// A human summary: shot counts, the theta_d each channel gives, and the covered range.
     pub fn summary(&self, lab: &LabGeometry) -> String {
         let shots = self.shots();
@@ -482,20 +502,15 @@ impl CapturePlan {
             self.camera.width,
             self.camera.height,
         );
-        let mut range: Option<(f64, f64)> = None;
-        for &ch in &self.single_light.channels {
-            if let (Some(td), Some(&(az, el))) = (lab.theta_d_deg(ch), lab.lights.get(ch)) {
+        for (ch, td) in self.theta_d(lab) {
+            if let Some(&(az, el)) = lab.lights.get(ch) {
                 let _ = writeln!(
                     s,
                     "  channel {ch}: light at azimuth {az:.1} deg, elevation {el:.1} deg -> theta_d = {td:.1} deg"
                 );
-                range = Some(match range {
-                    None => (td, td),
-                    Some((lo, hi)) => (lo.min(td), hi.max(td)),
-                });
             }
         }
-        if let Some((lo, hi)) = range {
+        if let Some((lo, hi)) = self.theta_d_range(lab) {
             let _ = writeln!(
                 s,
                 "  theta_d covered: {lo:.1} .. {hi:.1} deg (of 0 .. 90; one value per channel, nominal geometry)"

@@ -2,6 +2,13 @@
 //! camera (the device traits), asking an [`Operator`] for what only a person can do (room light,
 //! placing the sphere and the white reference).
 //!
+//! The seams a front end plugs into (the terminal of `brdf-rig capture`, the lab page of
+//! `brdf-rig serve`): the [`Operator`] is told each change of stage and returns when the person
+//! has done it; [`Progress`] is told each step, each shot and its image; the cancel flag of
+//! [`RunOptions`] asks the run to stop at its next safe point. Safe points come before each
+//! shot, after the operator's part, after each move (before a light is switched on) and before
+//! the camera fires; a run that stops there ends like any other, light off and snapshot written.
+//!
 //! Guarantees: the light is switched off when the run ends, whether it finished, failed or was
 //! cancelled (Ctrl-C sets the cancel flag, checked between steps); a shot is in the session only
 //! once its image is on disk and its record is journaled (see `session`), so an interrupted run
@@ -17,6 +24,7 @@ use super::exr::encode_exr;
 use super::plan::{LabGeometry, PlannedShot, ShotKind, Stage, Target};
 use super::session::{Session, ShotRecord, now_utc};
 use crate::devices::{Camera, DeviceError, Light, ShotSettings, Turntable};
+use crate::render::image::LinearImage;
 
 /// Whoever sets up what the rig cannot: the room light, what stands on the turntable.
 pub trait Operator {
@@ -59,10 +67,13 @@ impl Operator for Unattended {
     }
 }
 
-/// Told after each step; the CLI draws progress bars with it.
+/// Told after each step; the CLI draws progress bars with it, the lab page pushes it to browsers.
 pub trait Progress {
     fn start(&mut self, _total: usize, _already_done: usize) {}
     fn shot_done(&mut self, _record: &ShotRecord) {}
+    /// The image of the shot just journaled (after [`Progress::shot_done`]), for a preview.
+    /// Called on the run's thread: keep it short (hand the image over, do not encode it here).
+    fn shot_image(&mut self, _record: &ShotRecord, _image: &LinearImage) {}
     fn message(&mut self, _text: &str) {}
     fn finish(&mut self) {}
 }
@@ -324,6 +335,8 @@ fn take_shots(
             summary.settle_time += ts.elapsed();
             measured_angle = d.turntable.status().map_err(|e| dev(shot, e))?.angle_deg;
             angle = Some(goal);
+            // A move can take seconds: stop here rather than switch a light on first.
+            check_cancel(session, options)?;
         }
         let recorded_angle = angle.unwrap_or(0.0).rem_euclid(360.0);
         if lit != Some(shot.channel) {
@@ -407,6 +420,7 @@ fn take_shots(
                 summary.retakes += 1;
             }
             progress.shot_done(r);
+            progress.shot_image(r, &image);
         }
     }
     Ok(())

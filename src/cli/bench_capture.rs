@@ -28,6 +28,14 @@ pub struct BenchCaptureArgs {
     /// Also write the markdown page here (e.g. docs/benchmarks-capture.md).
     #[arg(long)]
     pub write: Option<PathBuf>,
+    /// Also measure the lab page (`serve`): the live preview's frame rate at 640x480, and the
+    /// 320x240 fast capture through the server with and without a headless Chromium showing
+    /// the page (needs Debian's chromium).
+    #[arg(long)]
+    pub page: bool,
+    /// Runs of each capture for --page (the median is reported); 1 to 20.
+    #[arg(long, default_value_t = 3, value_parser = int_in(1usize, 20))]
+    pub reps: usize,
 }
 
 fn plan_text(views: usize, w: usize, h: usize) -> String {
@@ -107,6 +115,38 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
             overhead: 1000.0 * s.overhead_per_shot().as_secs_f64(),
         });
     }
+    let page = if args.page {
+        let plan = plan_text(args.views, 320, 240)
+            .replace("turntable_millis = 200", "turntable_millis = 0")
+            .replace("light_millis = 100", "light_millis = 0");
+        let dir = tmp.path().to_path_buf();
+        let (fast, plan2) = (profiles[1].1.clone(), plan.clone());
+        Some(super::bench_page::measure(
+            &profiles[1].1,
+            &plan,
+            args.reps,
+            |r| {
+                let ppath = dir.join(format!("page-profile-{r}.toml"));
+                let plan_path = dir.join(format!("page-plan-{r}.toml"));
+                std::fs::write(&ppath, &fast).context("writing the profile")?;
+                std::fs::write(&plan_path, &plan2).context("writing the plan")?;
+                let outcome = execute(CaptureArgs {
+                    rig: RigArgs {
+                        profile: Some(ppath),
+                        port: None,
+                    },
+                    plan: Some(plan_path),
+                    out: Some(dir.join(format!("page-cli-{r}"))),
+                    resume: None,
+                    unattended: true,
+                    snapshot_every: 16,
+                })?;
+                Ok(outcome.result?.wall.as_secs_f64())
+            },
+        )?)
+    } else {
+        None
+    };
     let mut md = String::new();
     let _ = writeln!(
         md,
@@ -130,10 +170,22 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
         );
     }
     println!("{md}");
+    if let Some(p) = &page {
+        println!("{p}");
+    }
     if let Some(path) = args.write {
+        // the command that makes this page, as it was run
+        let mut command = String::from("brdf-rig bench capture");
+        if args.views != 12 {
+            let _ = write!(command, " --views {}", args.views);
+        }
+        if args.page {
+            let _ = write!(command, " --page --reps {}", args.reps);
+        }
+        let _ = write!(command, " --write {}", path.display());
         let page = format!(
             "# Capture benchmark: shots per second on the simulated rig\n\n\
-             Made by `brdf-rig bench capture --write {}` (plan: the default plan scaled to {} ambient views,\n\
+             Made by `{command}` (plan: the default plan scaled to {} ambient views,\n\
              single-light shots on every {}th view under 3 channels with a 3-step bracket, sphere and\n\
              white reference under each channel; unattended; release build).\n\
              Machine: {}.\n\n{md}\n\
@@ -145,31 +197,26 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
              storage).\n\n\
              Reading: on the built-in simulated rig the turntable's motion (90 deg/s, 180 deg/s^2)\n\
              dominates; with a fast turntable the camera's rendering dominates and grows with the\n\
-             image size; the controller's own overhead stays well under a millisecond per shot.\n",
-            path.display(),
+             image size; the controller's own overhead stays well under a millisecond per shot.\n{}",
             args.views,
             (args.views / 3).max(1),
-            machine()
+            super::bench::machine(),
+            page.as_ref().map(|p| page_section(p)).unwrap_or_default()
         );
         std::fs::write(&path, page).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
-fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
+/// The lab page's section of the markdown page.
+fn page_section(table: &str) -> String {
     format!(
-        "{cpu}, {} logical CPUs",
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
+        "\n## The lab page (`brdf-rig serve`)\n\n\
+         Measured by the `--page` part of the command above (the fast turntable, 320x240 row's plan\n\
+         and profile; the server in the benchmark's process, a headless Chromium showing the page;\n\
+         the simulated camera's live preview at 640x480).\n\n{table}\n\
+         The preview rate is what reaches the page; the scene at rest renders once and each frame\n\
+         is a new sensor exposure (noise), a shrink-mark-histogram pass and a JPEG. While a capture\n\
+         runs the page is sent the shots themselves (at most at the preview rate), not live frames.\n"
     )
 }

@@ -19,24 +19,18 @@ use anyhow::{Context, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use brdf_rig::capture::camera_config::{CameraSection, parse_sections};
-use brdf_rig::capture::plan::{DEFAULT_PLAN_TOML, LabGeometry, load_plan, parse_plan};
+use brdf_rig::capture::plan::{DEFAULT_PLAN_TOML, load_plan, parse_plan};
 use brdf_rig::capture::runner::{KillPhase, Progress, RunOptions, stage_instructions};
-use brdf_rig::capture::session::SessionHeader;
 use brdf_rig::capture::{
-    CaptureError, CapturePlan, Operator, Session, ShotRecord, Stage, check_disk_space, run_session,
+    CaptureError, Operator, Session, ShotRecord, Stage, check_disk_space, run_session,
 };
-use brdf_rig::devices::Camera;
 use brdf_rig::devices::rig as rigdev;
+use brdf_rig::pipeline::capture_start::{self, CaptureRig, PROFILE_COPY};
 use brdf_rig::profile::Profile;
-use brdf_rig::sim::render::ObjectScene;
 use brdf_rig::sim::scene::StageState;
 
 use super::ranges::int_in;
 use super::rig::RigArgs;
-
-/// Name of the copy of the profile kept in the session folder (a resume uses it).
-const PROFILE_COPY: &str = "profile.toml";
 
 #[derive(Args, Debug)]
 pub struct CaptureArgs {
@@ -122,20 +116,6 @@ impl Operator for Guided {
     }
 }
 
-/// Sets the simulated scene's stage after the real operator (or nobody) did their part.
-struct SimStage<'a> {
-    inner: &'a mut dyn Operator,
-    stage: StageState,
-}
-
-impl Operator for SimStage<'_> {
-    fn set_stage(&mut self, from: Option<Stage>, to: Stage) -> Result<(), CaptureError> {
-        self.inner.set_stage(from, to)?;
-        self.stage.set(to);
-        Ok(())
-    }
-}
-
 /// Progress bar with time left; messages go above it.
 struct Bars {
     bar: ProgressBar,
@@ -185,90 +165,6 @@ fn kill_hook() -> anyhow::Result<Option<(usize, KillPhase)>> {
     Ok(Some((n, phase)))
 }
 
-/// Light directions of the profile's channels.
-fn lab_of(profile: &Profile, camera: &CameraSection) -> LabGeometry {
-    camera.lab(
-        profile
-            .light
-            .channels
-            .iter()
-            .map(|c| (c.azimuth_deg, c.elevation_deg))
-            .collect(),
-    )
-}
-
-/// What the simulated camera needs besides the rig.
-struct SimParts<'a> {
-    scene: &'a brdf_rig::sim::scene::SceneConfig,
-    object: Option<std::sync::Arc<ObjectScene>>,
-    stage: &'a StageState,
-}
-
-fn open_camera(
-    camera: &CameraSection,
-    plan: &CapturePlan,
-    lab: &LabGeometry,
-    sim: SimParts<'_>,
-    rig: &rigdev::Rig,
-    session_dir: &Path,
-) -> anyhow::Result<Box<dyn Camera>> {
-    let SimParts {
-        scene,
-        object,
-        stage,
-    } = sim;
-    Ok(match camera.backend.as_str() {
-        "sim" => {
-            let Some(handle) = rig.sim.clone() else {
-                bail!(
-                    "the simulated camera needs the simulated rig (profile [serial] port = \"sim\"); \
-                     set [camera] backend for a real camera"
-                );
-            };
-            let Some(renderer) = object else {
-                bail!("the simulated scene is not loaded");
-            };
-            Box::new(brdf_rig::sim::camera::SimCamera::new(
-                Box::new(handle),
-                stage.clone(),
-                lab.clone(),
-                scene.clone(),
-                plan.camera.width,
-                plan.camera.height,
-                renderer,
-            ))
-        }
-        "gphoto2" => {
-            use brdf_rig::devices::camera_gphoto2::{Gphoto2Camera, Gphoto2Config};
-            let mut cfg = Gphoto2Config::new(session_dir.join(".download"));
-            cfg.program = PathBuf::from(&camera.gphoto2_program);
-            cfg.port = camera.gphoto2_port.clone();
-            cfg.shutter_key = camera.shutter_key.clone();
-            cfg.iso_key = camera.iso_key.clone();
-            cfg.extra_config = camera
-                .extra_config
-                .iter()
-                .filter_map(|kv| kv.split_once('='))
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .collect();
-            Box::new(Gphoto2Camera::new(cfg))
-        }
-        #[cfg(feature = "webcam")]
-        "webcam" => Box::new(brdf_rig::devices::camera_webcam::WebcamCamera::new(
-            camera.webcam_index,
-        )),
-        #[cfg(feature = "v4l2")]
-        "v4l2" => Box::new(brdf_rig::devices::camera_v4l2::V4l2Camera::new(
-            Path::new(&camera.v4l2_device),
-            plan.camera.width as u32,
-            plan.camera.height as u32,
-        )),
-        other => bail!(
-            "camera backend `{other}` is not compiled into this binary (build with --features webcam or v4l2)"
-        ),
-    })
-}
-
 pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
     let outcome = execute(args)?;
     report(outcome)
@@ -287,38 +183,7 @@ pub struct Outcome {
 /// `brdf-rig capture --resume DIR`, with the options a resume cannot read from the session:
 /// `--unattended` (without a terminal a guided resume refuses to start) and `--port`.
 fn resume_command(args: &CaptureArgs, dir: &Path) -> String {
-    let quote = |p: &Path| {
-        let s = p.display().to_string();
-        if s.contains(|c: char| c.is_whitespace() || "'\"$\\`;&|<>()*?".contains(c)) {
-            format!("'{}'", s.replace('\'', r"'\''"))
-        } else {
-            s
-        }
-    };
-    let mut cmd = format!("brdf-rig capture --resume {}", quote(dir));
-    if let Some(port) = &args.rig.port {
-        cmd.push_str(&format!(" --port {}", quote(port)));
-    }
-    if args.unattended {
-        cmd.push_str(" --unattended");
-    }
-    cmd
-}
-
-/// Removes a session folder this command created (the start failed before any shot); puts back
-/// the empty folder the user gave, if there was one.
-fn remove_new_session(dir: &Path, was_empty_folder: bool) -> anyhow::Result<()> {
-    std::fs::remove_dir_all(dir).with_context(|| {
-        format!(
-            "removing the new session folder {} after a failed start",
-            dir.display()
-        )
-    })?;
-    if was_empty_folder {
-        std::fs::create_dir(dir)
-            .with_context(|| format!("putting back the empty folder {}", dir.display()))?;
-    }
-    Ok(())
+    capture_start::resume_command(dir, args.rig.port.as_deref(), args.unattended)
 }
 
 /// Prepares everything and runs the session. Everything that can be checked is checked before
@@ -356,21 +221,8 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
         (None, None) => bail!("give --out DIR for a new capture or --resume DIR"),
     };
     let resume_cmd = resume_command(&args, &dir);
-    let (camera_cfg, scene_cfg) =
-        parse_sections(&profile.source, &profile.origin).map_err(anyhow::Error::msg)?;
-    let lab = lab_of(&profile, &camera_cfg);
-    let object = if camera_cfg.backend == "sim" {
-        Some(std::sync::Arc::new(
-            ObjectScene::load(&scene_cfg).with_context(|| {
-                format!(
-                    "loading the simulated scene of {} ([scene] section)",
-                    profile.origin
-                )
-            })?,
-        ))
-    } else {
-        None
-    };
+    let kit = CaptureRig::load(profile)?;
+    let lab = kit.lab.clone();
     eprint!("{}", plan.summary(&lab));
 
     // 2. Guided mode needs someone at a terminal.
@@ -408,13 +260,14 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
         resumed = Some(s);
         n
     } else {
-        check_output_folder(&dir)?;
+        capture_start::check_output_folder(&dir)?;
         plan.shots().len()
     };
     check_disk_space(&dir, remaining, plan.camera.width, plan.camera.height)?;
 
     // 4. Devices, before anything moves or is written.
-    let rig = rigdev::open(&profile, args.rig.port.as_deref()).with_context(|| {
+    let profile = &kit.profile;
+    let rig = rigdev::open(profile, args.rig.port.as_deref()).with_context(|| {
         format!(
             "opening the rig of {} (port {}); nothing has moved",
             profile.origin,
@@ -431,68 +284,27 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
             .map_err(|e| anyhow::anyhow!("the plan does not fit the rig: {e}"))?;
     }
     let stage = StageState::default();
-    let mut camera = open_camera(
-        &camera_cfg,
-        &plan,
-        &lab,
-        SimParts {
-            scene: &scene_cfg,
-            object: object.clone(),
-            stage: &stage,
-        },
-        &rig,
-        &dir,
+    let mut camera = kit.open_camera(
+        plan.camera.width,
+        plan.camera.height,
+        rig.sim.as_ref(),
+        &stage,
+        &dir.join(".download"),
     )?;
     let options = RunOptions {
         kill_hook: kill_hook()?,
-        snapshot_every: args.snapshot_every,
-        lab: Some(lab.clone()),
-        angle_range: Some((
-            profile.turntable.min_angle_deg,
-            profile.turntable.max_angle_deg,
-        )),
-        ..RunOptions::default()
+        ..kit.run_options(args.snapshot_every)
     };
 
-    // 5. The session: everything is checked, so it is written now.
+    // 5. The session: everything is checked, so it is written now (with the simulated ground
+    // truth; deterministic and cheap, so written again on resume in case a kill interrupted it).
     let mut session = match resumed {
-        Some(s) => s,
-        None => {
-            let header = SessionHeader {
-                format_version: 0,
-                tool: format!("brdf-rig {}", env!("CARGO_PKG_VERSION")),
-                plan_name: String::new(),
-                planned_shots: 0,
-                profile: profile.origin.clone(),
-                camera_backend: camera_cfg.backend.clone(),
-                created_utc: brdf_rig::capture::session::now_utc().1,
-                simulated: camera_cfg.backend == "sim",
-            };
-            Session::create(
-                &dir,
-                &plan,
-                &plan_text,
-                header,
-                &[(PROFILE_COPY, profile.source.as_bytes())],
-            )?
+        Some(s) => {
+            kit.refresh_ground_truth(&dir, &plan)?;
+            s
         }
+        None => kit.create_session(&dir, &plan, &plan_text, was_empty_folder)?,
     };
-    // Deterministic and cheap: written again on resume in case a kill interrupted it.
-    if let Some(object) = &object
-        && let Err(e) =
-            brdf_rig::sim::truth::write_ground_truth(&dir, &plan, &lab, object, &scene_cfg)
-    {
-        let e = anyhow::Error::msg(e).context("writing the simulated ground truth (sim/)");
-        if !resuming {
-            drop(session);
-            remove_new_session(&dir, was_empty_folder)?;
-            return Err(e.context(format!(
-                "nothing was captured; the new session folder {} was removed",
-                dir.display()
-            )));
-        }
-        return Err(e);
-    }
 
     // 6. Run.
     let cancel = options.cancel.clone();
@@ -507,7 +319,7 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
         guided = Guided::new(options.cancel.clone());
         &mut guided
     };
-    let mut operator = SimStage {
+    let mut operator = capture_start::SimStage {
         inner: base,
         stage: stage.clone(),
     };
@@ -526,7 +338,7 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
     let removed = !resuming && result.is_err() && session.records().is_empty();
     drop(session);
     if removed {
-        remove_new_session(&dir, was_empty_folder)?;
+        capture_start::remove_new_session(&dir, was_empty_folder)?;
     }
     Ok(Outcome {
         result,
@@ -534,62 +346,6 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
         resume_command: resume_cmd,
         removed,
     })
-}
-
-/// Refuses an output folder that exists and is not empty, or whose nearest existing ancestor is
-/// not a writable folder; the error names `dir` as given. Writes nothing that stays.
-fn check_output_folder(dir: &Path) -> anyhow::Result<()> {
-    if dir.exists() {
-        if !dir.is_dir() {
-            bail!(
-                "{} exists and is not a folder; choose a new --out",
-                dir.display()
-            );
-        }
-        if std::fs::read_dir(dir)
-            .with_context(|| format!("listing {}", dir.display()))?
-            .next()
-            .is_some()
-        {
-            bail!(
-                "{} exists and is not empty; choose a new --out, or continue it with --resume",
-                dir.display()
-            );
-        }
-    }
-    // The session is built beside `dir` and renamed into place: its parent (or the nearest
-    // folder that exists above it) must take new entries.
-    let mut probe = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    while !probe.exists() {
-        match probe.parent() {
-            Some(p) if !p.as_os_str().is_empty() => probe = p.to_path_buf(),
-            _ => probe = PathBuf::from("."),
-        }
-    }
-    if !probe.is_dir() {
-        bail!(
-            "cannot create the session folder {}: {} is not a folder",
-            dir.display(),
-            probe.display()
-        );
-    }
-    // A folder made and removed at once: the only sure test of write permission (root, ACLs,
-    // read-only mounts and immutable folders all answer differently to a look at the mode bits).
-    let test = probe.join(format!(".brdf-rig-write-test-{}", std::process::id()));
-    match std::fs::create_dir(&test) {
-        Ok(()) => {
-            let _ = std::fs::remove_dir(&test);
-            Ok(())
-        }
-        Err(e) => bail!(
-            "cannot create the session folder {}: {} does not accept new files ({e})",
-            dir.display(),
-            probe.display()
-        ),
-    }
 }
 
 fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {

@@ -15,6 +15,7 @@ mod bench_accuracy;
 mod bench_capture;
 mod bench_confidence;
 mod bench_external;
+mod bench_page;
 mod bench_reconstruct;
 mod bench_render;
 mod bench_sweeps;
@@ -26,6 +27,7 @@ mod ports;
 mod reconstruct;
 mod report;
 mod rig;
+mod serve;
 mod session;
 mod turntable;
 
@@ -73,6 +75,9 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Calibrate the light: direction from a glossy sphere, irradiance from a white board.
     Calibrate(calibrate::CalibrateArgs),
+    /// The lab page: run guided and unattended captures from a browser (live preview, next
+    /// step, progress, the session's checksums). Listens on 127.0.0.1:8080 by default.
+    Serve(serve::ServeArgs),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -91,6 +96,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Light(a) => light::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Calibrate(args) => calibrate::run(args).map(|()| ExitCode::SUCCESS),
+        Command::Serve(args) => serve::run(args),
     }
 }
 
@@ -126,7 +132,10 @@ mod tests {
             "bench stability",
             "bench render",
             "bench capture",
+            "bench capture --page --reps 2",
             "bench reconstruct",
+            "serve",
+            "serve --bind 0.0.0.0:0 --token-file t --preview-size 320x240",
         ] {
             let argv = std::iter::once("brdf-rig").chain(args.split(' '));
             if let Err(e) = Cli::try_parse_from(argv) {
