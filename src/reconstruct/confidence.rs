@@ -99,9 +99,9 @@ impl Default for ConfidenceSettings {
             disagreement_medium: 0.15,
             disagreement_low: 0.35,
             held_out_medium: 0.2,
-            held_out_low: 0.4,
+            held_out_low: 0.33,
             theta_d_span_medium_deg: 20.0,
-            theta_d_span_low_deg: 8.0,
+            theta_d_span_low_deg: 3.2,
             unseen_energy_medium: 0.35,
             unseen_energy_low: 0.55,
         }
