@@ -430,6 +430,7 @@ def sphere_fixture(name, description, **kw):
         "extra_lights": [],
         "light_ambient": 0.0,  # constant environment radiance in the light image
         "outline": {"ambient": 0.5},  # None: find the outline in the light image
+        "outline_of": None,  # another fixture (same scene) whose outline image this one uses
         "spp": 96,
         "spp_outline": 128,
         "max_depth": 4,
@@ -444,93 +445,80 @@ def sphere_fixture(name, description, **kw):
 
 
 def corpus():
+    """The fixtures. Spheres share a scene (material, backdrop, position) where they can, and then
+    its outline image (`outline_of`), to keep the corpus small; some find their outline in the
+    light image itself (`outline=None`), as a user without an ambient image would."""
     cam640 = cam_default(width=640, height=480, f=1200.0)
+    d = lambda theta, phi: {"kind": "directional", "dir": light_from_angles(theta, phi), "irradiance": [3, 3, 3]}
     s = []
-    # glossiness and Fresnel strength
-    s.append(sphere_fixture("sphere_gloss_a010", "glossy coat (GGX alpha 0.01, ior 1.5) before a uniform grey backdrop; outline from an ambient image",
-                            alpha=0.01, light={"kind": "directional", "dir": light_from_angles(30, -150), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_gloss_a030", "medium gloss (GGX alpha 0.03), light 55 deg from the camera",
-                            alpha=0.03, light={"kind": "directional", "dir": light_from_angles(55, -60), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_gloss_a080", "rough coat (GGX alpha 0.08): a wide highlight lobe",
-                            alpha=0.08, light={"kind": "directional", "dir": light_from_angles(35, 20), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_ior130", "weak Fresnel (ior 1.3, f0 = 0.017)",
-                            alpha=0.02, ior=1.3, light={"kind": "directional", "dir": light_from_angles(45, -100), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_ior200", "strong Fresnel (ior 2.0, f0 = 0.111)",
-                            alpha=0.02, ior=2.0, light={"kind": "directional", "dir": light_from_angles(25, 160), "irradiance": [3, 3, 3]}))
+    # glossiness and Fresnel strength; sphere_gloss_a020 is the base scene the others vary
+    s.append(sphere_fixture("sphere_gloss_a020", "glossy coat (GGX alpha 0.02, ior 1.5) before a uniform grey backdrop; the base scene",
+                            alpha=0.02, light=d(40, -130)))
+    s.append(sphere_fixture("sphere_gloss_a010", "glossier coat (GGX alpha 0.01)", alpha=0.01, light=d(30, -150)))
+    s.append(sphere_fixture("sphere_gloss_a080", "rough coat (GGX alpha 0.08): a wide highlight lobe", alpha=0.08, light=d(35, 20)))
+    s.append(sphere_fixture("sphere_ior130", "weak Fresnel (ior 1.3, f0 = 0.017); outline from the light image",
+                            alpha=0.02, ior=1.3, light=d(45, -100), outline=None))
+    s.append(sphere_fixture("sphere_ior200", "strong Fresnel (ior 2.0, f0 = 0.111)", alpha=0.02, ior=2.0, light=d(25, 160)))
     # surrounds
     s.append(sphere_fixture("sphere_bright_surround", "no backdrop: the sphere before a bright uniform surround (the room), its rim fading into it",
-                            backdrop=None, alpha=0.015, light={"kind": "directional", "dir": light_from_angles(40, -120), "irradiance": [3, 3, 3]},
-                            outline={"ambient": 1.0}))
-    s.append(sphere_fixture("sphere_dark_backdrop", "dark backdrop (albedo 0.02) in a lit room: the sphere brighter than its surround, a bright ring near the rim that fades to the dark backdrop",
-                            backdrop={"kind": "uniform", "albedo": 0.02, "z": 0.6, "half": 0.3}, alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(35, -45), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_gradient_backdrop", "backdrop with a strong left-to-right gradient; the outline is found in the light image itself (lit backdrop)",
-                            backdrop={"kind": "gradient", "z": 0.7, "half": 0.4}, alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(30, -90), "irradiance": [3, 3, 3]},
-                            outline=None))
+                            backdrop=None, alpha=0.015, light=d(40, -120), outline={"ambient": 1.0}))
+    s.append(sphere_fixture("sphere_dark_backdrop", "black velvet backdrop (albedo 0.003) in a lit room: the sphere (diffuse base 0.03) brighter than its surround, its rim fading to the velvet, a bright ring further in where it mirrors the room",
+                            backdrop={"kind": "uniform", "albedo": 0.003, "z": 0.6, "half": 0.4}, alpha=0.02, base_albedo=0.03,
+                            light=d(35, -45)))
+    s.append(sphere_fixture("sphere_gradient_backdrop", "backdrop with a strong left-to-right gradient; outline from the light image (lit backdrop)",
+                            backdrop={"kind": "gradient", "z": 0.7, "half": 0.4}, alpha=0.02, light=d(30, -90), outline=None))
     s.append(sphere_fixture("sphere_textured_backdrop", "printed pattern backdrop (checker and blobs), close behind the sphere so its rim mirrors the pattern",
-                            backdrop={"kind": "pattern", "z": 0.5, "half": 0.3}, alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(45, 170), "irradiance": [3, 3, 3]}))
+                            backdrop={"kind": "pattern", "z": 0.5, "half": 0.3}, alpha=0.02, light=d(45, 170)))
     # holders
     s.append(sphere_fixture("sphere_post", "a dark post (0.4 sphere radii) holding the sphere from below, down to the frame edge",
-                            holder={"kind": "post", "radius_frac": 0.4, "albedo": 0.08}, alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(40, -140), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_cup", "the sphere sits in a grey cup that hides the bottom of its outline",
-                            holder={"kind": "cup", "top_frac": 0.55, "albedo": 0.35}, alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(35, -70), "irradiance": [3, 3, 3]}))
+                            holder={"kind": "post", "radius_frac": 0.4, "albedo": 0.08}, alpha=0.02, light=d(40, -140)))
+    s.append(sphere_fixture("sphere_cup", "the sphere sits in a grey cup that hides the bottom quarter of its outline",
+                            holder={"kind": "cup", "top_frac": 0.55, "albedo": 0.35}, alpha=0.02, light=d(35, -70)))
     # framing
     s.append(sphere_fixture("sphere_corner", "off-centre, 4 px from the top and left frame edges (perspective: the outline is an ellipse)",
-                            sphere_centre=sphere_with_margins(left=4, top=4), alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(40, -20), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_right_edge", "3 px from the right frame edge, outline from the light image",
-                            sphere_centre=sphere_with_margins(right=3), alpha=0.02, outline=None,
-                            light={"kind": "directional", "dir": light_from_angles(30, 180), "irradiance": [3, 3, 3]}))
-    # light shapes
-    s.append(sphere_fixture("sphere_area_light", "an area light (a lamp subtending 3 deg radius): the highlight has extent and clips nothing",
-                            alpha=0.01,
-                            light={"kind": "sphere", "pos": list(np.asarray(SPHERE_C) + 5.0 * light_from_angles(40, -110)), "radius": 5.0 * math.sin(math.radians(3.0)),
-                                   "target": SPHERE_C, "irradiance": [3, 3, 3]}))
+                            sphere_centre=sphere_with_margins(left=4, top=4), alpha=0.02, light=d(40, -20)))
+    s.append(sphere_fixture("sphere_right_edge", "3 px from the right frame edge; outline from the light image",
+                            sphere_centre=sphere_with_margins(right=3), alpha=0.02, outline=None, light=d(30, 180)))
+    # light shapes and directions (the base scene's outline image)
+    s.append(sphere_fixture("sphere_area_light", "an area light (a lamp subtending 3 deg radius): the highlight has extent",
+                            alpha=0.02, outline_of="sphere_gloss_a020",
+                            light={"kind": "sphere", "pos": list(np.asarray(SPHERE_C) + 5.0 * light_from_angles(40, -110)),
+                                   "radius": 5.0 * math.sin(math.radians(3.0)), "target": SPHERE_C, "irradiance": [3, 3, 3]}))
     s.append(sphere_fixture("sphere_second_highlight", "a second, weaker highlight from a room lamp (a sixth of the irradiance)",
-                            alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(35, -140), "irradiance": [3, 3, 3]},
+                            alpha=0.02, outline_of="sphere_gloss_a020", spp=192, light=d(35, -140),
                             extra_lights=[{"kind": "sphere", "pos": list(np.asarray(SPHERE_C) + 2.0 * light_from_angles(50, -20)), "radius": 0.03,
                                            "target": SPHERE_C, "irradiance": [0.5, 0.5, 0.5]}]))
-    # camera effects
-    s.append(sphere_fixture("sphere_noise", "strong sensor noise (Poisson-Gaussian, about 4 % on the backdrop)",
-                            alpha=0.03, light={"kind": "directional", "dir": light_from_angles(45, -160), "irradiance": [3, 3, 3]},
-                            post={"noise": {"gain": 0.004, "read": 0.004}}))
-    s.append(sphere_fixture("sphere_vignetting", "strong vignetting (corners at 50 %), sphere off-centre",
-                            sphere_centre=(0.04, 0.025, 0.35), alpha=0.02, light={"kind": "directional", "dir": light_from_angles(30, 60), "irradiance": [3, 3, 3]},
-                            post={"vignetting": 0.5}))
-    s.append(sphere_fixture("sphere_defocus", "defocused: thin lens focused 5 cm in front of the sphere (blur circle about 2 px)",
-                            camera=cam_default(aperture_radius=0.006, focus_distance=0.30), alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(40, -80), "irradiance": [3, 3, 3]}))
     s.append(sphere_fixture("sphere_grazing_light", "light 80 deg from the camera: the highlight 40 deg from the sphere's centre",
-                            alpha=0.02, light={"kind": "directional", "dir": light_from_angles(80, -150), "irradiance": [3, 3, 3]}))
-    s.append(sphere_fixture("sphere_640", "640x480 (sphere radius 86 px), outline from the light image",
-                            camera=cam640, alpha=0.02, outline=None, spp=48,
-                            light={"kind": "directional", "dir": light_from_angles(50, -120), "irradiance": [3, 3, 3]}))
-    # formats
-    s.append(sphere_fixture("sphere_png16", "16-bit linear PNG: clips at code 65535 (the highlight clips)",
-                            alpha=0.03, light={"kind": "directional", "dir": light_from_angles(35, -120), "irradiance": [3, 3, 3]},
-                            format="png16", exposure=1.5, post={"noise": {"gain": 0.0005, "read": 0.0005}}))
-    s.append(sphere_fixture("sphere_srgb8", "8-bit sRGB PNG: clips at code 255 (the highlight clips), coarse codes in the dark",
-                            alpha=0.03, light={"kind": "directional", "dir": light_from_angles(35, -120), "irradiance": [3, 3, 3]},
-                            format="srgb8", exposure=1.5, post={"noise": {"gain": 0.0005, "read": 0.0005}}))
+                            alpha=0.02, outline_of="sphere_gloss_a020", light=d(80, -150)))
+    # camera effects
+    s.append(sphere_fixture("sphere_noise", "strong sensor noise (Poisson-Gaussian, about 4 % on the backdrop); outline from the light image",
+                            alpha=0.02, light=d(45, -160), outline=None, post={"noise": {"gain": 0.004, "read": 0.004}}))
+    s.append(sphere_fixture("sphere_vignetting", "strong vignetting (corners at 50 %), sphere off-centre; outline from the light image",
+                            sphere_centre=(0.04, 0.025, 0.35), alpha=0.02, light=d(30, 60), outline=None, post={"vignetting": 0.5}))
+    s.append(sphere_fixture("sphere_defocus", "defocused: thin lens focused 5 cm in front of the sphere (blur circle about 2 px); outline from the light image",
+                            camera=cam_default(aperture_radius=0.006, focus_distance=0.30), alpha=0.02, light=d(40, -80), outline=None))
+    s.append(sphere_fixture("sphere_640", "640x480 (sphere radius 86 px); outline from the light image",
+                            camera=cam640, alpha=0.02, outline=None, spp=48, light=d(50, -120)))
+    # formats (the highlight clips in both)
+    s.append(sphere_fixture("sphere_png16", "16-bit linear PNG, clipping at code 65535; outline from the light image",
+                            alpha=0.03, light=d(35, -120), outline=None, format="png16", exposure=1.5))
+    s.append(sphere_fixture("sphere_srgb8", "8-bit sRGB PNG, clipping at code 255, coarse codes in the dark; outline from the light image",
+                            alpha=0.03, light=d(35, -120), outline=None, format="srgb8", exposure=1.5,
+                            post={"noise": {"gain": 0.0005, "read": 0.0005}}))
     # meant to be unusable
-    s.append(sphere_fixture("sphere_cut", "the sphere is cut by the right frame edge",
-                            sphere_centre=sphere_with_margins(right=-15), alpha=0.02,
-                            light={"kind": "directional", "dir": light_from_angles(30, -150), "irradiance": [3, 3, 3]},
+    s.append(sphere_fixture("sphere_cut", "the sphere is cut by the right frame edge; outline from the light image",
+                            sphere_centre=sphere_with_margins(right=-15), alpha=0.02, outline=None, light=d(30, -150),
                             unusable={"reason": "the sphere is cut by the frame: its outline cannot be measured", "error": "cut by the frame edge"}))
-    s.append(sphere_fixture("sphere_backlit", "the light almost behind the sphere (165 deg from the camera): the highlight sits on the rim",
-                            alpha=0.02, light={"kind": "directional", "dir": light_from_angles(165, -90), "irradiance": [3, 3, 3]},
+    s.append(sphere_fixture("sphere_backlit", "the light almost behind the sphere (165 deg from the camera), no backdrop: the highlight sits on the rim",
+                            backdrop=None, alpha=0.015, outline_of="sphere_bright_surround", light=d(165, -90),
                             unusable={"reason": "the highlight lies on the rim, where its normal cannot be measured", "error": "rim"}))
 
     b = []
     bl = light_from_angles(30, -120)
+    cam_board = cam_default(width=240, height=180, f=450.0)
     board_common = {
         "kind": "white",
-        "camera": cam_default(),
+        "camera": cam_board,
         "board_centre": (0.0, 0.0, 0.5),
         "board_normal": (0.0, 0.0, -1.0),
         "board_half": (0.09, 0.065),
@@ -567,7 +555,7 @@ def corpus():
                    post={"noise": {"gain": 0.002, "read": 0.002}},
                    unusable={"reason": "the board is clipped in the 8-bit file: its radiance is unknown", "error": "clipped"}))
     b.append({"name": "white_pure_noise", "kind": "white", "description": "pure noise (uniform random values, no board)",
-              "camera": cam_default(), "noise_only": True, "albedo": [0.85, 0.82, 0.78],
+              "camera": cam_default(width=160, height=120, f=300.0), "noise_only": True, "albedo": [0.85, 0.82, 0.78],
               "light": {"kind": "directional", "dir": bl, "irradiance": [1.1, 1.0, 0.85]},
               "board_normal": (0.0, 0.0, -1.0), "board_centre": (0.0, 0.0, 0.5), "format": "exr",
               "unusable": {"reason": "there is no board in the image", "error": "no white board found"}})
@@ -637,7 +625,11 @@ def write_sphere(fx, out):
                          f"{check['highlight_distance_px']:.2f} px from the predicted {check['highlight_predicted_px']}")
     light_file, clip, scale = finish(light_img, fx, rng, os.path.join(out, "light"))
     outline_file = None
-    if fx["outline"] is not None:
+    if fx["outline_of"] is not None:
+        outline_file = f"../{fx['outline_of']}/outline.exr"
+        if not os.path.exists(os.path.join(out, outline_file)):
+            raise SystemExit(f"{fx['name']}: render {fx['outline_of']} first (its outline image is shared)")
+    elif fx["outline"] is not None:
         amb = render(objects, [{"kind": "env", "radiance": fx["outline"]["ambient"]}], cam, fx["spp_outline"], 2, fx["max_depth"])
         outline_file, _, _ = finish(amb, fx, rng, os.path.join(out, "outline"))
     truth = {
@@ -662,6 +654,7 @@ def write_sphere(fx, out):
             "extra_lights": [light_truth(x, fx["sphere_centre"]) for x in fx["extra_lights"]],
             "light_image_ambient_radiance": fx["light_ambient"],
             "outline_image_ambient_radiance": fx["outline"]["ambient"] if fx["outline"] else None,
+            "outline_image_shared_with": fx["outline_of"],
             "post": fx["post"],
             "spp": fx["spp"],
         },

@@ -357,6 +357,8 @@ fn sphere(a: SphereArgs) -> Result<()> {
                     "sphere_centre_px": s.outline.centre_px,
                     "sphere_radius_px": s.outline.radius_px,
                     "edge_points": s.outline.edge_points,
+                    "outline_rms_px": s.outline.rms_residual_rad * 0.5 * (intr.fx + intr.fy),
+                    "warnings": s.warnings,
                 })
             })
             .collect();

@@ -24,10 +24,19 @@ use std::f64::consts::PI;
 
 /// Sampling step of the radial profiles (pixels).
 const PROFILE_STEP: f64 = 0.1;
-/// How far (pixels) the outline may lie from the seed circle along a profile.
+/// How far (pixels) the outline may lie from the seed circle along a profile; from the circle of
+/// a fitted outline, in the final pass.
 const SEARCH_PX: f64 = 3.0;
+const FINAL_SEARCH_PX: f64 = 1.5;
+/// Least step between the backdrop and the sphere, in residuals of the profile's fit: a smooth
+/// shading or noise fits the model too, with no step to speak of.
+const MIN_CONTRAST_RMS: f64 = 8.0;
 /// Least fraction of the outline whose profiles must fit the rim model.
 const MIN_SUPPORT: f64 = 0.3;
+/// How far out (times the radius) an outline is looked for around a ring already found, and
+/// the least step across it, relative to the ring's.
+const OUTER_SEARCH: f64 = 1.3;
+const MIN_OUTER_CONTRAST: f64 = 0.1;
 /// Circle candidates tried.
 const CANDIDATES: usize = 4;
 /// At most this many profiles search the blur width; the rest use their median.
@@ -65,20 +74,57 @@ pub fn detect_outline(
             ),
         });
     };
-    let best = seeds
+    let measured: Vec<Measured> = seeds
         .iter()
-        .filter_map(|s| measure(&lum, s, intr, opts))
-        .max_by(|a, b| a.support.total_cmp(&b.support));
-    let Some(best) = best else {
+        .filter_map(|s| measure(&lum, s, SEARCH_PX, intr, opts))
+        .collect();
+    let Some(best) = measured
+        .iter()
+        .max_by(|a, b| a.support.total_cmp(&b.support))
+    else {
         return Err(no_sphere(&first, None));
     };
-    // once more, the profiles centred on the fitted outline
-    let circle = outline_circle(&best.outline, intr, w, h);
-    let m = measure(&lum, &circle, intr, opts).unwrap_or(best);
-    if m.support < MIN_SUPPORT {
-        return Err(no_sphere(&circle, Some(m.support)));
+    // The sphere hides what lies behind it and everything on it lies inside its outline: of
+    // the well supported circles concentric with the best one (a ring where the sphere mirrors
+    // its backdrop's edge is one), the outline is the outermost.
+    let concentric = |m: &Measured| {
+        let (a, b) = (&m.outline, &best.outline);
+        (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]) < 0.2 * b.radius_px
+    };
+    let enough = MIN_SUPPORT.max(0.7 * best.support);
+    let best = measured
+        .iter()
+        .filter(|m| m.support >= enough && concentric(m))
+        .max_by(|a, b| a.outline.radius_px.total_cmp(&b.outline.radius_px))
+        .unwrap_or(best);
+    // A strong ring can hide a weaker outline outside it (a dark backdrop that the rim mirrors
+    // out to some angle): look for a well supported edge further out, around the same centre,
+    // with each search window clear of the edge already found.
+    let mut circle = outline_circle(&best.outline, intr, w, h);
+    let inner = circle;
+    let mut step = 1;
+    loop {
+        let r = inner.r + 1.5 + SEARCH_PX * step as f64;
+        if r > OUTER_SEARCH * inner.r {
+            break;
+        }
+        let probe = Seed { r, ..inner };
+        if let Some(m) = measure(&lum, &probe, SEARCH_PX, intr, opts)
+            && m.support >= enough
+            && m.contrast >= MIN_OUTER_CONTRAST * best.contrast
+        {
+            circle = outline_circle(&m.outline, intr, w, h);
+        }
+        step += 1;
     }
-    let outline = m.outline;
+    // once more, the profiles centred on the fitted outline
+    let (outline, support) = match measure(&lum, &circle, FINAL_SEARCH_PX, intr, opts) {
+        Some(m) => (m.outline, m.support),
+        None => (best.outline.clone(), best.support),
+    };
+    if support < MIN_SUPPORT {
+        return Err(no_sphere(&circle, Some(support)));
+    }
     let cut = SphereError::SphereCut {
         cx: outline.centre_px[0],
         cy: outline.centre_px[1],
@@ -159,6 +205,8 @@ struct Measured {
     outline: SphereOutline,
     /// Fraction of the profiles around the circle whose edge was kept by the fit.
     support: f64,
+    /// Median step between backdrop and sphere across the kept profiles.
+    contrast: f64,
 }
 
 /// One radial profile: its direction and samples.
@@ -169,12 +217,18 @@ struct Profile {
 }
 
 /// Fits the rim model along radial profiles around `seed` and the tangent cone to their edges.
-fn measure(lum: &Plane, seed: &Seed, intr: &Intrinsics, opts: &SphereOptions) -> Option<Measured> {
+fn measure(
+    lum: &Plane,
+    seed: &Seed,
+    search_px: f64,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Option<Measured> {
     let fresnel_f0 = opts.rim_fresnel_f0.filter(|f| (0.0..0.5).contains(f));
     let model = RimModel::new(fresnel_f0, seed.r);
     let (from, to) = (
-        seed.r - SEARCH_PX - model.inside_px - 1.0,
-        seed.r + SEARCH_PX + OUTSIDE_PX + 1.0,
+        seed.r - search_px - model.inside_px - 1.0,
+        seed.r + search_px + OUTSIDE_PX + 1.0,
     );
     if from <= 1.0 {
         return None;
@@ -203,8 +257,8 @@ fn measure(lum: &Plane, seed: &Seed, intr: &Intrinsics, opts: &SphereOptions) ->
         let steepest = steepest_point(
             &positions,
             &p.samples,
-            seed.r - SEARCH_PX,
-            seed.r + SEARCH_PX,
+            seed.r - search_px,
+            seed.r + search_px,
         )?;
         Some((
             steepest - STEEPEST_TO_EDGE_PX,
@@ -237,23 +291,40 @@ fn measure(lum: &Plane, seed: &Seed, intr: &Intrinsics, opts: &SphereOptions) ->
     let contrast = crate::calib::robust::median(&mut contrasts)?;
     let mut rms: Vec<f64> = fits.iter().map(|(_, f)| f.rms).collect();
     let typical_rms = crate::calib::robust::median(&mut rms)?;
-    let rays: Vec<Vector3<f64>> = fits
+    let kept: Vec<&(&Profile, super::rim::RimFit)> = fits
         .iter()
         .filter(|(p, f)| {
             let c = f.outside - f.inside;
-            // something much brighter than both levels (a highlight at the rim) spoils it
+            // something much brighter than both levels in the fitted stretch (a highlight at
+            // the rim) spoils it
             let top = f.inside.max(f.outside) + c.abs();
+            let window = f.edge - model.inside_px..=f.edge + OUTSIDE_PX;
             c * contrast > 0.0
                 && c.abs() >= 0.3 * contrast.abs()
+                && c.abs() >= MIN_CONTRAST_RMS * f.rms
                 && f.rms <= 3.0 * typical_rms + 1e-6 * contrast.abs()
-                && !p.samples.iter().any(|&v| v > top)
+                && !positions
+                    .iter()
+                    .zip(&p.samples)
+                    .any(|(x, &v)| window.contains(x) && v > top)
         })
+        .collect();
+    let rays: Vec<Vector3<f64>> = kept
+        .iter()
         .map(|(p, f)| intr.ray(seed.cx + f.edge * p.ux, seed.cy + f.edge * p.uy))
+        .collect();
+    let mut steps: Vec<f64> = kept
+        .iter()
+        .map(|(_, f)| (f.outside - f.inside).abs())
         .collect();
     if rays.len() < 16 {
         return None;
     }
     let outline = SphereOutline::from_edge_rays(&rays, intr)?;
     let support = outline.edge_points as f64 / n_angles as f64;
-    Some(Measured { outline, support })
+    Some(Measured {
+        outline,
+        support,
+        contrast: crate::calib::robust::median(&mut steps)?,
+    })
 }

@@ -80,6 +80,15 @@ pub fn find_highlight(
                 && !c.touches_border
                 && c.pixels.len() < inside.len()
             {
+                // a spot on the rim band itself: the light is behind the sphere
+                let from_centre = intr
+                    .ray(x, y)
+                    .dot(&outline.centre_dir)
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                if (from_centre - outline.angular_radius_rad).abs() <= RIM_BAND_PX / f {
+                    return Err(at_rim(outline, intr, x, y));
+                }
                 return Err(SphereError::HighlightOutsideSphere {
                     x,
                     y,
@@ -133,22 +142,13 @@ pub fn find_highlight(
     let low = (LOBE_FRACTION * peak_excess).max(5.0 * noise);
     // A highlight on the rim is cut by the limb and seen edge-on: a pixel there spans degrees
     // of normal, and its lobe's centre cannot be found.
-    let rim_gap = 1.5 / f;
+    let rim_gap = RIM_BAND_PX / f;
     let at_rim = best.pixels.iter().any(|&i| {
         let ray = intr.ray((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
         ray.dot(&outline.centre_dir).clamp(-1.0, 1.0).acos() > outline.angular_radius_rad - rim_gap
     });
     if at_rim {
-        let (bx, by) = best_xy;
-        let angle = outline
-            .intersect(&intr.ray(bx, by))
-            .map(|(p, n)| n.dot(&-p.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
-            .unwrap_or(90.0);
-        return Err(SphereError::HighlightAtRim {
-            x: bx,
-            y: by,
-            normal_from_view_deg: angle,
-        });
+        return Err(at_rim(outline, intr, best_xy.0, best_xy.1));
     }
     let lobe = regions::grow_region(&best.pixels, w, h, |i| excess(i).is_some_and(|e| e >= low));
     // per lobe pixel: position, sphere normal, normal-space area (1 / n.v), excess, clipped
@@ -215,6 +215,24 @@ pub fn find_highlight(
         flat_top_pixels,
     })
 }
+
+/// The error for a highlight at `(x, y)` on the rim, with the angle of the sphere's normal there
+/// from the view (90 deg just outside the outline).
+fn at_rim(outline: &SphereOutline, intr: &Intrinsics, x: f64, y: f64) -> SphereError {
+    let normal_from_view_deg = outline
+        .intersect(&intr.ray(x, y))
+        .map(|(p, n)| n.dot(&-p.normalize()).clamp(-1.0, 1.0).acos().to_degrees())
+        .unwrap_or(90.0);
+    SphereError::HighlightAtRim {
+        x,
+        y,
+        normal_from_view_deg,
+    }
+}
+
+/// Width (pixels) of the band along the outline where a highlight cannot be measured: a pixel
+/// there spans many degrees of normal.
+const RIM_BAND_PX: f64 = 2.0;
 
 /// How far down its peak (over the sphere's own radiance) the highlight's lobe is followed.
 const LOBE_FRACTION: f64 = 0.02;

@@ -4,6 +4,8 @@
 //! well-supported centre gets the radius at which the most directions around it have an edge
 //! pointing at it. A holder hiding part of the outline, a textured backdrop or a post only take
 //! votes away; they do not move the peak, as they would move a thresholded region's border.
+//! The luminance is clamped at its 99th percentile first, so that a highlight (hundreds of times
+//! brighter in an HDR image) does not make the sphere's own edge look weak.
 //!
 //! Conventions: pixel centres at half-integers; radii in pixels. Pure: no I/O.
 
@@ -22,13 +24,22 @@ pub(super) struct Seed {
 /// Angular sectors in which a radius's support is counted.
 const SECTORS: usize = 72;
 
-/// Circles in `lum` with radius in `[r_min, r_max]`, best supported first (at most `max`).
+/// Circles in `lum` with radius in `[r_min, r_max]`, best supported first: up to three radii
+/// around each of at most `max` centres.
 pub(super) fn circles(lum: &Plane, r_min: f64, r_max: f64, max: usize) -> Vec<Seed> {
     let (w, h) = (lum.width, lum.height);
     if w < 5 || h < 5 || r_max < r_min {
         return Vec::new();
     }
-    let s = lum.box3();
+    // Highlights and lamps are far brighter than any outline in an HDR image, and small: clamped
+    // at the 99th percentile, they no longer set the scale of what counts as an edge.
+    let ceiling = regions::quantile(&lum.data, 0.99).unwrap_or(f32::INFINITY);
+    let s = Plane {
+        width: w,
+        height: h,
+        data: lum.data.iter().map(|&v| v.min(ceiling)).collect(),
+    }
+    .box3();
     // gradients by central differences of the smoothed luminance
     let mut edges: Vec<(f64, f64, f64, f64, f64)> = Vec::new(); // x, y, ux, uy, magnitude
     let mut mags = Vec::with_capacity(w * h);
@@ -98,7 +109,7 @@ pub(super) fn circles(lum: &Plane, r_min: f64, r_max: f64, max: usize) -> Vec<Se
     let mut chosen: Vec<(f64, f64)> = Vec::new();
     let mut seeds = Vec::new();
     for &(px, py, _) in &peaks {
-        if seeds.len() >= 3 * max {
+        if chosen.len() >= 3 * max {
             break;
         }
         let (cx, cy) = (px as f64 + 0.5, py as f64 + 0.5);
@@ -109,25 +120,39 @@ pub(super) fn circles(lum: &Plane, r_min: f64, r_max: f64, max: usize) -> Vec<Se
             continue;
         }
         chosen.push((cx, cy));
-        if let Some(seed) = best_radius(&edges, cx, cy, r_min, r_max) {
-            seeds.push(seed);
+        seeds.extend(
+            radii(&edges, cx, cy, r_min, r_max)
+                .into_iter()
+                .map(|s| refined(&edges, s)),
+        );
+    }
+    // the best covered centres, each with its radii
+    let mut order: Vec<(f64, f64, f64)> = Vec::new(); // centre, best coverage
+    for s in &seeds {
+        match order.iter_mut().find(|o| o.0 == s.cx && o.1 == s.cy) {
+            Some(o) => o.2 = o.2.max(s.coverage),
+            None => order.push((s.cx, s.cy, s.coverage)),
         }
     }
+    order.sort_by(|a, b| b.2.total_cmp(&a.2));
+    order.truncate(max);
+    seeds.retain(|s| order.iter().any(|o| o.0 == s.cx && o.1 == s.cy));
     seeds.sort_by(|a, b| b.coverage.total_cmp(&a.coverage));
-    seeds.truncate(max);
     seeds
 }
 
-/// The radius around `(cx, cy)` with the strongest edges facing the centre, all of one sign (a
+/// The radii around `(cx, cy)` with the strongest edges facing the centre, all of one sign (a
 /// sphere darker than its surround all round, or brighter), among the radii whose such edges
-/// cover at least half as many directions as the best covered one.
-fn best_radius(
+/// cover at least half as many directions as the best covered one: the strongest, and up to two
+/// more at least 3 px from it and each other (a sphere can show concentric rings, where it
+/// mirrors the edge of its backdrop, inside its outline).
+fn radii(
     edges: &[(f64, f64, f64, f64, f64)],
     cx: f64,
     cy: f64,
     r_min: f64,
     r_max: f64,
-) -> Option<Seed> {
+) -> Vec<Seed> {
     let bins = r_max.ceil() as usize + 2;
     // per sign (outward, inward gradient), radius bin: sectors hit and summed magnitude
     let mut sectors = vec![vec![[false; SECTORS]; bins]; 2];
@@ -160,17 +185,54 @@ fn best_radius(
             rows.push((r, covered, w / r as f64));
         }
     }
-    let most = rows.iter().map(|r| r.1).max()?;
-    let (r, covered, _) = rows
-        .into_iter()
-        .filter(|r| 2 * r.1 >= most)
-        .max_by(|a, b| a.2.total_cmp(&b.2))?;
-    Some(Seed {
-        cx,
-        cy,
-        r: r as f64,
-        coverage: covered as f64 / SECTORS as f64,
-    })
+    let Some(most) = rows.iter().map(|r| r.1).max() else {
+        return Vec::new();
+    };
+    rows.retain(|r| 2 * r.1 >= most);
+    rows.sort_by(|a, b| b.2.total_cmp(&a.2));
+    let mut out: Vec<Seed> = Vec::new();
+    for (r, covered, _) in rows {
+        if out.len() == 3 {
+            break;
+        }
+        if out.iter().all(|s| (s.r - r as f64).abs() >= 3.0) {
+            out.push(Seed {
+                cx,
+                cy,
+                r: r as f64,
+                coverage: covered as f64 / SECTORS as f64,
+            });
+        }
+    }
+    out
+}
+
+/// A seed snapped to the round edge near it: the circle fitted to the edge pixels within a band
+/// around it that face its centre, with the band narrowed from 3 to 1.5 px. The Hough centre is
+/// only as good as its accumulator's pixel, and a ring inside the outline pulls it.
+fn refined(edges: &[(f64, f64, f64, f64, f64)], seed: Seed) -> Seed {
+    let mut s = seed;
+    for band in [3.0, 2.0, 1.5] {
+        let pts: Vec<(f64, f64)> = edges
+            .iter()
+            .filter(|&&(x, y, ux, uy, _)| {
+                let (dx, dy) = (x - s.cx, y - s.cy);
+                let d = dx.hypot(dy);
+                d > 0.0 && (d - s.r).abs() <= band && ((ux * dx + uy * dy) / d).abs() >= 0.85
+            })
+            .map(|&(x, y, ..)| (x, y))
+            .collect();
+        if pts.len() < 12 {
+            break;
+        }
+        match regions::fit_circle(&pts) {
+            Some((cx, cy, r)) if (r - s.r).abs() < band && (cx - s.cx).hypot(cy - s.cy) < band => {
+                s = Seed { cx, cy, r, ..s };
+            }
+            _ => break,
+        }
+    }
+    s
 }
 
 #[cfg(test)]
