@@ -143,11 +143,11 @@ pub fn find_highlight(
     // A highlight on the rim is cut by the limb and seen edge-on: a pixel there spans degrees
     // of normal, and its lobe's centre cannot be found.
     let rim_gap = RIM_BAND_PX / f;
-    let at_rim = best.pixels.iter().any(|&i| {
+    let on_rim = best.pixels.iter().any(|&i| {
         let ray = intr.ray((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
         ray.dot(&outline.centre_dir).clamp(-1.0, 1.0).acos() > outline.angular_radius_rad - rim_gap
     });
-    if at_rim {
+    if on_rim {
         return Err(at_rim(outline, intr, best_xy.0, best_xy.1));
     }
     let lobe = regions::grow_region(&best.pixels, w, h, |i| excess(i).is_some_and(|e| e >= low));
