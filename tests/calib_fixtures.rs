@@ -44,7 +44,9 @@ struct Unusable {
 #[derive(Deserialize)]
 struct SphereGeometry {
     outline_circle_px: [f64; 3],
+    /// `tan(alpha) f` and the centre's projection: what `calibrate sphere` reports.
     outline_radius_px: f64,
+    centre_px: [f64; 2],
 }
 
 #[derive(Deserialize)]
@@ -129,10 +131,19 @@ impl Outcome {
     }
 }
 
+/// The root cause of a refusal (the last line of the error chain), paths relative to the corpus.
 fn first_line(m: &str) -> String {
-    let m = m.trim_start_matches("error: ");
-    let line = m.lines().next().unwrap_or("");
-    line.chars().take(150).collect()
+    let corpus = format!("{}/", corpus().display());
+    let line = m
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("")
+        .trim()
+        .trim_start_matches("error: ")
+        .trim_start_matches("caused by: ")
+        .replace(&corpus, "");
+    line.chars().take(200).collect()
 }
 
 fn run(args: &[String], measure: impl Fn(&serde_json::Value) -> f64) -> Outcome {
@@ -144,6 +155,20 @@ fn run(args: &[String], measure: impl Fn(&serde_json::Value) -> f64) -> Outcome 
     let j: serde_json::Value = serde_json::from_slice(&out.stdout)
         .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stdout)));
     Outcome::Measured(measure(&j), j)
+}
+
+/// The clip level used and its source, short: "none (float file)", "0.5 (16-bit file)".
+fn clip_cell(j: &serde_json::Value) -> String {
+    let c = &j["clip_level"];
+    let value = c["value"]
+        .as_f64()
+        .map_or("none".to_string(), |v| format!("{v:.4}"));
+    let source = match c["source"].as_str() {
+        Some("integer_file") => format!("{}-bit file", c["bits"]),
+        Some(s) => s.replace('_', " "),
+        None => "?".into(),
+    };
+    format!("{value} ({source})")
 }
 
 fn vec3(j: &serde_json::Value) -> Vector3<f64> {
@@ -186,15 +211,29 @@ fn every_sphere_fixture_within_half_a_degree_or_refused_with_the_reason() {
     );
     let mut failures = Vec::new();
     println!(
-        "| fixture | what it shows | radius (px) | outline detected | outline given (--circle) | clip level |"
+        "| fixture | what it shows | radius (px) | outline detected | its centre / radius error (px) | outline given (--circle) | clip level |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for (dir, t) in &all {
         let detected = sphere_run(dir, t, false);
         let circle = sphere_run(dir, t, true);
-        let clip = match &detected {
-            Outcome::Measured(_, j) => j["clip_level_reason"].as_str().unwrap_or("").to_string(),
-            Outcome::Refused(_) => String::new(),
+        let geometry = t.sphere.as_ref().unwrap();
+        let (clip, outline_error) = match &detected {
+            Outcome::Measured(_, j) => {
+                let image = &j["images"][0];
+                let c: Vec<f64> =
+                    serde_json::from_value(image["sphere_centre_px"].clone()).unwrap();
+                let r = image["sphere_radius_px"].as_f64().unwrap();
+                (
+                    clip_cell(j),
+                    format!(
+                        "{:.2} / {:+.2}",
+                        (c[0] - geometry.centre_px[0]).hypot(c[1] - geometry.centre_px[1]),
+                        r - geometry.outline_radius_px
+                    ),
+                )
+            }
+            Outcome::Refused(_) => (String::new(), String::new()),
         };
         let what = match (&t.unusable, &t.outline_image) {
             (Some(u), _) => format!("{} (meant to be unusable: {})", t.description, u.reason),
@@ -202,11 +241,12 @@ fn every_sphere_fixture_within_half_a_degree_or_refused_with_the_reason() {
             (None, None) => t.description.clone(),
         };
         println!(
-            "| {} | {} | {:.1} | {} | {} | {} |",
+            "| {} | {} | {:.1} | {} | {} | {} | {} |",
             t.name,
             what,
-            t.sphere.as_ref().unwrap().outline_radius_px,
+            geometry.outline_radius_px,
             detected.cell(MAX_DIRECTION_ERROR_DEG, "deg", 1.0),
+            outline_error,
             circle.cell(MAX_DIRECTION_ERROR_DEG, "deg", 1.0),
             clip
         );
@@ -290,7 +330,7 @@ fn every_white_fixture_within_two_percent_or_refused_with_the_reason() {
         });
         let (clip, warnings) = match &o {
             Outcome::Measured(_, j) => (
-                j["clip_level_reason"].as_str().unwrap_or("").to_string(),
+                clip_cell(j),
                 j["warnings"]
                     .as_array()
                     .map(|w| {

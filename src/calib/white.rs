@@ -337,7 +337,9 @@ fn board_pixels(
             if px.is_empty() {
                 return Err(WhiteError::NoBoard {
                     reason: format!(
-                        "the brightest region vanishes after eroding {} px",
+                        "the brightest region vanishes after eroding {} px: no solid bright \
+                         region stands out (is there a board in the image?); give the board's \
+                         region with --roi",
                         opts.erode_px
                     ),
                 });
@@ -451,5 +453,70 @@ mod tests {
             ),
             Err(WhiteError::BadAlbedo { .. })
         ));
+    }
+
+    /// A noiseless board on a dark surround, found by detection with no clip level (linear HDR):
+    /// its flat plateau is not taken for a clipped one (issue 13: "54595 clipped of 54595").
+    #[test]
+    fn a_flat_noiseless_board_is_not_clipped() {
+        let (w, h) = (120, 90);
+        let l_val = (0.8 * 1.5 / PI) as f32;
+        let mut data = vec![0.01f32; w * h * 3];
+        for y in 20..70 {
+            for x in 25..95 {
+                data[3 * (y * w + x)..3 * (y * w + x) + 3].fill(l_val);
+            }
+        }
+        let img = LinearImage::from_rgb(w, h, data).unwrap();
+        let n = Vector3::new(0.0, 0.0, -1.0);
+        let r = calibrate_irradiance(
+            &img,
+            [0.8; 3],
+            &n,
+            Some(&n),
+            &BoardRegion::Detect,
+            &WhiteOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(r.pixels_saturated, 0);
+        for e in r.irradiance {
+            assert!((e - 1.5).abs() < 1e-5, "{e}");
+        }
+        // told that the camera clipped at that very level, every board pixel is clipped
+        let clipped = calibrate_irradiance(
+            &img,
+            [0.8; 3],
+            &n,
+            Some(&n),
+            &BoardRegion::Detect,
+            &WhiteOptions {
+                saturation: Some(l_val),
+                ..WhiteOptions::default()
+            },
+        )
+        .unwrap_err();
+        assert!(clipped.to_string().contains("clipped"), "{clipped}");
+    }
+
+    /// Pure noise has a "largest bright region" too; it is refused, saying why (issue 15).
+    #[test]
+    fn pure_noise_is_not_a_board() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (w, h) = (160, 120);
+        let data: Vec<f32> = (0..w * h * 3).map(|_| rng.gen_range(0.0..0.5)).collect();
+        let img = LinearImage::from_rgb(w, h, data).unwrap();
+        let n = Vector3::new(0.0, 0.0, -1.0);
+        let e = calibrate_irradiance(
+            &img,
+            [0.8; 3],
+            &n,
+            Some(&n),
+            &BoardRegion::Detect,
+            &WhiteOptions::default(),
+        )
+        .unwrap_err();
+        assert!(matches!(e, WhiteError::NoBoard { .. }), "{e}");
+        assert!(e.to_string().contains("--roi"), "{e}");
     }
 }

@@ -37,6 +37,10 @@ const MIN_SUPPORT: f64 = 0.3;
 /// the least step across it, relative to the ring's.
 const OUTER_SEARCH: f64 = 1.3;
 const MIN_OUTER_CONTRAST: f64 = 0.1;
+/// Largest scatter (pixels, RMS) of the edge points about the fitted outline: a sphere's edge
+/// points scatter by about 0.1 px (0.06 to 0.11 px on the Mitsuba fixtures, defocus and noise
+/// included); a rectangle's sides near a circle scatter by a pixel or more.
+const MAX_OUTLINE_RMS_PX: f64 = 0.5;
 /// Circle candidates tried.
 const CANDIDATES: usize = 4;
 /// At most this many profiles search the blur width; the rest use their median.
@@ -74,15 +78,23 @@ pub fn detect_outline(
             ),
         });
     };
-    let measured: Vec<Measured> = seeds
+    let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
         .iter()
         .filter_map(|s| measure(&lum, s, SEARCH_PX, intr, opts))
-        .collect();
+        .partition(|m| m.rms_px <= MAX_OUTLINE_RMS_PX);
     let Some(best) = measured
         .iter()
         .max_by(|a, b| a.support.total_cmp(&b.support))
     else {
-        return Err(no_sphere(&first, None));
+        return Err(
+            match not_round
+                .iter()
+                .max_by(|a, b| a.support.total_cmp(&b.support))
+            {
+                Some(m) => not_a_sphere(m),
+                None => no_sphere(&first, None),
+            },
+        );
     };
     // The sphere hides what lies behind it and everything on it lies inside its outline: of
     // the well supported circles concentric with the best one (a ring where the sphere mirrors
@@ -119,6 +131,7 @@ pub fn detect_outline(
     }
     // once more, the profiles centred on the fitted outline
     let (outline, support) = match measure(&lum, &circle, FINAL_SEARCH_PX, intr, opts) {
+        Some(m) if m.rms_px > MAX_OUTLINE_RMS_PX => return Err(not_a_sphere(&m)),
         Some(m) => (m.outline, m.support),
         None => (best.outline.clone(), best.support),
     };
@@ -167,6 +180,24 @@ fn no_sphere(s: &Seed, support: Option<f64>) -> SphereError {
     }
 }
 
+/// Edges were found around a circle but they do not lie on one: a rectangle, a polygon, a ring
+/// of unrelated edges.
+fn not_a_sphere(m: &Measured) -> SphereError {
+    SphereError::NoSphere {
+        reason: format!(
+            "the best circle of edges, centred at ({:.1}, {:.1}) px with radius {:.1} px, has edges \
+             on {:.0} % of it, but they scatter by {:.2} px about it where a sphere's outline \
+             scatters by less than {MAX_OUTLINE_RMS_PX} px: what is there is not round (a board, \
+             a box, a polygon?)",
+            m.outline.centre_px[0],
+            m.outline.centre_px[1],
+            m.outline.radius_px,
+            100.0 * m.support,
+            m.rms_px
+        ),
+    }
+}
+
 /// The circle through the projected outline (centre of its points, mean distance to them).
 fn outline_circle(o: &SphereOutline, intr: &Intrinsics, w: usize, h: usize) -> Seed {
     let pts: Vec<(f64, f64)> = (0..90)
@@ -207,6 +238,8 @@ struct Measured {
     support: f64,
     /// Median step between backdrop and sphere across the kept profiles.
     contrast: f64,
+    /// RMS distance (pixels) of the kept edge points from the fitted outline.
+    rms_px: f64,
 }
 
 /// One radial profile: its direction and samples.
@@ -322,9 +355,11 @@ fn measure(
     }
     let outline = SphereOutline::from_edge_rays(&rays, intr)?;
     let support = outline.edge_points as f64 / n_angles as f64;
+    let rms_px = outline.rms_residual_rad * 0.5 * (intr.fx + intr.fy);
     Some(Measured {
         outline,
         support,
+        rms_px,
         contrast: crate::calib::robust::median(&mut steps)?,
     })
 }
