@@ -609,6 +609,12 @@ def finish(img, fx, rng, path_noext):
     return os.path.basename(path_noext) + ".png", 1.0 / fx["exposure"], 1.0 / fx["exposure"]
 
 
+def write_truth(out, truth):
+    with open(os.path.join(out, "truth.json"), "w") as f:
+        json.dump(truth, f, indent=2)
+        f.write("\n")
+
+
 def write_sphere(fx, out):
     cam = fx["camera"]
     os.makedirs(out, exist_ok=True)
@@ -665,9 +671,7 @@ def write_sphere(fx, out):
         "check": check,
         "unusable": fx["unusable"],
     }
-    with open(os.path.join(out, "truth.json"), "w") as f:
-        json.dump(truth, f, indent=2)
-        f.write("\n")
+    write_truth(out, truth)
     print(f"{fx['name']}: {time.time() - t0:.0f} s, highlight {check['highlight_distance_px']:.2f} px from the predicted")
 
 
@@ -731,9 +735,7 @@ def write_white(fx, out):
         "clip_level": clip,
         "unusable": fx["unusable"],
     }
-    with open(os.path.join(out, "truth.json"), "w") as f:
-        json.dump(truth, f, indent=2)
-        f.write("\n")
+    write_truth(out, truth)
     print(f"{fx['name']}: {time.time() - t0:.0f} s")
 
 

@@ -76,7 +76,8 @@ struct Truth {
     board: Option<BoardGeometry>,
 }
 
-fn fixtures(kind: &str) -> Vec<(PathBuf, Truth)> {
+/// The fixtures of one kind, sorted by name; the corpus must hold at least `at_least`.
+fn fixtures(kind: &str, at_least: usize) -> Vec<(PathBuf, Truth)> {
     let mut out = Vec::new();
     for entry in std::fs::read_dir(corpus()).unwrap() {
         let dir = entry.unwrap().path();
@@ -88,6 +89,11 @@ fn fixtures(kind: &str) -> Vec<(PathBuf, Truth)> {
         }
     }
     out.sort_by(|a, b| a.1.name.cmp(&b.1.name));
+    assert!(
+        out.len() >= at_least,
+        "the corpus has {} {kind} fixtures",
+        out.len()
+    );
     out
 }
 
@@ -203,12 +209,7 @@ fn sphere_run(dir: &Path, t: &Truth, circle: bool) -> Outcome {
 
 #[test]
 fn every_sphere_fixture_within_half_a_degree_or_refused_with_the_reason() {
-    let all = fixtures("sphere");
-    assert!(
-        all.len() >= 20,
-        "the corpus has {} sphere fixtures",
-        all.len()
-    );
+    let all = fixtures("sphere", 20);
     let mut failures = Vec::new();
     println!(
         "| fixture | what it shows | radius (px) | outline detected | its centre / radius error (px) | outline given (--circle) | clip level |"
@@ -292,12 +293,7 @@ fn every_sphere_fixture_within_half_a_degree_or_refused_with_the_reason() {
 
 #[test]
 fn every_white_fixture_within_two_percent_or_refused_with_the_reason() {
-    let all = fixtures("white");
-    assert!(
-        all.len() >= 6,
-        "the corpus has {} white fixtures",
-        all.len()
-    );
+    let all = fixtures("white", 6);
     let mut failures = Vec::new();
     println!(
         "| fixture | what it shows | irradiance error (worst channel) | clip level | warnings |"

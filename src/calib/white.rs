@@ -455,6 +455,25 @@ mod tests {
         ));
     }
 
+    /// The board detected, albedo 0.8, facing the camera and lit from the camera.
+    fn detect_facing(
+        img: &LinearImage,
+        saturation: Option<f32>,
+    ) -> Result<IrradianceCalibration, WhiteError> {
+        let n = Vector3::new(0.0, 0.0, -1.0);
+        calibrate_irradiance(
+            img,
+            [0.8; 3],
+            &n,
+            Some(&n),
+            &BoardRegion::Detect,
+            &WhiteOptions {
+                saturation,
+                ..WhiteOptions::default()
+            },
+        )
+    }
+
     /// A noiseless board on a dark surround, found by detection with no clip level (linear HDR):
     /// its flat plateau is not taken for a clipped one (issue 13: "54595 clipped of 54595").
     #[test]
@@ -468,33 +487,13 @@ mod tests {
             }
         }
         let img = LinearImage::from_rgb(w, h, data).unwrap();
-        let n = Vector3::new(0.0, 0.0, -1.0);
-        let r = calibrate_irradiance(
-            &img,
-            [0.8; 3],
-            &n,
-            Some(&n),
-            &BoardRegion::Detect,
-            &WhiteOptions::default(),
-        )
-        .unwrap();
+        let r = detect_facing(&img, None).unwrap();
         assert_eq!(r.pixels_saturated, 0);
         for e in r.irradiance {
             assert!((e - 1.5).abs() < 1e-5, "{e}");
         }
         // told that the camera clipped at that very level, every board pixel is clipped
-        let clipped = calibrate_irradiance(
-            &img,
-            [0.8; 3],
-            &n,
-            Some(&n),
-            &BoardRegion::Detect,
-            &WhiteOptions {
-                saturation: Some(l_val),
-                ..WhiteOptions::default()
-            },
-        )
-        .unwrap_err();
+        let clipped = detect_facing(&img, Some(l_val)).unwrap_err();
         assert!(clipped.to_string().contains("clipped"), "{clipped}");
     }
 
@@ -506,16 +505,7 @@ mod tests {
         let (w, h) = (160, 120);
         let data: Vec<f32> = (0..w * h * 3).map(|_| rng.gen_range(0.0..0.5)).collect();
         let img = LinearImage::from_rgb(w, h, data).unwrap();
-        let n = Vector3::new(0.0, 0.0, -1.0);
-        let e = calibrate_irradiance(
-            &img,
-            [0.8; 3],
-            &n,
-            Some(&n),
-            &BoardRegion::Detect,
-            &WhiteOptions::default(),
-        )
-        .unwrap_err();
+        let e = detect_facing(&img, None).unwrap_err();
         assert!(matches!(e, WhiteError::NoBoard { .. }), "{e}");
         assert!(e.to_string().contains("--roi"), "{e}");
     }

@@ -18,13 +18,14 @@
 //! Where the model holds: the rim mirrors the backdrop only out to some angle from the line of
 //! sight; deeper in it mirrors the room beside or behind the backdrop. So the fit uses the band
 //! where the reflection stays within 40 degrees of the line of sight (`d < R (1 - cos 20 deg)`,
-//! at least 2 px) and 4 px of backdrop outside, with a linear trend across the window for a
+//! less two blur widths, which the blur spreads the room beyond it into; at least 2 px) and 4 px
+//! of backdrop outside, with a linear trend across the window for a
 //! backdrop or light that varies across the edge. `D`, `B` and the trend are solved linearly for
 //! each trial position; the position and `sigma` by search (coarse grid, then fine).
 //!
 //! Not modelled: a rough coat's rim is weaker near grazing (its microfacets shadow each other),
-//! which the fit reads as an outline slightly too large: about 0.05 px for GGX roughness 0.01 to
-//! 0.03, 0.2 px for 0.08, on the Mitsuba fixtures (docs/calibration.md).
+//! which the fit reads as an outline slightly too large: +0.03 to +0.09 px for GGX roughness 0.01
+//! to 0.03, +0.21 px for 0.08, on the Mitsuba fixtures (docs/calibration.md).
 //!
 //! Conventions: profile positions in pixels along the outward radial direction. Pure: no I/O.
 
