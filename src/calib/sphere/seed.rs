@@ -53,7 +53,7 @@ pub(super) fn circles(lum: &Plane, r_min: f64, r_max: f64, max: usize) -> Vec<Se
     let strong = regions::quantile(&mags, 0.998).unwrap_or(0.0);
     let typical = regions::quantile(&mags, 0.5).unwrap_or(0.0);
     let thr = f64::from((0.15 * strong).max(3.0 * typical));
-    if !(thr > 0.0) {
+    if thr.is_nan() || thr <= 0.0 {
         return Vec::new();
     }
     for y in 1..h - 1 {
