@@ -3,8 +3,11 @@
 //! Formats:
 //! - EXR (exr crate): RGB, written as f32 or f16, read from any sample type (alpha ignored).
 //! - 16-bit PNG and 16-bit TIFF (image crate), declared **linear**: a stored value `q` means
-//!   radiance `q / 65535 * scale`. 8-bit files are refused on read: they are almost always
-//!   gamma-encoded, and guessing would corrupt the reflectance. 32-bit float TIFF is read as is.
+//!   radiance `q / 65535 * scale`. 8-bit files are refused on a linear read: they are almost
+//!   always gamma-encoded, and guessing would corrupt the reflectance; read as [`Transfer::Srgb`]
+//!   (the caller says so) a code `q` of `n` bits means `srgb_decode(q / (2^n - 1)) * scale`.
+//!   32-bit float TIFF is read as is. [`read_image`] also says whether the file held integer
+//!   codes (whose largest code is a clip level) or floats (which have none).
 //! - 8-bit PNG previews for humans: multiplied by `2^exposure_stops`, clipped, sRGB-encoded.
 //!   Never read these back as data.
 //!
@@ -109,13 +112,66 @@ fn ext_of(path: &Path) -> Option<String> {
 /// Reads a linear image by extension: `.exr`, or `.png`/`.tif`/`.tiff` as 16-bit linear with
 /// `scale` (see the module header).
 pub fn read_linear(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError> {
+    read_image(path, scale, Transfer::Linear).map(|d| d.image)
+}
+
+/// How a file's stored values map to radiance, before `scale`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Transfer {
+    /// Linear in radiance: EXR, RAW-derived 16-bit files.
+    #[default]
+    Linear,
+    /// The sRGB curve (IEC 61966-2-1), as most 8-bit camera output is encoded.
+    Srgb,
+}
+
+/// What a file stored: floats, or integer codes (whose largest code is where the file clips).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Samples {
+    Float,
+    Integer { bits: u8 },
+}
+
+/// An image read as radiance, with the kind of samples its file held.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DecodedImage {
+    pub image: LinearImage,
+    pub samples: Samples,
+}
+
+/// Reads an image by extension (`.exr`, `.png`, `.tif`, `.tiff`) as radiance: EXR and float TIFF
+/// as stored, integer codes through `transfer` to `[0, 1]` and times `scale`. EXR is linear by
+/// definition: asking for sRGB there is an error rather than a silent no-op.
+pub fn read_image(
+    path: &Path,
+    scale: f32,
+    transfer: Transfer,
+) -> Result<DecodedImage, ImageIoError> {
     match ext_of(path).as_deref() {
-        Some("exr") => read_exr(path),
-        Some("png" | "tif" | "tiff") => read_linear16(path, scale),
+        Some("exr") if transfer == Transfer::Srgb => Err(ImageIoError::Unsupported {
+            path: path.to_path_buf(),
+            message: "an EXR file holds linear values; the sRGB transfer applies to 8/16-bit \
+                      PNG or TIFF only"
+                .into(),
+        }),
+        Some("exr") => Ok(DecodedImage {
+            image: read_exr(path)?,
+            samples: Samples::Float,
+        }),
+        Some("png" | "tif" | "tiff") => read_coded(path, scale, transfer),
         _ => Err(ImageIoError::Unsupported {
             path: path.to_path_buf(),
             message: "unknown image extension (expected .exr, .png, .tif, .tiff)".into(),
         }),
+    }
+}
+
+/// The inverse of [`srgb_encode`]: the linear value of an sRGB-encoded value in [0, 1].
+pub fn srgb_decode(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -203,7 +259,11 @@ pub fn write_exr(
 /// Reads a 16-bit PNG or TIFF (RGB, RGBA or grey) as linear: `q / 65535 * scale`; 32-bit float
 /// TIFF as stored times `scale`. 8-bit files are refused (see the module header).
 pub fn read_linear16(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError> {
-    use image::DynamicImage as D;
+    read_coded(path, scale, Transfer::Linear).map(|d| d.image)
+}
+
+/// A PNG or TIFF: integer codes through `transfer`, floats as stored, times `scale`.
+fn read_coded(path: &Path, scale: f32, transfer: Transfer) -> Result<DecodedImage, ImageIoError> {
     let reader = image::ImageReader::open(path)
         .and_then(|r| r.with_guessed_format())
         .map_err(|source| ImageIoError::Read {
@@ -215,40 +275,67 @@ pub fn read_linear16(path: &Path, scale: f32) -> Result<LinearImage, ImageIoErro
         message: e.to_string(),
     })?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
-    let k = scale / 65535.0;
-    let data: Vec<f32> = match &dynimg {
-        D::ImageRgb16(b) => b.as_raw().iter().map(|&q| q as f32 * k).collect(),
-        D::ImageRgba16(b) => b
-            .pixels()
-            .flat_map(|p| [p.0[0], p.0[1], p.0[2]])
-            .map(|q| q as f32 * k)
-            .collect(),
-        D::ImageLuma16(b) => b
-            .as_raw()
-            .iter()
-            .flat_map(|&q| [q; 3])
-            .map(|q| q as f32 * k)
-            .collect(),
-        D::ImageRgb32F(b) => b.as_raw().iter().map(|&v| v * scale).collect(),
-        D::ImageRgba32F(b) => b
-            .pixels()
-            .flat_map(|p| [p.0[0], p.0[1], p.0[2]])
-            .map(|v| v * scale)
-            .collect(),
-        other => {
-            return Err(ImageIoError::Unsupported {
-                path: path.to_path_buf(),
-                message: format!(
-                    "pixel type {:?} is not a linear format: use 16-bit PNG/TIFF or EXR",
-                    other.color()
-                ),
-            });
-        }
+    let color = dynimg.color();
+    let bytes_per_sample = color.bytes_per_pixel() / color.channel_count().max(1);
+    let float = matches!(color, image::ColorType::Rgb32F | image::ColorType::Rgba32F);
+    let unsupported = |why: &str| ImageIoError::Unsupported {
+        path: path.to_path_buf(),
+        message: format!("pixel type {color:?} {why}"),
     };
-    LinearImage::from_rgb(w, h, data).ok_or_else(|| ImageIoError::Decode {
+    let (data, samples): (Vec<f32>, Samples) = if float {
+        if transfer != Transfer::Linear {
+            return Err(unsupported(
+                "holds floats, which are linear: read it as linear",
+            ));
+        }
+        let data = dynimg.to_rgb32f().into_raw();
+        (
+            data.into_iter().map(|v| v * scale).collect(),
+            Samples::Float,
+        )
+    } else {
+        let (codes, bits): (Vec<f32>, u8) = match bytes_per_sample {
+            2 => (
+                dynimg
+                    .to_rgb16()
+                    .into_raw()
+                    .into_iter()
+                    .map(f32::from)
+                    .collect(),
+                16,
+            ),
+            1 if transfer == Transfer::Linear => {
+                return Err(unsupported(
+                    "is 8-bit, which cameras gamma-encode: read it as sRGB (--transfer srgb) \
+                     if it is, or give 16-bit linear PNG/TIFF or EXR",
+                ));
+            }
+            1 => (
+                dynimg
+                    .to_rgb8()
+                    .into_raw()
+                    .into_iter()
+                    .map(f32::from)
+                    .collect(),
+                8,
+            ),
+            _ => return Err(unsupported("is not supported: use 16-bit PNG/TIFF or EXR")),
+        };
+        let max = ((1u32 << bits) - 1) as f32;
+        let data = codes
+            .into_iter()
+            .map(|q| match transfer {
+                Transfer::Linear => q / max * scale,
+                Transfer::Srgb => srgb_decode(q / max) * scale,
+            })
+            .collect();
+        (data, Samples::Integer { bits })
+    };
+    let image = LinearImage::from_rgb(w, h, data).ok_or_else(|| ImageIoError::Decode {
         path: path.to_path_buf(),
         message: "pixel count does not match the size".into(),
-    })
+    })?;
+    Ok(DecodedImage { image, samples })
 }
 
 /// Quantises to 16 bits: `q = round(v / scale * 65535)`, clipped to [0, 65535]. Returns the
@@ -462,6 +549,36 @@ mod tests {
         let e =
             write_exr(&dir.path().join("no/such/dir.exr"), &img, ExrPrecision::F32).unwrap_err();
         assert!(matches!(e, ImageIoError::Write { .. }));
+    }
+
+    /// An 8-bit sRGB file read as sRGB gives back the linear values to within a code, and says
+    /// it held 8-bit codes; 16-bit linear files say 16 bits; EXR says floats.
+    #[test]
+    fn srgb_files_decode_and_reads_say_what_the_file_held() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = ramp(16, 4, 1.0);
+        let p8 = dir.path().join("srgb.png");
+        write_preview_png(&p8, &img, 0.0).unwrap();
+        let d = read_image(&p8, 2.0, Transfer::Srgb).unwrap();
+        assert_eq!(d.samples, Samples::Integer { bits: 8 });
+        for (got, want) in d.image.data().iter().zip(img.data()) {
+            // half a code: at most 0.5 / 255 * 2.4 / 1.055 in linear terms (steepest at 1)
+            assert!((got / 2.0 - want).abs() < 0.005, "{got} vs {want}");
+        }
+        assert!((srgb_decode(srgb_encode(0.18)) - 0.18).abs() < 1e-6);
+        assert!((srgb_decode(srgb_encode(0.001)) - 0.001).abs() < 1e-7);
+        let p16 = dir.path().join("lin.png");
+        write_png16(&p16, &img, 1.0).unwrap();
+        let d = read_image(&p16, 1.0, Transfer::Linear).unwrap();
+        assert_eq!(d.samples, Samples::Integer { bits: 16 });
+        let pe = dir.path().join("lin.exr");
+        write_exr(&pe, &img, ExrPrecision::F32).unwrap();
+        assert_eq!(
+            read_image(&pe, 1.0, Transfer::Linear).unwrap().samples,
+            Samples::Float
+        );
+        let e = read_image(&pe, 1.0, Transfer::Srgb).unwrap_err();
+        assert!(e.to_string().contains("linear values"), "{e}");
     }
 
     #[test]

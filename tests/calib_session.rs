@@ -77,6 +77,11 @@ fn light_within_half_a_degree_and_irradiance_within_2_percent_over_12_random_dir
         assert!(o.status.success(), "{}", text(&o));
         let o = run(&["calibrate", s(&out)]);
         assert!(o.status.success(), "{}", text(&o));
+        assert!(
+            text(&o).contains("clip level of the sphere image"),
+            "{}",
+            text(&o)
+        );
         let cal: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("calibration.json")).unwrap()).unwrap();
         for (ch, (az, el)) in three.iter().enumerate() {
@@ -84,6 +89,15 @@ fn light_within_half_a_degree_and_irradiance_within_2_percent_over_12_random_dir
             assert_eq!(c["channel"].as_u64(), Some(ch as u64));
             let dir_err = c["truth_dir_error_deg"].as_f64().unwrap();
             let irr_err = c["truth_irradiance_error"].as_f64().unwrap();
+            // the clip levels are the merged brackets' (never guessed), and they are said
+            for key in ["sphere_clip", "white_clip"] {
+                assert_eq!(c[key]["source"], "merged_bracket", "{key}: {}", c[key]);
+                assert!(
+                    c[key]["value"].as_f64().is_some_and(|v| v > 1.0),
+                    "{}",
+                    c[key]
+                );
+            }
             // the sphere's highlight clips even in the shortest exposure of the bracket?
             let shortest = decode_exr(
                 &std::fs::read(out.join(format!("calib/sphere_ch{ch}_e0.exr"))).unwrap(),

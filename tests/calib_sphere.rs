@@ -249,6 +249,26 @@ fn no_sphere_gives_a_clear_error() {
     assert!(err.to_string().contains("no sphere found"));
 }
 
+/// A bright rectangle (a white board) has edges near a circle on a third of it, but it is not
+/// round: refused, saying that its edges scatter about the best circle (issue 13).
+#[test]
+fn a_rectangle_is_not_a_sphere() {
+    use brdf_rig::geometry::camera::Intrinsics;
+    use brdf_rig::render::image::LinearImage;
+    let (w, h) = (240, 180);
+    let mut data = vec![0.03f32; w * h * 3];
+    for y in 32..149 {
+        for x in 39..201 {
+            data[3 * (y * w + x)..3 * (y * w + x) + 3].fill(0.6);
+        }
+    }
+    let img = LinearImage::from_rgb(w, h, data).unwrap();
+    let intr = Intrinsics::pinhole(w, h, 450.0, 450.0, 120.0, 90.0);
+    let err = detect_outline(&img, &intr, &SphereOptions::default()).unwrap_err();
+    assert!(matches!(err, SphereError::NoSphere { .. }), "{err}");
+    assert!(err.to_string().contains("not round"), "{err}");
+}
+
 #[test]
 fn sphere_cut_by_the_frame_gives_a_clear_error() {
     let mut scene = SphereScene::new(Vector3::new(0.0, 0.0, -1.0));

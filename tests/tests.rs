@@ -6,6 +6,7 @@
 
 mod brdf;
 mod calib_cli;
+mod calib_fixtures;
 mod calib_hdr;
 mod calib_session;
 mod calib_sphere;

@@ -17,6 +17,7 @@
 //! Conventions: exposure in seconds (any consistent unit works), radiance out in image units per
 //! second. Pure: no I/O.
 
+use super::clip::ClipLevel;
 use crate::render::image::LinearImage;
 use nalgebra::{DMatrix, DVector};
 use thiserror::Error;
@@ -78,6 +79,9 @@ pub struct MergedHdr {
     pub clipped_everywhere: usize,
     /// Channel samples in the noise in every exposure: `sum(v) / sum(t)` over all exposures.
     pub dark_everywhere: usize,
+    /// Where the merged image clips: a value at or above it was clipped in every exposure (a
+    /// lower bound); every other value is below it.
+    pub clip: ClipLevel,
 }
 
 fn check_exposures<T>(
@@ -162,6 +166,11 @@ pub fn merge_linear(brackets: &[Exposure<'_>], opts: &MergeOptions) -> Result<Me
         image: out,
         clipped_everywhere,
         dark_everywhere,
+        clip: ClipLevel::merged_bracket(
+            opts.saturation,
+            opts.clip_fraction,
+            shortest.exposure_secs,
+        ),
     })
 }
 

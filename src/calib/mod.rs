@@ -7,6 +7,7 @@
 //! in reports and at the command line. Pure computation on `LinearImage`s: reading files and
 //! writing session folders belong to the CLI and `capture`.
 
+pub mod clip;
 pub mod hdr;
 pub mod light;
 pub mod regions;

@@ -73,27 +73,6 @@ impl Plane {
     }
 }
 
-/// The clip level: given, or detected as a maximum shared by at least 4 pixels (but not by all:
-/// a uniform image says nothing). Give it when known (`ShotMetadata::saturation`): quantised
-/// data can repeat its maximum without clipping.
-pub fn saturation_level(img: &LinearImage, given: Option<f32>) -> Option<f32> {
-    if given.is_some() {
-        return given;
-    }
-    let max = img
-        .data()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(f32::MIN, f32::max);
-    let at_max = img
-        .data()
-        .chunks_exact(3)
-        .filter(|c| c.iter().any(|&v| v >= max))
-        .count();
-    (max > 0.0 && at_max >= 4 && at_max < img.width() * img.height()).then_some(max)
-}
-
 /// Bilinear sample at continuous pixel coordinates (pixel centres at half-integers); `None`
 /// outside the span of pixel centres.
 pub fn bilinear(p: &Plane, x: f64, y: f64) -> Option<f64> {

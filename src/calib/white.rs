@@ -4,10 +4,15 @@
 //! sends radiance `L = a E cos(theta) / pi` towards every direction, `theta` being the angle
 //! between the board normal and the light, so `E = pi L / (a cos(theta))`.
 //!
-//! - `L` is a robust mean over the board: a region of interest given by the user, or the largest
-//!   bright region (Otsu threshold) eroded by a few pixels to stay off its edges. Pixels with a
-//!   clipped channel are dropped, then values further than `reject_k` MAD-sigmas from the median
-//!   (dust, glints below the clip level, hot pixels), per channel.
+//! - `L` is the board's radiance at the centre of its pixels: a region of interest given by the
+//!   user, or the largest bright region (Otsu threshold) eroded by a few pixels to stay off its
+//!   edges; a detected region must stand out from the rest of the image by many times its own
+//!   pixel noise, so an image with no board in it (noise) is refused. Pixels with a clipped
+//!   channel are dropped (the clip level comes from the caller, `calib::clip`, never from the
+//!   pixels), then per channel a quadratic surface is fitted robustly (values further than
+//!   `reject_k` MAD-sigmas from it are dust, glints below the clip level or hot pixels) and read
+//!   at the centre: for an evenly lit board that is the mean, and a light that falls off across
+//!   the board does not pull it.
 //! - Orientation: the caller gives the board normal (camera axes, the lit face's normal, e.g.
 //!   from a fiducial pose or the photogrammetry); without it the board is **assumed to face the
 //!   light** (`cos(theta) = 1`) and the result says so. Fitting the normal from the image would
@@ -19,8 +24,8 @@
 //! Conventions: camera axes as `calib`; `light_dir` points from the board towards the light.
 //! Units of `E` are those of the image times steradians (radiance in, irradiance out). Pure.
 
-use super::regions::{self, Plane, saturation_level};
-use super::robust::{RobustMean, robust_mean};
+use super::regions::{self, Plane};
+use super::robust::{RobustMean, robust_mean, robust_surface_centre};
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -78,7 +83,8 @@ pub enum BoardRegion {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WhiteOptions {
-    /// Clip level; `None`: detected as a maximum shared by several pixels.
+    /// Clip level (see `calib::clip`); `None`: nothing is clipped (linear HDR input). Never
+    /// guessed from the pixels: a flat, noiseless board is not a clipped one.
     pub saturation: Option<f32>,
     /// Outlier rejection, in MAD-sigmas from the median.
     pub reject_k: f64,
@@ -182,7 +188,7 @@ pub fn calibrate_irradiance(
     }
     let w = img.width();
     let members = board_pixels(img, region, opts)?;
-    let sat = saturation_level(img, opts.saturation);
+    let sat = opts.saturation;
     let data = img.data();
     let clipped = |i: usize| sat.is_some_and(|s| data[3 * i..3 * i + 3].iter().any(|&v| v >= s));
     let usable: Vec<usize> = members.iter().copied().filter(|&i| !clipped(i)).collect();
@@ -207,8 +213,11 @@ pub fn calibrate_irradiance(
         rejected: 0,
     }; 3];
     for (k, m) in means.iter_mut().enumerate() {
-        let v: Vec<f64> = usable.iter().map(|&i| data[3 * i + k] as f64).collect();
-        *m = robust_mean(&v, opts.reject_k).ok_or_else(|| WhiteError::TooFewPixels {
+        let v: Vec<(f64, f64, f64)> = usable
+            .iter()
+            .map(|&i| ((i % w) as f64, (i / w) as f64, data[3 * i + k] as f64))
+            .collect();
+        *m = robust_surface_centre(&v, opts.reject_k).ok_or_else(|| WhiteError::TooFewPixels {
             usable: 0,
             saturated,
             total: members.len(),
@@ -319,7 +328,8 @@ fn board_pixels(
                 .ok_or_else(|| WhiteError::NoBoard {
                     reason: "no bright region".into(),
                 })?;
-            let mut member = regions::filled_mask(&board, w, h);
+            let filled = regions::filled_mask(&board, w, h);
+            let mut member = filled.clone();
             for _ in 0..opts.erode_px {
                 member = erode(&member, w, h);
             }
@@ -327,14 +337,61 @@ fn board_pixels(
             if px.is_empty() {
                 return Err(WhiteError::NoBoard {
                     reason: format!(
-                        "the brightest region vanishes after eroding {} px",
+                        "the brightest region vanishes after eroding {} px: no solid bright \
+                         region stands out (is there a board in the image?); give the board's \
+                         region with --roi",
                         opts.erode_px
                     ),
                 });
             }
+            stands_out(img, &filled, &px)?;
             Ok(px)
         }
     }
+}
+
+/// How far a board must stand out from the rest of the image, in its own pixel noise.
+const MIN_BOARD_CONTRAST_SIGMAS: f64 = 8.0;
+
+/// A detected board must stand out from everything outside it (`region`, before erosion) by
+/// many times the noise of its pixels (`board`): the noise from differences of horizontal
+/// neighbours, so a light falling off across the board does not count as noise. Thresholding
+/// pure noise also finds a "largest bright region", whose level differs from the rest by about
+/// one noise sigma.
+fn stands_out(img: &LinearImage, region: &[bool], board: &[usize]) -> Result<(), WhiteError> {
+    let lum = Plane::luminance(img);
+    let w = img.width();
+    let inside: Vec<f64> = board.iter().map(|&i| lum.data[i] as f64).collect();
+    let outside: Vec<f64> = (0..lum.data.len())
+        .filter(|&i| !region[i])
+        .map(|i| lum.data[i] as f64)
+        .collect();
+    let diffs: Vec<f64> = board
+        .iter()
+        .filter(|&&i| i % w + 1 < w && region[i + 1])
+        .map(|&i| (lum.data[i + 1] - lum.data[i]) as f64)
+        .collect();
+    let (Some(level), Some(surround)) = (
+        super::robust::median(&mut inside.clone()),
+        super::robust::median(&mut outside.clone()),
+    ) else {
+        // the board fills the frame: nothing to compare with
+        return Ok(());
+    };
+    let noise = super::robust::mad_sigma(&diffs, 0.0).unwrap_or(0.0) / std::f64::consts::SQRT_2;
+    let contrast = level - surround;
+    if contrast <= MIN_BOARD_CONTRAST_SIGMAS * noise {
+        return Err(WhiteError::NoBoard {
+            reason: format!(
+                "the brightest region (level {level:.4}) stands out from the rest of the image \
+                 ({surround:.4}) by {:.1} times its pixel noise ({noise:.4}), where a lit board \
+                 stands out by more than {MIN_BOARD_CONTRAST_SIGMAS}: the image looks like noise \
+                 or holds no board; check the file, or give the board's region with --roi",
+                contrast / noise.max(f64::MIN_POSITIVE)
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// One step of 4-neighbour erosion; the image border counts as outside.
@@ -396,5 +453,60 @@ mod tests {
             ),
             Err(WhiteError::BadAlbedo { .. })
         ));
+    }
+
+    /// The board detected, albedo 0.8, facing the camera and lit from the camera.
+    fn detect_facing(
+        img: &LinearImage,
+        saturation: Option<f32>,
+    ) -> Result<IrradianceCalibration, WhiteError> {
+        let n = Vector3::new(0.0, 0.0, -1.0);
+        calibrate_irradiance(
+            img,
+            [0.8; 3],
+            &n,
+            Some(&n),
+            &BoardRegion::Detect,
+            &WhiteOptions {
+                saturation,
+                ..WhiteOptions::default()
+            },
+        )
+    }
+
+    /// A noiseless board on a dark surround, found by detection with no clip level (linear HDR):
+    /// its flat plateau is not taken for a clipped one (issue 13: "54595 clipped of 54595").
+    #[test]
+    fn a_flat_noiseless_board_is_not_clipped() {
+        let (w, h) = (120, 90);
+        let l_val = (0.8 * 1.5 / PI) as f32;
+        let mut data = vec![0.01f32; w * h * 3];
+        for y in 20..70 {
+            for x in 25..95 {
+                data[3 * (y * w + x)..3 * (y * w + x) + 3].fill(l_val);
+            }
+        }
+        let img = LinearImage::from_rgb(w, h, data).unwrap();
+        let r = detect_facing(&img, None).unwrap();
+        assert_eq!(r.pixels_saturated, 0);
+        for e in r.irradiance {
+            assert!((e - 1.5).abs() < 1e-5, "{e}");
+        }
+        // told that the camera clipped at that very level, every board pixel is clipped
+        let clipped = detect_facing(&img, Some(l_val)).unwrap_err();
+        assert!(clipped.to_string().contains("clipped"), "{clipped}");
+    }
+
+    /// Pure noise has a "largest bright region" too; it is refused, saying why (issue 15).
+    #[test]
+    fn pure_noise_is_not_a_board() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (w, h) = (160, 120);
+        let data: Vec<f32> = (0..w * h * 3).map(|_| rng.gen_range(0.0..0.5)).collect();
+        let img = LinearImage::from_rgb(w, h, data).unwrap();
+        let e = detect_facing(&img, None).unwrap_err();
+        assert!(matches!(e, WhiteError::NoBoard { .. }), "{e}");
+        assert!(e.to_string().contains("--roi"), "{e}");
     }
 }

@@ -3,12 +3,13 @@
 //! `brdf-rig calibrate SESSION` (a capture session folder) is in `calibrate_session.rs`.
 
 use anyhow::{Context, Result, bail};
+use brdf_rig::calib::clip::ClipLevel;
 use brdf_rig::calib::light::{LightError, OutlineInput, SphereShot, calibrate_light};
-use brdf_rig::calib::sphere::SphereOptions;
+use brdf_rig::calib::sphere::{SphereError, SphereOptions};
 use brdf_rig::calib::white::{BoardRegion, WhiteOptions, calibrate_irradiance};
 use brdf_rig::geometry::camera::Intrinsics;
-use brdf_rig::render::image::LinearImage;
-use clap::{Args, Subcommand};
+use brdf_rig::imageio::{DecodedImage, Samples, Transfer};
+use clap::{Args, Subcommand, ValueEnum};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
@@ -33,7 +34,27 @@ pub enum CalibrateCommand {
     White(WhiteArgs),
 }
 
-/// Linear images: EXR, or 16-bit PNG/TIFF read as `value / 65535 * scale`.
+/// How the stored values of PNG/TIFF files map to radiance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum TransferArg {
+    /// Linear codes (RAW-derived 16-bit files); 8-bit files are refused.
+    #[default]
+    Linear,
+    /// The sRGB curve (8-bit camera output, or 16-bit sRGB files).
+    Srgb,
+}
+
+impl From<TransferArg> for Transfer {
+    fn from(t: TransferArg) -> Self {
+        match t {
+            TransferArg::Linear => Transfer::Linear,
+            TransferArg::Srgb => Transfer::Srgb,
+        }
+    }
+}
+
+/// Images: EXR (linear, no clip level unless --saturation), or 16-bit PNG/TIFF read as
+/// `value / 65535 * scale` (clip level: the largest code), or 8-bit sRGB with `--transfer srgb`.
 #[derive(Args, Debug)]
 pub struct SphereArgs {
     /// Single-light image of the sphere; repeat for several (combined, with their spread).
@@ -54,9 +75,13 @@ pub struct SphereArgs {
         allow_hyphen_values = true
     )]
     pub intrinsics: String,
-    /// Clip level of the camera, in image units, > 0 (default: detected).
+    /// Clip level of the camera, in image units (after --scale), > 0. Default: the largest code of
+    /// an integer (PNG/TIFF) file; none for EXR or float TIFF, which hold linear radiance.
     #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
+    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve.
+    #[arg(long, value_enum, default_value_t = TransferArg::Linear)]
+    pub transfer: TransferArg,
     /// Normal-incidence Fresnel reflectance of the sphere, to correct the outline for its rim
     /// fading into the backdrop; "none" for a chrome sphere or a matte outline image.
     #[arg(long = "rim-f0", default_value = "0.04", value_name = "F0|none")]
@@ -86,9 +111,13 @@ pub struct WhiteArgs {
     /// Region of interest in pixels: x,y,width,height (default: the board is detected).
     #[arg(long, value_name = "X,Y,W,H")]
     pub roi: Option<String>,
-    /// Clip level of the camera, in image units, > 0 (default: detected).
+    /// Clip level of the camera, in image units (after --scale), > 0. Default: the largest code of
+    /// an integer (PNG/TIFF) file; none for EXR or float TIFF, which hold linear radiance.
     #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
+    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve.
+    #[arg(long, value_enum, default_value_t = TransferArg::Linear)]
+    pub transfer: TransferArg,
     /// Scale of 16-bit PNG/TIFF images, > 0.
     #[arg(long, default_value_t = 1.0, value_parser = real32_in(Open(0.0), Unbounded))]
     pub scale: f32,
@@ -128,10 +157,37 @@ fn vector(field: &str, text: &str) -> Result<Vector3<f64>> {
     Ok(v.normalize())
 }
 
-/// Reads a linear image (EXR, or 16-bit PNG/TIFF as `value / 65535 * scale`); the error names
-/// the file.
-fn read_image(path: &Path, scale: f32) -> Result<LinearImage> {
-    Ok(brdf_rig::imageio::read_linear(path, scale)?)
+/// Reads an image as radiance (EXR; PNG/TIFF codes through `transfer`, times `scale`); the
+/// error names the file.
+fn read_image(path: &Path, scale: f32, transfer: TransferArg) -> Result<DecodedImage> {
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--scale: must be a positive number, got {scale}");
+    }
+    Ok(brdf_rig::imageio::read_image(path, scale, transfer.into())?)
+}
+
+/// The clip level of the images: given, or what their files say (the largest code of an integer
+/// file; none for floats). Never guessed from the pixels (`calib::clip`). Files of different
+/// kinds clip at different levels: the user must then say where.
+fn clip_level(given: Option<f32>, files: &[(&Path, Samples)], scale: f32) -> Result<ClipLevel> {
+    if let Some(s) = given {
+        return Ok(ClipLevel::given(s));
+    }
+    let Some(&(first_path, first)) = files.first() else {
+        bail!("no image given");
+    };
+    if let Some((p, other)) = files.iter().find(|(_, s)| *s != first) {
+        bail!(
+            "{} holds {other:?} samples but {} holds {first:?}: they clip at different levels; \
+             give the camera's clip level with --saturation",
+            p.display(),
+            first_path.display()
+        );
+    }
+    Ok(match first {
+        Samples::Float => ClipLevel::float_file(),
+        Samples::Integer { bits } => ClipLevel::integer_file(bits, scale),
+    })
 }
 
 struct SphereConfig {
@@ -193,17 +249,21 @@ fn sphere_config(a: &SphereArgs) -> Result<SphereConfig> {
 }
 
 fn sphere(a: SphereArgs) -> Result<()> {
-    let cfg = sphere_config(&a)?;
-    let lights: Vec<LinearImage> = a
+    let mut cfg = sphere_config(&a)?;
+    let read = |p: &PathBuf| read_image(p, a.scale, a.transfer);
+    let lights: Vec<DecodedImage> = a.images.iter().map(read).collect::<Result<_>>()?;
+    let outlines: Vec<DecodedImage> = a.outline_images.iter().map(read).collect::<Result<_>>()?;
+    let files: Vec<(&Path, Samples)> = a
         .images
         .iter()
-        .map(|p| read_image(p, a.scale))
-        .collect::<Result<_>>()?;
-    let outlines: Vec<LinearImage> = a
-        .outline_images
-        .iter()
-        .map(|p| read_image(p, a.scale))
-        .collect::<Result<_>>()?;
+        .zip(&lights)
+        .chain(a.outline_images.iter().zip(&outlines))
+        .map(|(p, d)| (p.as_path(), d.samples))
+        .collect();
+    let clip = clip_level(a.saturation, &files, a.scale)?;
+    cfg.opts.saturation = clip.value;
+    let lights: Vec<_> = lights.into_iter().map(|d| d.image).collect();
+    let outlines: Vec<_> = outlines.into_iter().map(|d| d.image).collect();
     let (w, h) = (lights[0].width(), lights[0].height());
     for (p, img) in a
         .images
@@ -238,14 +298,40 @@ fn sphere(a: SphereArgs) -> Result<()> {
         })
         .collect();
     let cal = calibrate_light(&shots, &intr, &cfg.opts).map_err(|e| {
-        let file = e.image_index().map(|i| a.images[i].display().to_string());
-        match (e, file) {
-            (LightError::Image { source, .. }, Some(f)) => {
-                anyhow::Error::new(source).context(format!("calibrating the light from {f}"))
+        let LightError::Image { index, source } = e else {
+            return anyhow::Error::new(e);
+        };
+        let light = a.images[index].display();
+        match (&source, cfg.circle) {
+            // the outline was detected and could not be: name the image it was looked for in
+            (SphereError::NoSphere { .. } | SphereError::SphereCut { .. }, None) => {
+                let outline = match a.outline_images.len() {
+                    0 => a.images[index].display(),
+                    1 => a.outline_images[0].display(),
+                    _ => a.outline_images[index].display(),
+                };
+                anyhow::Error::new(source).context(format!(
+                    "finding the sphere's outline in {outline} (for the light image {light}); if \
+                     the whole sphere is in the frame, give its outline by hand: --circle CX,CY,R \
+                     (pixels, drawn on its edge)"
+                ))
             }
-            (e, _) => anyhow::Error::new(e),
+            _ => anyhow::Error::new(source).context(format!("calibrating the light from {light}")),
         }
     })?;
+    let warnings: Vec<String> = a
+        .images
+        .iter()
+        .zip(&cal.per_image)
+        .flat_map(|(p, s)| {
+            s.warnings
+                .iter()
+                .map(move |w| format!("{}: {w}", p.display()))
+        })
+        .collect();
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     let d = cal.dir_camera;
     if a.json {
         let images: Vec<serde_json::Value> = a
@@ -263,6 +349,8 @@ fn sphere(a: SphereArgs) -> Result<()> {
                     "sphere_centre_px": s.outline.centre_px,
                     "sphere_radius_px": s.outline.radius_px,
                     "edge_points": s.outline.edge_points,
+                    "outline_rms_px": s.outline.rms_residual_rad * 0.5 * (intr.fx + intr.fy),
+                    "warnings": s.warnings,
                 })
             })
             .collect();
@@ -273,6 +361,9 @@ fn sphere(a: SphereArgs) -> Result<()> {
             "spread_deg": cal.spread_deg,
             "std_error_deg": cal.std_error_deg,
             "fit_uncertainty_deg": cal.fit_uncertainty_deg,
+            "clip_level": clip,
+            "clip_level_reason": clip.to_string(),
+            "warnings": warnings,
             "images": images,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -289,6 +380,7 @@ fn sphere(a: SphereArgs) -> Result<()> {
             cal.per_image.len(),
             cal.fit_uncertainty_deg
         );
+        println!("clip level: {clip}");
         for (p, s) in a.images.iter().zip(&cal.per_image) {
             println!(
                 "  {}: highlight at ({:.2}, {:.2}) px ({} px, {} clipped), sphere centre ({:.2}, {:.2}) px, radius {:.2} px, {} edge points",
@@ -363,10 +455,12 @@ fn white_config(a: &WhiteArgs) -> Result<WhiteConfig> {
 }
 
 fn white(a: WhiteArgs) -> Result<()> {
-    let cfg = white_config(&a)?;
-    let img = read_image(&a.image, a.scale)?;
+    let mut cfg = white_config(&a)?;
+    let decoded = read_image(&a.image, a.scale, a.transfer)?;
+    let clip = clip_level(a.saturation, &[(&a.image, decoded.samples)], a.scale)?;
+    cfg.opts.saturation = clip.value;
     let r = calibrate_irradiance(
-        &img,
+        &decoded.image,
         cfg.albedo,
         &cfg.light_dir,
         cfg.normal.as_ref(),
@@ -390,6 +484,8 @@ fn white(a: WhiteArgs) -> Result<()> {
             "region": r.region,
             "flat_field_cells": r.flat_field.cells,
             "flat_field_spread": r.flat_field.spread,
+            "clip_level": clip,
+            "clip_level_reason": clip.to_string(),
             "warnings": r.warnings,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -417,6 +513,7 @@ fn white(a: WhiteArgs) -> Result<()> {
             r.pixels_saturated,
             100.0 * r.flat_field.spread
         );
+        println!("  clip level: {clip}");
     }
     Ok(())
 }

@@ -31,7 +31,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::calib::hdr::{Exposure, MergeOptions, merge_linear};
+use crate::calib::clip::ClipLevel;
+use crate::calib::hdr::{Exposure, MergeOptions, MergedHdr, merge_linear};
 use crate::calib::light::{LightSummary, OutlineInput, SphereShot, calibrate_light};
 use crate::calib::sphere::SphereOptions;
 use crate::calib::white::{BoardRegion, WhiteOptions, calibrate_irradiance};
@@ -75,6 +76,10 @@ pub struct ChannelCalibration {
     pub irradiance_std_error: [f64; 3],
     /// Spread of the board's radiance over a 3x3 grid of cells (flat-field check).
     pub flat_field_spread: f64,
+    /// Where the merged sphere and white images clip, and why (their brackets' shortest
+    /// exposures).
+    pub sphere_clip: ClipLevel,
+    pub white_clip: ClipLevel,
     pub warnings: Vec<String>,
     /// Simulated sessions only: the angle between the measured and the true light direction,
     /// and the relative irradiance error (mean over colour channels).
@@ -161,8 +166,8 @@ fn lock_and_clean(dir: &Path, hdr_dir: &Path) -> Result<std::fs::File, SessionCa
     Ok(lock)
 }
 
-/// Merges one bracket into an HDR image in the session's radiance unit.
-fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<LinearImage, SessionCalibError> {
+/// Merges one bracket into an HDR image in the session's radiance unit, with where it clips.
+fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<MergedHdr, SessionCalibError> {
     let mut images = Vec::with_capacity(shots.len());
     for s in shots {
         let path = dir.join(&s.file);
@@ -192,7 +197,7 @@ fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<LinearImage, SessionCalibE
             dir: dir.into(),
             reason: format!("merging the bracket of {}: {e}", first.id),
         })?;
-    Ok(merged.image)
+    Ok(merged)
 }
 
 /// The simulated ground truth, when the session has one.
@@ -287,8 +292,8 @@ pub fn calibrate_session(
     // Sphere and white board per channel.
     let sphere_key = kind_key(ShotKind::Sphere);
     let white_key = kind_key(ShotKind::White);
-    let mut sphere_imgs: BTreeMap<usize, LinearImage> = BTreeMap::new();
-    let mut white_imgs: BTreeMap<usize, LinearImage> = BTreeMap::new();
+    let mut sphere_imgs: BTreeMap<usize, MergedHdr> = BTreeMap::new();
+    let mut white_imgs: BTreeMap<usize, MergedHdr> = BTreeMap::new();
     for ((k, _view, ch), shots) in &brackets {
         let Some(ch) = ch else { continue };
         if *k == sphere_key {
@@ -310,7 +315,7 @@ pub fn calibrate_session(
     // The black sphere in a dark room shows only its lit side, so its outline is found in the
     // brightest-of image over every channel's shot (lit from several sides) when there are
     // several, which keeps the outline fit away from the terminator.
-    let outline_img = union_max(sphere_imgs.values());
+    let outline_img = union_max(sphere_imgs.values().map(|m| &m.image));
 
     let axis = turntable_axis_camera(&manifest, &model);
     if axis.is_none() {
@@ -320,8 +325,18 @@ pub fn calibrate_session(
         );
     }
     let mut channels = Vec::new();
-    for (&ch, img) in &sphere_imgs {
-        let sphere_opts = SphereOptions::default();
+    for (&ch, sphere) in &sphere_imgs {
+        // The clip level is the merged bracket's, never guessed from the pixels: the outline
+        // image (a per-pixel maximum over the channels) clips no lower than its least one.
+        let clip_min = sphere_imgs
+            .values()
+            .filter_map(|m| m.clip.value)
+            .fold(f32::INFINITY, f32::min);
+        let sphere_opts = SphereOptions {
+            saturation: sphere.clip.value.map(|v| v.min(clip_min)),
+            ..SphereOptions::default()
+        };
+        let img = &sphere.image;
         let outline = match &outline_img {
             Some(o) => OutlineInput::Image(o),
             None => OutlineInput::FromLightImage,
@@ -357,14 +372,13 @@ pub fn calibrate_session(
             _ => (l + Vector3::new(0.0, 0.0, -1.0)).normalize(),
         };
         let irr = calibrate_irradiance(
-            white,
+            &white.image,
             [albedo; 3],
             &l,
             Some(&normal),
             &BoardRegion::Detect,
-            // An HDR image has no clip level: a uniform board must not look clipped.
             &WhiteOptions {
-                saturation: Some(f32::MAX),
+                saturation: white.clip.value,
                 ..WhiteOptions::default()
             },
         )
@@ -382,14 +396,17 @@ pub fn calibrate_session(
             irr_err = Some((mean - t_irr).abs() / t_irr);
         }
         progress(&format!(
-            "channel {ch}: light ({:.4}, {:.4}, {:.4}) +- {:.2} deg, irradiance ({:.4}, {:.4}, {:.4})",
+            "channel {ch}: light ({:.4}, {:.4}, {:.4}) +- {:.2} deg, irradiance ({:.4}, {:.4}, {:.4}); \
+             clip level of the sphere image {}, of the white image {}",
             l.x,
             l.y,
             l.z,
             light.uncertainty_deg,
             irr.irradiance[0],
             irr.irradiance[1],
-            irr.irradiance[2]
+            irr.irradiance[2],
+            sphere.clip,
+            white.clip
         ));
         channels.push(ChannelCalibration {
             channel: ch,
@@ -397,6 +414,8 @@ pub fn calibrate_session(
             irradiance: irr.irradiance,
             irradiance_std_error: irr.std_error,
             flat_field_spread: irr.flat_field.spread,
+            sphere_clip: sphere.clip,
+            white_clip: white.clip,
             warnings: irr.warnings.clone(),
             truth_dir_error_deg: dir_err,
             truth_irradiance_error: irr_err,
@@ -434,7 +453,7 @@ pub fn calibrate_session(
                 reason: format!("the COLMAP model has no image named {camera:?}"),
             });
         }
-        let img = merge(dir, shots)?;
+        let img = merge(dir, shots)?.image;
         let file = hdr_dir.join(format!("light_v{view:03}_ch{ch}.exr"));
         write_exr(&file, &img, ExrPrecision::F32).map_err(|e| SessionCalibError::File {
             path: file.clone(),

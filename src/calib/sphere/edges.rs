@@ -1,0 +1,365 @@
+//! Finding the sphere's outline in an image. Candidate circles come from the image's edges
+//! (`seed`: a Hough transform, so a holder, a post, a textured backdrop or the frame edge close
+//! by do not bend them). Around each candidate, radial intensity profiles are fitted with the
+//! rim model of a glossy sphere (`rim`); the profiles that fit it give sub-pixel edge points,
+//! the others (across a holder, a highlight at the rim, a clipped pixel, something else in
+//! front) are left out. The edge points are back-projected to rays and fitted with the tangent
+//! cone ([`SphereOutline::from_edge_rays`]). The candidate whose outline most profiles support
+//! is the sphere; it is measured a second time with the profiles centred on its outline.
+//!
+//! When no candidate is supported all round, or the outline leaves the frame, the error says
+//! what was seen (where the best circle is and how much of it has an edge).
+//!
+//! Conventions: as `calib::sphere` (pixel centres at half-integers). Pure: no I/O.
+
+use super::outline::tangent_ray;
+use super::rim::{OUTSIDE_PX, RimModel};
+use super::seed::{self, Seed};
+use super::{SphereError, SphereOptions, SphereOutline, check_size};
+use crate::calib::regions::{self, Plane};
+use crate::geometry::camera::Intrinsics;
+use crate::render::image::LinearImage;
+use nalgebra::Vector3;
+use std::f64::consts::PI;
+
+/// Sampling step of the radial profiles (pixels).
+const PROFILE_STEP: f64 = 0.1;
+/// How far (pixels) the outline may lie from the seed circle along a profile; from the circle of
+/// a fitted outline, in the final pass.
+const SEARCH_PX: f64 = 3.0;
+const FINAL_SEARCH_PX: f64 = 1.5;
+/// Least step between the backdrop and the sphere, in residuals of the profile's fit: a smooth
+/// shading or noise fits the model too, with no step to speak of.
+const MIN_CONTRAST_RMS: f64 = 8.0;
+/// Least fraction of the outline whose profiles must fit the rim model.
+const MIN_SUPPORT: f64 = 0.3;
+/// How far out (times the radius) an outline is looked for around a ring already found, and
+/// the least step across it, relative to the ring's.
+const OUTER_SEARCH: f64 = 1.3;
+const MIN_OUTER_CONTRAST: f64 = 0.1;
+/// Largest scatter (pixels, RMS) of the edge points about the fitted outline: a sphere's edge
+/// points scatter by about 0.1 px (0.06 to 0.11 px on the Mitsuba fixtures, defocus and noise
+/// included); a rectangle's sides near a circle scatter by a pixel or more.
+const MAX_OUTLINE_RMS_PX: f64 = 0.5;
+/// Circle candidates tried.
+const CANDIDATES: usize = 4;
+/// At most this many profiles search the blur width; the rest use their median.
+const BLUR_PROFILES: usize = 48;
+
+/// Finds the sphere outline in an image where the sphere stands out from its surround (ambient
+/// light with a lighter or darker backdrop, or the single-light image when its backdrop is lit).
+pub fn detect_outline(
+    img: &LinearImage,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Result<SphereOutline, SphereError> {
+    check_size(img, intr, "the outline image")?;
+    let (w, h) = (img.width(), img.height());
+    if w < 8 || h < 8 {
+        return Err(SphereError::NoSphere {
+            reason: format!("the image is only {w}x{h} pixels"),
+        });
+    }
+    let lum = Plane::luminance(img);
+    let lo = regions::quantile(&lum.data, 0.001).unwrap_or(0.0);
+    let hi = regions::quantile(&lum.data, 0.999).unwrap_or(0.0);
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return Err(SphereError::NoSphere {
+            reason: "the image has no contrast to separate a sphere from its surround".into(),
+        });
+    }
+    let r_max = 0.5 * w.min(h) as f64 + SEARCH_PX;
+    let seeds = seed::circles(&lum, opts.min_radius_px, r_max, CANDIDATES);
+    let Some(&first) = seeds.first() else {
+        return Err(SphereError::NoSphere {
+            reason: format!(
+                "the image has no round edge of radius {} to {r_max:.0} px",
+                opts.min_radius_px
+            ),
+        });
+    };
+    let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
+        .iter()
+        .filter_map(|s| measure(&lum, s, SEARCH_PX, intr, opts))
+        .partition(|m| m.rms_px <= MAX_OUTLINE_RMS_PX);
+    let Some(best) = measured
+        .iter()
+        .max_by(|a, b| a.support.total_cmp(&b.support))
+    else {
+        return Err(
+            match not_round
+                .iter()
+                .max_by(|a, b| a.support.total_cmp(&b.support))
+            {
+                Some(m) => not_a_sphere(m),
+                None => no_sphere(&first, None),
+            },
+        );
+    };
+    // The sphere hides what lies behind it and everything on it lies inside its outline: of
+    // the well supported circles concentric with the best one (a ring where the sphere mirrors
+    // its backdrop's edge is one), the outline is the outermost.
+    let concentric = |m: &Measured| {
+        let (a, b) = (&m.outline, &best.outline);
+        (a.centre_px[0] - b.centre_px[0]).hypot(a.centre_px[1] - b.centre_px[1]) < 0.2 * b.radius_px
+    };
+    let enough = MIN_SUPPORT.max(0.7 * best.support);
+    let best = measured
+        .iter()
+        .filter(|m| m.support >= enough && concentric(m))
+        .max_by(|a, b| a.outline.radius_px.total_cmp(&b.outline.radius_px))
+        .unwrap_or(best);
+    // A strong ring can hide a weaker outline outside it (a dark backdrop that the rim mirrors
+    // out to some angle): look for a well supported edge further out, around the same centre,
+    // with each search window clear of the edge already found.
+    let mut circle = outline_circle(&best.outline, intr, w, h);
+    let inner = circle;
+    let mut step = 1;
+    loop {
+        let r = inner.r + 1.5 + SEARCH_PX * step as f64;
+        if r > OUTER_SEARCH * inner.r {
+            break;
+        }
+        let probe = Seed { r, ..inner };
+        if let Some(m) = measure(&lum, &probe, SEARCH_PX, intr, opts)
+            && m.support >= enough
+            && m.contrast >= MIN_OUTER_CONTRAST * best.contrast
+        {
+            circle = outline_circle(&m.outline, intr, w, h);
+        }
+        step += 1;
+    }
+    // once more, the profiles centred on the fitted outline
+    let (outline, support) = match measure(&lum, &circle, FINAL_SEARCH_PX, intr, opts) {
+        Some(m) if m.rms_px > MAX_OUTLINE_RMS_PX => return Err(not_a_sphere(&m)),
+        Some(m) => (m.outline, m.support),
+        None => (best.outline.clone(), best.support),
+    };
+    if support < MIN_SUPPORT {
+        return Err(no_sphere(&circle, Some(support)));
+    }
+    let cut = SphereError::SphereCut {
+        cx: outline.centre_px[0],
+        cy: outline.centre_px[1],
+        radius_px: outline.radius_px,
+        width: w,
+        height: h,
+    };
+    // the fitted outline itself must lie inside the frame
+    for i in 0..72 {
+        let a = i as f64 * 2.0 * PI / 72.0;
+        let inside = intr
+            .project(&tangent_ray(&outline, a))
+            .is_some_and(|(x, y)| x > 0.5 && y > 0.5 && x < w as f64 - 0.5 && y < h as f64 - 0.5);
+        if !inside {
+            return Err(cut);
+        }
+    }
+    Ok(outline)
+}
+
+/// What "no sphere" saw: the best circle and how much of it had an edge.
+fn no_sphere(s: &Seed, support: Option<f64>) -> SphereError {
+    let fitted = match support {
+        Some(f) => format!(
+            "the profiles across it fit a sphere's rim on {:.0} % of it (at least {:.0} % needed)",
+            100.0 * f,
+            100.0 * MIN_SUPPORT
+        ),
+        None => "no profile across it fits a sphere's rim".into(),
+    };
+    SphereError::NoSphere {
+        reason: format!(
+            "the most round edge in the image, centred at ({:.1}, {:.1}) px with radius {:.1} px, \
+             has an edge facing its centre in {:.0} % of the directions around it, and {fitted}",
+            s.cx,
+            s.cy,
+            s.r,
+            100.0 * s.coverage
+        ),
+    }
+}
+
+/// Edges were found around a circle but they do not lie on one: a rectangle, a polygon, a ring
+/// of unrelated edges.
+fn not_a_sphere(m: &Measured) -> SphereError {
+    SphereError::NoSphere {
+        reason: format!(
+            "the best circle of edges, centred at ({:.1}, {:.1}) px with radius {:.1} px, has edges \
+             on {:.0} % of it, but they scatter by {:.2} px about it where a sphere's outline \
+             scatters by less than {MAX_OUTLINE_RMS_PX} px: what is there is not round (a board, \
+             a box, a polygon?)",
+            m.outline.centre_px[0],
+            m.outline.centre_px[1],
+            m.outline.radius_px,
+            100.0 * m.support,
+            m.rms_px
+        ),
+    }
+}
+
+/// The circle through the projected outline (centre of its points, mean distance to them).
+fn outline_circle(o: &SphereOutline, intr: &Intrinsics, w: usize, h: usize) -> Seed {
+    let pts: Vec<(f64, f64)> = (0..90)
+        .filter_map(|i| intr.project(&tangent_ray(o, i as f64 * 2.0 * PI / 90.0)))
+        .collect();
+    let n = pts.len().max(1) as f64;
+    let (cx, cy) = pts
+        .iter()
+        .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
+    let r = pts.iter().map(|p| (p.0 - cx).hypot(p.1 - cy)).sum::<f64>() / n;
+    Seed {
+        cx: cx.clamp(0.0, w as f64),
+        cy: cy.clamp(0.0, h as f64),
+        r,
+        coverage: 1.0,
+    }
+}
+
+/// How far (pixels) the outline may lie from a profile's steepest point: a glossy rim is
+/// steepest just inside the outline, a blurred step at it.
+const STEEPEST_TO_EDGE_PX: f64 = 1.5;
+
+/// Where the profile changes fastest within `[lo, hi]` (central differences over 0.3 px).
+fn steepest_point(positions: &[f64], samples: &[f64], lo: f64, hi: f64) -> Option<f64> {
+    (3..samples.len().saturating_sub(3))
+        .filter(|&j| positions[j] >= lo && positions[j] <= hi)
+        .max_by(|&a, &b| {
+            let slope = |j: usize| (samples[j + 3] - samples[j - 3]).abs();
+            slope(a).total_cmp(&slope(b))
+        })
+        .map(|j| positions[j])
+}
+
+/// An outline measured around a candidate circle.
+struct Measured {
+    outline: SphereOutline,
+    /// Fraction of the profiles around the circle whose edge was kept by the fit.
+    support: f64,
+    /// Median step between backdrop and sphere across the kept profiles.
+    contrast: f64,
+    /// RMS distance (pixels) of the kept edge points from the fitted outline.
+    rms_px: f64,
+}
+
+/// One radial profile: its direction and samples.
+struct Profile {
+    ux: f64,
+    uy: f64,
+    samples: Vec<f64>,
+}
+
+/// Fits the rim model along radial profiles around `seed` and the tangent cone to their edges.
+fn measure(
+    lum: &Plane,
+    seed: &Seed,
+    search_px: f64,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Option<Measured> {
+    let fresnel_f0 = opts.rim_fresnel_f0.filter(|f| (0.0..0.5).contains(f));
+    let model = RimModel::new(fresnel_f0, seed.r);
+    let (from, to) = (
+        seed.r - search_px - model.inside_px - 1.0,
+        seed.r + search_px + OUTSIDE_PX + 1.0,
+    );
+    if from <= 1.0 {
+        return None;
+    }
+    let ns = ((to - from) / PROFILE_STEP).round() as usize + 1;
+    let positions: Vec<f64> = (0..ns).map(|j| from + j as f64 * PROFILE_STEP).collect();
+    let n_angles = ((2.0 * PI * seed.r).round() as usize).clamp(64, 1440);
+    let clip = opts.saturation.map(|s| 0.98 * f64::from(s));
+    let profiles: Vec<Profile> = (0..n_angles)
+        .filter_map(|k| {
+            let a = k as f64 * 2.0 * PI / n_angles as f64;
+            let (ux, uy) = (a.cos(), a.sin());
+            let samples = positions
+                .iter()
+                .map(|&s| regions::bilinear(lum, seed.cx + s * ux, seed.cy + s * uy))
+                .collect::<Option<Vec<f64>>>()?;
+            if clip.is_some_and(|c| samples.iter().any(|&v| v >= c)) {
+                return None;
+            }
+            Some(Profile { ux, uy, samples })
+        })
+        .collect();
+    // Each profile's edge is searched within a pixel of its steepest point: the model fits a
+    // flat stretch of backdrop perfectly, so a free search would wander off the edge.
+    let range = |p: &Profile| {
+        let steepest = steepest_point(
+            &positions,
+            &p.samples,
+            seed.r - search_px,
+            seed.r + search_px,
+        )?;
+        Some((
+            steepest - STEEPEST_TO_EDGE_PX,
+            steepest + STEEPEST_TO_EDGE_PX,
+        ))
+    };
+    // the blur: searched on a subset of the profiles, the median used for all
+    let stride = (profiles.len() / BLUR_PROFILES).max(1);
+    let mut sigmas: Vec<f64> = profiles
+        .iter()
+        .step_by(stride)
+        .filter_map(|p| {
+            let (lo, hi) = range(p)?;
+            model.fit(&positions, &p.samples, lo, hi, None)
+        })
+        .map(|f| f.sigma)
+        .collect();
+    let sigma = crate::calib::robust::median(&mut sigmas)?;
+    let fits: Vec<(&Profile, super::rim::RimFit)> = profiles
+        .iter()
+        .filter_map(|p| {
+            let (lo, hi) = range(p)?;
+            model
+                .fit(&positions, &p.samples, lo, hi, Some(sigma))
+                .map(|f| (p, f))
+        })
+        .collect();
+    // the sphere is darker (or brighter) than its surround all round: the majority decides
+    let mut contrasts: Vec<f64> = fits.iter().map(|(_, f)| f.outside - f.inside).collect();
+    let contrast = crate::calib::robust::median(&mut contrasts)?;
+    let mut rms: Vec<f64> = fits.iter().map(|(_, f)| f.rms).collect();
+    let typical_rms = crate::calib::robust::median(&mut rms)?;
+    let kept: Vec<&(&Profile, super::rim::RimFit)> = fits
+        .iter()
+        .filter(|(p, f)| {
+            let c = f.outside - f.inside;
+            // something much brighter than both levels in the fitted stretch (a highlight at
+            // the rim) spoils it
+            let top = f.inside.max(f.outside) + c.abs();
+            let window = f.edge - model.inside_px..=f.edge + OUTSIDE_PX;
+            c * contrast > 0.0
+                && c.abs() >= 0.3 * contrast.abs()
+                && c.abs() >= MIN_CONTRAST_RMS * f.rms
+                && f.rms <= 3.0 * typical_rms + 1e-6 * contrast.abs()
+                && !positions
+                    .iter()
+                    .zip(&p.samples)
+                    .any(|(x, &v)| window.contains(x) && v > top)
+        })
+        .collect();
+    let rays: Vec<Vector3<f64>> = kept
+        .iter()
+        .map(|(p, f)| intr.ray(seed.cx + f.edge * p.ux, seed.cy + f.edge * p.uy))
+        .collect();
+    let mut steps: Vec<f64> = kept
+        .iter()
+        .map(|(_, f)| (f.outside - f.inside).abs())
+        .collect();
+    if rays.len() < 16 {
+        return None;
+    }
+    let outline = SphereOutline::from_edge_rays(&rays, intr)?;
+    let support = outline.edge_points as f64 / n_angles as f64;
+    let rms_px = outline.rms_residual_rad * 0.5 * (intr.fx + intr.fy);
+    Some(Measured {
+        outline,
+        support,
+        rms_px,
+        contrast: crate::calib::robust::median(&mut steps)?,
+    })
+}
