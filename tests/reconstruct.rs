@@ -157,8 +157,7 @@ fn three_assumptions_beat_none_and_the_analytic_baselines() {
     let e_ggx = ggx.expect("Lambert + GGX fitted").environment;
     eprintln!(
         "{target}: environment error: assumptions {e_all:.4} ({}), none {e_none:.4}, Lambert {e_lambert:.4}, Lambert+GGX {e_ggx:.4}; k = {}",
-        out.report.model.family,
-        out.report.components.k
+        out.report.model.family, out.report.components.k
     );
     assert!(e_all < e_lambert);
     // Never worse than the better baseline by more than the issue #11 bar.
