@@ -32,7 +32,7 @@ use crate::brdf::merl::MerlTable;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::f64::consts::FRAC_PI_2;
 
 /// Knobs of the plausibility step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -123,30 +123,12 @@ pub fn model_weights(counts: &[usize], settings: &PlausibleSettings) -> Vec<f64>
 /// header). Bins without data count as zero.
 pub fn directional_albedo(table: &MerlTable, theta_i: f64) -> [f64; 3] {
     let wi = Vector3::new(theta_i.sin(), 0.0, theta_i.cos());
-    let phi_steps = 48;
-    let d_phi = TAU / phi_steps as f64;
     let mut a = [0.0; 3];
-    for i in 0..THETA_H_BINS {
-        let u = (i as f64 + 0.5) / THETA_H_BINS as f64;
-        let theta_h = u * u * FRAC_PI_2;
-        let d_theta = u * PI / THETA_H_BINS as f64;
-        let (st, ct) = theta_h.sin_cos();
-        for j in 0..phi_steps {
-            let phi = (j as f64 + 0.5) * d_phi;
-            let h = Vector3::new(st * phi.cos(), st * phi.sin(), ct);
-            let wi_h = wi.dot(&h);
-            if wi_h <= 0.0 {
-                continue;
-            }
-            let wo = 2.0 * wi_h * h - wi;
-            if wo.z <= 0.0 {
-                continue;
-            }
-            if let Some(f) = table.get(merl_index(&wi, &wo)) {
-                let w = wo.z * 4.0 * wi_h * st * d_theta * d_phi;
-                for c in 0..3 {
-                    a[c] += f[c] * w;
-                }
+    for (wo, d_omega_o) in crate::render::probe::mirror_quadrature(&wi, 48) {
+        if let Some(f) = table.get(merl_index(&wi, &wo)) {
+            let w = wo.z * d_omega_o;
+            for c in 0..3 {
+                a[c] += f[c] * w;
             }
         }
     }
@@ -284,6 +266,7 @@ mod tests {
     use super::super::ladder::AnalyticCandidate;
     use super::*;
     use crate::brdf::analytic::{Lambert, LambertGgx};
+    use std::f64::consts::PI;
 
     struct Const([f64; 3]);
     impl Candidate for Const {

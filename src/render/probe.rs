@@ -247,6 +247,36 @@ fn pixel_position(size: usize, x: usize, y: usize) -> (f64, f64) {
     )
 }
 
+/// The half-vector quadrature about a direction `w` above the surface: `theta_h` at the 90 MERL
+/// bin centres (`theta_h = u^2 pi / 2`, so `d theta_h = u pi du`, `du = 1 / 90`), `phi_h` in
+/// `phi_steps` steps; for each half vector `h`, the mirror of `w` about `h` and its solid angle
+/// `d omega = 4 (w . h) sin theta_h d theta_h d phi_h`. Mirrors below the horizon are left out.
+pub fn mirror_quadrature(w: &Vector3<f64>, phi_steps: usize) -> Vec<(Vector3<f64>, f64)> {
+    let phi_steps = phi_steps.max(1);
+    let d_phi = TAU / phi_steps as f64;
+    let mut out = Vec::with_capacity(THETA_H_BINS * phi_steps);
+    for i in 0..THETA_H_BINS {
+        let u = (i as f64 + 0.5) / THETA_H_BINS as f64;
+        let theta_h = u * u * FRAC_PI_2;
+        let d_theta = u * PI / THETA_H_BINS as f64;
+        let (st, ct) = theta_h.sin_cos();
+        for j in 0..phi_steps {
+            let phi = (j as f64 + 0.5) * d_phi;
+            let h = Vector3::new(st * phi.cos(), st * phi.sin(), ct);
+            let w_h = w.dot(&h);
+            if w_h <= 0.0 {
+                continue;
+            }
+            let m = 2.0 * w_h * h - w;
+            if m.z <= 0.0 {
+                continue;
+            }
+            out.push((m, 4.0 * w_h * st * d_theta * d_phi));
+        }
+    }
+    out
+}
+
 /// The environment quadrature of one pixel (see the module header): `(bin, L cos_i d omega_i)`.
 fn environment_samples(
     frame: &ShadingFrame,
@@ -254,36 +284,16 @@ fn environment_samples(
     env: &Environment,
     phi_steps: usize,
 ) -> Vec<(usize, [f64; 3])> {
-    let phi_steps = phi_steps.max(1);
-    let d_phi = TAU / phi_steps as f64;
-    let mut out = Vec::with_capacity(THETA_H_BINS * phi_steps);
     if wo.z <= 0.0 {
-        return out;
+        return Vec::new();
     }
-    for i in 0..THETA_H_BINS {
-        let u = (i as f64 + 0.5) / THETA_H_BINS as f64;
-        let theta_h = u * u * FRAC_PI_2;
-        // theta_h = u^2 pi / 2, so d theta_h = u pi du, du = 1 / 90.
-        let d_theta = u * PI / THETA_H_BINS as f64;
-        let (st, ct) = theta_h.sin_cos();
-        for j in 0..phi_steps {
-            let phi = (j as f64 + 0.5) * d_phi;
-            let h = Vector3::new(st * phi.cos(), st * phi.sin(), ct);
-            let wo_h = wo.dot(&h);
-            if wo_h <= 0.0 {
-                continue;
-            }
-            let wi = 2.0 * wo_h * h - wo;
-            if wi.z <= 0.0 {
-                continue;
-            }
-            let d_omega_i = 4.0 * wo_h * st * d_theta * d_phi;
+    mirror_quadrature(wo, phi_steps)
+        .into_iter()
+        .map(|(wi, d_omega_i)| {
             let l = env.radiance(&frame.to_world(&wi));
-            let w = l.map(|x| x * wi.z * d_omega_i);
-            out.push((merl_index(&wi, wo), w));
-        }
-    }
-    out
+            (merl_index(&wi, wo), l.map(|x| x * wi.z * d_omega_i))
+        })
+        .collect()
 }
 
 /// Relative L2 error of `rec` against `truth` over every pixel and channel.

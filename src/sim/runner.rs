@@ -53,9 +53,7 @@ pub struct SimConfig {
     pub seed: u64,
     /// After it starts, and after the port comes back from an unplug, the board ignores what
     /// it receives for this long, as an Arduino's bootloader holds the UART after the reset
-    /// that opening (or plugging in) its port causes. The window runs from the later of the
-    /// port's appearance and the host's first bytes (the open a pty cannot show), so a host
-    /// slowed by load meets the same window.
+    /// that opening (or plugging in) its port causes.
     pub boot_delay: Duration,
     /// Where to put the port symlink; a fresh temporary directory when `None`.
     pub link_path: Option<PathBuf>,
@@ -248,7 +246,6 @@ impl SimRig {
             outbox: VecDeque::new(),
             boot_delay: config.boot_delay,
             booted_at: Instant::now() + config.boot_delay,
-            host_seen: false,
         };
         let thread = std::thread::Builder::new()
             .name("brdf-sim-firmware".into())
@@ -290,10 +287,6 @@ struct Server {
     boot_delay: Duration,
     /// Until then the bootloader runs: received bytes are discarded.
     booted_at: Instant,
-    /// Whether the host has sent anything since the port (re)appeared. A real board resets
-    /// when the host opens its port (DTR); a pty does not show the open, so the window starts
-    /// again with the host's first bytes, however late the host (re)opens the port.
-    host_seen: bool,
 }
 
 impl Server {
@@ -316,10 +309,6 @@ impl Server {
                     0
                 }
             };
-            if n > 0 && !self.host_seen {
-                self.host_seen = true;
-                self.booted_at = self.booted_at.max(Instant::now() + self.boot_delay);
-            }
             if Instant::now() < self.booted_at {
                 // The bootloader reads the UART and finds no programmer: the bytes are gone.
                 continue;
@@ -409,7 +398,6 @@ impl Server {
             std::thread::sleep(Duration::from_millis(20));
         }
         self.booted_at = Instant::now() + self.boot_delay;
-        self.host_seen = false;
         self.faults.lock().unplugged = false;
     }
 }
