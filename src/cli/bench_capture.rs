@@ -217,6 +217,8 @@ fn page_section(table: &str) -> String {
          the simulated camera's live preview at 640x480).\n\n{table}\n\
          The preview rate is what reaches the page; the scene at rest renders once and each frame\n\
          is a new sensor exposure (noise), a shrink-mark-histogram pass and a JPEG. While a capture\n\
-         runs the page is sent the shots themselves (at most at the preview rate), not live frames.\n"
+         runs the page is sent the shots themselves (at most one a second), not live frames, and\n\
+         the state at most once a second. The CPU columns are the steadier measure on a shared\n\
+         machine: the wall times move with the other work on it.\n"
     )
 }

@@ -140,13 +140,19 @@ fn serve(profile: &Profile, dir: &Path, fps: f64) -> anyhow::Result<Server> {
     .context("starting the lab page server")
 }
 
+/// Waits until a page is connected and settled (it has been sent a few live frames): the
+/// browser's own start-up is not what a connected page costs.
+fn page_settled(hub: &brdf_rig::serve::hub::Hub) -> anyhow::Result<()> {
+    wait_for("the page connects and gets frames", 60, || {
+        hub.frames_sent().iter().any(|&(_, n)| n >= 3)
+    })
+}
+
 /// Frames per second delivered to the one connected page over `secs`, idle.
 fn preview_rate(server: &Server, secs: f64) -> anyhow::Result<(f64, f64)> {
     let page = Page::open(&format!("http://{}/", server.addr()))?;
     let hub = server.hub().clone();
-    wait_for("the page connects and gets frames", 60, || {
-        hub.frames_sent().iter().any(|&(_, n)| n >= 3)
-    })?;
+    page_settled(&hub)?;
     let sent = |h: &brdf_rig::serve::hub::Hub| h.frames_sent().iter().map(|&(_, n)| n).sum::<u64>();
     let (s0, m0, t0) = (sent(&hub), hub.frames_made(), Instant::now());
     std::thread::sleep(Duration::from_secs_f64(secs));
@@ -226,16 +232,17 @@ pub fn measure(
         bare_cpu.push(own_cpu_secs() - c0);
         let page = Page::open(&format!("http://{}/", server.addr()))?;
         let hub = server.hub().clone();
-        wait_for("the page connects", 60, || !hub.frames_sent().is_empty())?;
-        let (c0, b0) = (own_cpu_secs(), tree_cpu_secs(page.child.id()));
+        page_settled(&hub)?;
+        let sent = || hub.frames_sent().iter().map(|&(_, n)| n).sum::<u64>();
+        let (c0, b0, f0) = (own_cpu_secs(), tree_cpu_secs(page.child.id()), sent());
         with_page.push(served_capture(&server, "bench.toml", &format!("page-{r}"))?);
         page_cpu.push(own_cpu_secs() - c0);
         browser_cpu.push(tree_cpu_secs(page.child.id()) - b0);
-        let frames: u64 = hub.frames_sent().iter().map(|&(_, n)| n).sum();
+        let frames = sent() - f0;
         drop(page);
         eprintln!(
             "rep {r}: capture {:.2} s ({:.2} s CPU), served {:.2} s ({:.2} s CPU), served with a page \
-             {:.2} s ({:.2} s CPU, browser {:.2} s CPU; {frames} frames sent)",
+             {:.2} s ({:.2} s CPU, browser {:.2} s CPU; {frames} frames sent during it)",
             cli[r], cli_cpu[r], bare[r], bare_cpu[r], with_page[r], page_cpu[r], browser_cpu[r]
         );
     }
@@ -259,24 +266,26 @@ pub fn measure(
     let _ = writeln!(
         md,
         "| the same unattended capture ({reps} runs each, median) | wall (s) | vs `capture` | \
-         CPU of brdf-rig (s) | CPU of the browser (s) |"
+         vs no page | CPU of brdf-rig (s) | CPU of the browser (s) |"
     );
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|");
+    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|");
     let _ = writeln!(
         md,
-        "| `brdf-rig capture --unattended` | {c:.2} | | {:.2} | |",
+        "| `brdf-rig capture --unattended` | {c:.2} | | | {:.2} | |",
         median(cli_cpu)
     );
     let _ = writeln!(
         md,
-        "| `brdf-rig serve`, no page connected | {b:.2} | {:+.1} % | {:.2} | |",
+        "| `brdf-rig serve`, no page connected | {b:.2} | {:+.1} % | | {:.2} | |",
         100.0 * (b / c - 1.0),
         median(bare_cpu)
     );
     let _ = writeln!(
         md,
-        "| `brdf-rig serve`, headless Chromium showing the page | {p:.2} | {:+.1} % | {:.2} | {:.2} |",
+        "| `brdf-rig serve`, headless Chromium showing the page | {p:.2} | {:+.1} % | {:+.1} % | \
+         {:.2} | {:.2} |",
         100.0 * (p / c - 1.0),
+        100.0 * (p / b - 1.0),
         median(page_cpu),
         median(browser_cpu)
     );

@@ -607,12 +607,15 @@ impl RigThread {
         });
     }
 
-    /// Reads the turntable and the light through the serial link.
+    /// Reads the turntable and the light through the serial link; the page state changes only
+    /// when the rig did.
     fn poll_status(&mut self) {
         let t = self.rig.turntable.status();
         let l = self.rig.light.status();
         let sim = self.hub.sim.as_ref().map(|h| sim_truth(&h.snapshot()));
-        self.hub.update(|s| {
+        // pages wake only when something changed (a rig at rest sends nothing)
+        self.hub.update_if(|s| {
+            let before = s.rig.clone();
             let r = &mut s.rig;
             r.polled = true;
             r.sim = sim;
@@ -637,6 +640,7 @@ impl RigThread {
             }
             r.connected = errors.is_empty();
             r.error = (!errors.is_empty()).then(|| errors.join("; "));
+            s.rig != before
         });
     }
 }

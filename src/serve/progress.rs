@@ -1,7 +1,15 @@
 //! A capture's progress on the lab page: shots done, rate and time left (time waiting for the
 //! operator left out), the last shot, the rig as the capture's own steps leave it, and the
-//! shots' images to the preview (at most at the preview rate; the image is handed to the
-//! preview worker, never encoded on the rig's thread, so the capture does not wait for it).
+//! shots' images to the preview: at most one every [`SHOT_PREVIEW_EVERY`] (or at the preview
+//! rate when that is slower). The image is handed to the preview worker, never encoded on the
+//! rig's thread, so the capture does not wait for it; and no extra frame is taken for the page
+//! while shots are being taken (the page shows shots already made).
+//!
+//! Why one a second: every frame costs the server a JPEG and each watching browser a decode
+//! and a repaint, and on a host whose cores the camera also needs (the simulated camera renders
+//! on every core) that time comes out of the capture; a person watching an unattended run
+//! reads the shots at that pace anyway. Live frames at the full preview rate are for when the
+//! rig is idle and while the operator acts (`live`).
 
 use std::cell::Cell;
 use std::rc::Rc;
@@ -13,6 +21,9 @@ use super::preview::{Job, Source, Worker};
 use super::state::{LastShot, eta_secs};
 use crate::capture::{Progress, ShotRecord};
 use crate::render::image::LinearImage;
+
+/// At most one shot image a second goes to the preview during a run.
+pub const SHOT_PREVIEW_EVERY: Duration = Duration::from_secs(1);
 
 pub struct PageProgress {
     pub hub: Arc<Hub>,
@@ -35,7 +46,7 @@ impl PageProgress {
             worker,
             started: now,
             waited,
-            frame_interval: Duration::from_secs_f64(1.0 / fps.max(0.01)),
+            frame_interval: Duration::from_secs_f64(1.0 / fps.max(0.01)).max(SHOT_PREVIEW_EVERY),
             next_frame: now,
             total: 0,
             done: 0,

@@ -62,7 +62,7 @@ pub struct ServerInfo {
     pub preview_size: (usize, usize),
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct RigState {
     pub connected: bool,
     pub port: String,
@@ -88,7 +88,7 @@ pub struct RigState {
     pub sim: Option<SimTruth>,
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct LightState {
     pub channel: usize,
     pub name: String,
