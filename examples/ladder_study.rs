@@ -34,6 +34,16 @@ fn list(arg: Option<&String>, default: &[&str]) -> Vec<String> {
     )
 }
 
+/// One scene's row: scene, rig, the better baseline's error, every family's errors per
+/// variant, and each choice rule's pick.
+type Row = (
+    String,
+    String,
+    f64,
+    Vec<(Family, Vec<f64>)>,
+    Vec<(String, Family)>,
+);
+
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let materials_wanted = list(args.first(), &PAPER_MATERIALS);
@@ -67,13 +77,7 @@ fn main() -> anyhow::Result<()> {
         }
         v
     };
-    let mut rows: Vec<(
-        String,
-        String,
-        f64,
-        Vec<(Family, Vec<f64>)>,
-        Vec<(String, Family)>,
-    )> = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
     let mut dump: Vec<serde_json::Value> = Vec::new();
     for name in &materials_wanted {
         let net = find_material(&materials, name)?;

@@ -4,15 +4,12 @@
 //! from which the target material is always left out. Also: job validation through the binary.
 
 use crate::util;
-use brdf_rig::brdf::analytic::{Lambert, LambertGgx};
 use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
+use brdf_rig::brdf::basis_cache;
 use brdf_rig::brdf::merl::MerlTable;
-use brdf_rig::brdf::metrics::{ErrorReport, compare};
 use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
-use brdf_rig::brdf::{BinValues, basis_cache};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::mesh_io::load_mesh;
-use brdf_rig::reconstruct::observe::Observation;
 use brdf_rig::reconstruct::reliable::ReliableSettings;
 use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
 use brdf_rig::reconstruct::{Job, Settings, reconstruct_with_basis};

@@ -53,9 +53,9 @@ pub fn compare_image(
         }
         let f = table.get(o.bin).unwrap_or([0.0; 3]);
         let v = [0, 1, 2].map(|c| f[c] * o.irradiance[c] * o.cos_theta_i);
-        for c in 0..3 {
-            num += (v[c] - o.radiance[c]).powi(2);
-            den += o.radiance[c].powi(2);
+        for (vc, rc) in v.iter().zip(&o.radiance) {
+            num += (vc - rc).powi(2);
+            den += rc.powi(2);
         }
         render[y * w + x] = v;
         seen[y * w + x] = true;

@@ -297,6 +297,7 @@ pub fn image_residual(c: &dyn Candidate, obs: &[Observation]) -> (f64, f64) {
     let (mut num, mut den) = (0.0, 0.0);
     for o in obs {
         let f = c.eval_bin(o.bin);
+        #[allow(clippy::needless_range_loop)] // three parallel channel arrays
         for ch in 0..3 {
             let rendered = f[ch] * o.irradiance[ch] * o.cos_theta_i;
             let d = if rendered.is_finite() {
@@ -456,6 +457,7 @@ fn score(c: &dyn Candidate, held: &[Observation]) -> FoldScore {
     for o in held {
         let (n, d) = image_residual(c, std::slice::from_ref(o));
         let f = c.eval_bin(o.bin);
+        #[allow(clippy::needless_range_loop)] // three parallel channel arrays
         for ch in 0..3 {
             let rendered = (f[ch] * o.irradiance[ch] * o.cos_theta_i).max(0.0);
             let a = (1.0 + rendered / scale).ln();

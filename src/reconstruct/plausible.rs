@@ -229,7 +229,7 @@ pub fn make_plausible(
                 }
             })
             .collect();
-        for index in 0..MERL_BINS {
+        for (index, was_scaled) in scaled.iter_mut().enumerate() {
             let Some(b) = MerlBin::from_index(index) else {
                 continue;
             };
@@ -239,7 +239,7 @@ pub fn make_plausible(
                 .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())]);
             if f < 1.0 {
                 table.set(index, v.map(|x| x * f));
-                scaled[index] = true;
+                *was_scaled = true;
             }
         }
         curve = albedo_curve(&table);

@@ -70,7 +70,7 @@ pub struct SphereProbe {
     /// Distinct MERL bins any render reads, sorted.
     bins: Vec<usize>,
     /// Per light, per pixel: the slot of its bin in `bins` and `E cos theta_i`, if lit.
-    lights: Vec<Vec<Option<(u32, [f32; 3])>>>,
+    lights: Vec<Vec<Option<LitPixel>>>,
     /// Environment samples of pixel `p`: `env[env_start[p]..env_start[p + 1]]`.
     env_start: Vec<usize>,
     env: Vec<(u32, [f32; 3])>,
@@ -237,6 +237,9 @@ impl SphereProbe {
         img
     }
 }
+
+/// A lit pixel under a light: the slot of its bin in `bins`, and `E cos theta_i`.
+type LitPixel = (u32, [f32; 3]);
 
 /// The pixel's position on the unit disc (y up).
 fn pixel_position(size: usize, x: usize, y: usize) -> (f64, f64) {
