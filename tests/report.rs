@@ -138,31 +138,18 @@ fn make_recon(dir: &Path, session: &Path) {
 
 /// Headless Chromium, or a failure that says how to install it (never a silent pass).
 fn chromium() -> PathBuf {
-    for c in ["/usr/bin/chromium", "/usr/bin/chromium-browser"] {
-        if Path::new(c).is_file() {
-            return PathBuf::from(c);
-        }
-    }
-    panic!("chromium is not installed: run scripts/setup.sh (it installs Debian's chromium)");
+    brdf_rig::report::headless::chromium()
+        .expect("chromium is not installed: run scripts/setup.sh (it installs Debian's chromium)")
 }
 
 fn run_chromium(page: &Path, extra: &[&str]) -> std::process::Output {
     let profile = tempfile::tempdir().unwrap();
     let url = format!("file://{}", page.display());
     let mut cmd = Command::new(chromium());
-    cmd.args([
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-    ])
-    .arg(format!("--user-data-dir={}", profile.path().display()))
-    .args(extra)
-    .arg(url);
+    cmd.args(brdf_rig::report::headless::HEADLESS_FLAGS)
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .args(extra)
+        .arg(url);
     let out = cmd.output().unwrap();
     assert!(
         out.status.success(),

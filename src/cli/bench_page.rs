@@ -8,7 +8,7 @@
 //! profile and no background networking; it talks only to 127.0.0.1.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -27,24 +27,12 @@ struct Page {
 
 impl Page {
     fn open(url: &str) -> anyhow::Result<Page> {
-        let exe = ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
-            .iter()
-            .map(PathBuf::from)
-            .find(|p| p.is_file())
+        let exe = brdf_rig::report::headless::chromium()
             .context("--page needs Debian's chromium (scripts/setup.sh installs it)")?;
         let profile = tempfile::tempdir().context("creating a browser profile folder")?;
         let child = Command::new(exe)
-            .args([
-                "--headless",
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-quic",
-                "--no-first-run",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-                "--window-size=1280,1000",
-            ])
+            .args(brdf_rig::report::headless::HEADLESS_FLAGS)
+            .arg("--window-size=1280,1000")
             .arg(format!("--user-data-dir={}", profile.path().display()))
             .arg(url)
             .stdin(Stdio::null())

@@ -622,17 +622,21 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         }
     }
 
+    // The training and held-out pixels of a fold, the same for every stage.
+    let data_of = |fold: usize| {
+        fold_data(
+            pool,
+            &fold_of,
+            fold,
+            reliable.brightest.as_ref(),
+            brightest_fold,
+            reliable_settings.use_brightest,
+        )
+    };
     let per_fold: Vec<Vec<FoldScore>> = (0..folds)
         .into_par_iter()
         .map(|fold| {
-            let data = fold_data(
-                pool,
-                &fold_of,
-                fold,
-                reliable.brightest.as_ref(),
-                brightest_fold,
-                reliable_settings.use_brightest,
-            );
+            let data = data_of(fold);
             if data.held.is_empty() {
                 return keys.iter().map(|_| empty()).collect();
             }
@@ -715,14 +719,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         let scores: Vec<FoldScore> = (0..folds)
             .into_par_iter()
             .map(|fold| {
-                let data = fold_data(
-                    pool,
-                    &fold_of,
-                    fold,
-                    reliable.brightest.as_ref(),
-                    brightest_fold,
-                    reliable_settings.use_brightest,
-                );
+                let data = data_of(fold);
                 if data.held.is_empty() {
                     return empty();
                 }

@@ -8,6 +8,7 @@
 
 pub mod charts;
 pub mod gather;
+pub mod headless;
 pub mod html;
 pub mod images;
 pub mod inplane;
