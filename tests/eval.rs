@@ -54,6 +54,8 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
         bin_step: 5,
         seeds: 1,
         rigs: vec![Rig::Spread],
+        refine: None,
+        exact_reference: false,
     };
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");

@@ -78,6 +78,13 @@ pub struct BenchAccuracyArgs {
     /// Output folder for accuracy.md and accuracy.json.
     #[arg(long, default_value = "docs/eval")]
     pub out: PathBuf,
+    /// Refine the SfM-like mesh's normals from the images; also runs the pipeline on the
+    /// unrefined normals and reports the normal error against the truth.
+    #[arg(long)]
+    pub refine_normals: bool,
+    /// Also reconstruct from the exact mesh (the reference for the refinement).
+    #[arg(long)]
+    pub exact_reference: bool,
 }
 
 pub fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
@@ -272,6 +279,10 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         bin_step: a.common.bin_step,
         seeds: a.seeds.max(1),
         rigs,
+        refine: a
+            .refine_normals
+            .then(brdf_rig::reconstruct::refine::RefineSettings::default),
+        exact_reference: a.exact_reference,
     };
     let mut command = format!(
         "cargo run --release -- bench accuracy --materials {} {}",
@@ -289,6 +300,12 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         a.rigs.join(","),
         a.one_light_deg
     );
+    if a.refine_normals {
+        command += " --refine-normals";
+    }
+    if a.exact_reference {
+        command += " --exact-reference";
+    }
     command += &format!(" --out {}", a.out.display());
     let machine = super::bench::machine();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -333,6 +350,24 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
                     r.lambert_ggx.map_or(f64::NAN, |e| e.environment),
                     accuracy::ratio(r).unwrap_or(f64::NAN)
                 );
+            }
+            if let Some(n) = &r.normals {
+                eprintln!(
+                    "  normals: median error {:.2} -> {:.2} deg ({}, {} iteration(s), mean tilt {:.2} deg); unrefined env {:.3}, exact env {:.3}",
+                    n.median_before_deg,
+                    n.median_after_deg,
+                    if n.report.accepted { "accepted" } else { "refused" },
+                    n.report.chosen_iterations,
+                    n.report.mean_tilt_deg,
+                    r.unrefined.as_ref().and_then(|x| x.as_ref().ok()).map_or(f64::NAN, |a| a.chosen.environment),
+                    r.exact.as_ref().and_then(|x| x.as_ref().ok()).map_or(f64::NAN, |a| a.chosen.environment),
+                );
+                for it in &n.report.iterations {
+                    eprintln!(
+                        "    iteration {}: tilt mean {:.2} max {:.2} deg, train {:.4}, held-out {:.4}, {:.2} s",
+                        it.iteration, it.mean_tilt_deg, it.max_tilt_deg, it.train_error, it.held_out_error, it.seconds
+                    );
+                }
             }
             done.push(r.clone());
             // Partial results on disk after every scene: a long run cut short still reports.

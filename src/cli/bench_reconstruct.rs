@@ -77,6 +77,9 @@ pub struct BenchReconstructArgs {
     /// Keep the scene folders here instead of a temporary directory.
     #[arg(long)]
     pub keep: Option<PathBuf>,
+    /// Time the reconstruction with `--refine-normals` (the normal refinement's cost).
+    #[arg(long)]
+    pub refine_normals: bool,
 }
 
 fn stride(v: &[usize]) -> GridStride {
@@ -170,7 +173,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     )?;
     let out_dir = dir.join("out");
     let s = &a.basis_stride;
-    let cmd_args: Vec<String> = vec![
+    let mut cmd_args: Vec<String> = vec![
         "reconstruct".into(),
         job.source.display().to_string(),
         "--out".into(),
@@ -182,6 +185,9 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         "--basis-components".into(),
         a.basis_components.to_string(),
     ];
+    if a.refine_normals {
+        cmd_args.push("--refine-normals".into());
+    }
     eprintln!("timed: brdf-rig {}", cmd_args.join(" "));
     let t = Instant::now();
     let status = std::process::Command::new(std::env::current_exe()?)
@@ -208,6 +214,9 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             a.study_size[0],
             a.study_size[1]
         );
+    }
+    if a.refine_normals {
+        command += " --refine-normals";
     }
     if let Some(w) = &a.write {
         command += &format!(" --write {}", w.display());

@@ -96,6 +96,14 @@ pub struct Args {
     /// Lambert + GGX fit of the same pixels (docs/reconstruction.md, plausibility).
     #[arg(long)]
     pub no_shrink: bool,
+    /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
+    /// stereo across views, checked on held-out images; docs/normal-refinement.md). Writes
+    /// mesh_refined.ply when the refinement is accepted.
+    #[arg(long)]
+    pub refine_normals: bool,
+    /// Largest tilt the refinement may give a normal, degrees (0 to 60).
+    #[arg(long, default_value_t = 20.0, value_parser = real_in(Closed(0.0), Closed(60.0)))]
+    pub max_tilt: f64,
     /// Random seed of the trials.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -184,6 +192,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     settings.basis_cache = args.basis_cache;
     settings.saturation = args.saturation;
+    if args.refine_normals {
+        settings.refine = Some(reconstruct::refine::RefineSettings {
+            max_tilt_deg: args.max_tilt,
+            ..Default::default()
+        });
+    }
     let started = std::time::Instant::now();
     let mut progress = |stage: &str| {
         eprintln!("[{:7.2} s] {stage}", started.elapsed().as_secs_f64());
@@ -204,6 +218,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.out.display()
     );
     eprintln!("model: {}", model.reason);
+    if let Some(r) = &output.report.normals {
+        eprintln!(
+            "normals: {} ({}; mean tilt {:.2} deg, largest {:.2} deg over {} vertices)",
+            if r.accepted { "refined" } else { "kept" },
+            r.reason,
+            r.mean_tilt_deg,
+            r.max_tilt_deg,
+            r.vertices_refined
+        );
+    }
     let p = &output.report.plausibility;
     eprintln!(
         "plausibility: {:.0} % of the table from the prior, {} invalid bins replaced, largest \

@@ -4,8 +4,8 @@
 //! to the same pixels, and the rank of the chosen trial among all trials (paper Fig. 6).
 
 use super::{
-    Errors, EvalError, Perturb, RunResult, Truth, baseline_errors, find_material, observe_case,
-    run_core, write_case,
+    Errors, EvalError, NormalStudy, Perturb, RunResult, Truth, baseline_errors, exact_case,
+    find_material, load_case, refine_case, run_core, write_case,
 };
 use crate::brdf::basis::BasisSettings;
 use crate::brdf::basis_cache;
@@ -16,6 +16,8 @@ use crate::reconstruct::core::CoreSettings;
 use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::NielsenSettings;
 use crate::reconstruct::observe::ObserveSettings;
+use crate::reconstruct::pipeline::observe_scene;
+use crate::reconstruct::refine::RefineSettings;
 use crate::reconstruct::reliable::ReliableSettings;
 use crate::reconstruct::synthetic::SceneSpec;
 use serde::Serialize;
@@ -103,6 +105,11 @@ pub struct AccuracySpec {
     pub seeds: u64,
     /// The light rigs every (material, mesh) is rendered with.
     pub rigs: Vec<Rig>,
+    /// Refine the SfM-like mesh's normals from the images (`reconstruct::refine`); the full
+    /// pipeline then also runs on the unrefined observations, for comparison.
+    pub refine: Option<RefineSettings>,
+    /// Also reconstruct from the exact mesh (the reference a refinement is measured against).
+    pub exact_reference: bool,
 }
 
 /// How the single-light images are lit.
@@ -152,6 +159,12 @@ pub struct SceneResult {
     pub variants: Vec<(Variant, Result<RunResult, String>)>,
     pub lambert: Option<Errors>,
     pub lambert_ggx: Option<Errors>,
+    /// With `refine`: the normals against the truth, and the full pipeline on the unrefined
+    /// observations.
+    pub normals: Option<NormalStudy>,
+    pub unrefined: Option<Result<RunResult, String>>,
+    /// With `exact_reference`: the full pipeline on the exact mesh's observations.
+    pub exact: Option<Result<RunResult, String>>,
     pub seconds: f64,
 }
 
@@ -211,8 +224,35 @@ pub fn run(
                 rig.label()
             ));
             let job = write_case(&dir, mesh, &sfm, truth_brdf, &scene)?;
-            let obs = observe_case(&job, &ObserveSettings::default(), &Perturb::default())?;
-            let (lambert, lambert_ggx) = baseline_errors(&truth, &obs);
+            let observe = ObserveSettings::default();
+            let loaded = load_case(&job, &observe, &Perturb::default())?;
+            let (obs, unrefined_obs, normals) = match &spec.refine {
+                Some(rs) => {
+                    progress(&format!("{name} on {mesh_name}: refining the normals"));
+                    let c = refine_case(loaded, &observe, rs, mesh);
+                    (c.observations, Some(c.unrefined), c.study)
+                }
+                None => (observe_scene(&loaded, &observe).observations, None, None),
+            };
+            // The baselines are what a user would fit to the mesh they were given.
+            let (lambert, lambert_ggx) =
+                baseline_errors(&truth, unrefined_obs.as_deref().unwrap_or(&obs));
+            let full = |o: &[crate::reconstruct::observe::Observation]| {
+                let mut core = spec.core.clone();
+                core.trials.seed += seed;
+                run_core(&truth, o, &basis, &core, spec.nielsen).map_err(|e| e.to_string())
+            };
+            let unrefined = unrefined_obs.as_deref().map(|o| {
+                progress(&format!("{name} on {mesh_name}: unrefined normals"));
+                full(o)
+            });
+            let exact = if spec.exact_reference {
+                progress(&format!("{name} on {mesh_name}: exact mesh"));
+                let loaded = load_case(&job, &observe, &Perturb::default())?;
+                Some(full(&exact_case(loaded, &observe, mesh)))
+            } else {
+                None
+            };
             let mut variants = Vec::new();
             for v in &spec.variants {
                 progress(&format!("{name} on {mesh_name}: {}", v.label()));
@@ -237,6 +277,9 @@ pub fn run(
                 variants,
                 lambert,
                 lambert_ggx,
+                normals,
+                unrefined,
+                exact,
                 seconds: t.elapsed().as_secs_f64(),
             };
             on_scene(&r);
@@ -493,6 +536,10 @@ pub fn markdown(
         s += &means_over_seeds(results);
     }
 
+    if spec.refine.is_some() || spec.exact_reference {
+        s += &normals_section(spec, results);
+    }
+
     s += "\n## Which rung was right? Every family's final fit against the truth\n\n";
     s += "Environment error of each family's fit to the reliable pixels as fitted (before the \
           plausibility step), the ladder's choice, and its held-out image error. \"best\" marks \
@@ -640,6 +687,133 @@ pub fn markdown(
             scene_label(spec, r),
             r.rig.label(),
             r.seconds
+        );
+    }
+    s
+}
+
+/// Environment error of a run, when it succeeded.
+fn env_of(r: Option<&Result<RunResult, String>>) -> Option<f64> {
+    r.and_then(|x| x.as_ref().ok())
+        .map(|a| a.chosen.environment)
+}
+
+fn geometric_mean(xs: &[f64]) -> f64 {
+    if xs.is_empty() {
+        return f64::NAN;
+    }
+    (xs.iter().map(|x| x.ln()).sum::<f64>() / xs.len() as f64).exp()
+}
+
+/// The normal refinement against the truth and the exact mesh (issue #12).
+fn normals_section(spec: &AccuracySpec, results: &[SceneResult]) -> String {
+    let mut s =
+        "\n## Normal refinement: normals and the result against the exact mesh\n\n".to_string();
+    s += "Normal error = angle between a vertex normal of the SfM-like mesh and the true one, over \
+          the vertices some pixel shows (median, degrees), before and after the refinement \
+          (`reconstruct::refine`, docs/normal-refinement.md). Environment error of the full \
+          pipeline on the refined normals (ours), on the unrefined ones, and on the exact mesh; \
+          \"/ exact\" = that error over the exact mesh's (1 = as good as the true geometry).\n\n";
+    if let Some(r) = &spec.refine {
+        s += &format!(
+            "Refinement settings: {} iterations at most, {} sweeps, step {}, tilt at most {} deg, \
+             sigma {}, smoothness {} deg, anchor {} deg, windows of {} pixels (at most {} rings), \
+             every {}th image held out.\n\n",
+            r.max_iterations,
+            r.sweeps,
+            r.step,
+            r.max_tilt_deg,
+            r.residual_sigma,
+            r.smooth_deg,
+            r.anchor_deg,
+            r.window_pixels,
+            r.max_rings,
+            r.hold_out_every
+        );
+    }
+    s += "| mesh | material | rig | seed | normal error before | after | accepted (iterations) | mean tilt | held-out error before -> after | ours env | unrefined env | exact env | ours / exact | unrefined / exact |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    type Row = (String, Option<f64>, Option<f64>, Option<f64>);
+    let mut rows: Vec<Row> = Vec::new();
+    for r in results {
+        let ours = env_of(
+            r.variants
+                .iter()
+                .find(|(v, _)| *v == Variant::ALL)
+                .map(|x| &x.1),
+        );
+        let unrefined = env_of(r.unrefined.as_ref());
+        let exact = env_of(r.exact.as_ref());
+        let n = r.normals.as_ref();
+        let heldout = n.map_or("-".to_string(), |n| {
+            let it = &n.report.iterations;
+            match (
+                it.first(),
+                it.iter()
+                    .find(|i| i.iteration == n.report.chosen_iterations),
+            ) {
+                (Some(a), Some(b)) => format!("{:.4} -> {:.4}", a.held_out_error, b.held_out_error),
+                _ => "-".to_string(),
+            }
+        });
+        let ratio = |a: Option<f64>| match (a, exact) {
+            (Some(a), Some(e)) if e > 0.0 => format!("{:.2}", a / e),
+            _ => "-".to_string(),
+        };
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            r.mesh,
+            r.material,
+            r.rig.label(),
+            r.seed,
+            n.map_or("-".to_string(), |n| format!("{:.2}", n.median_before_deg)),
+            n.map_or("-".to_string(), |n| format!("{:.2}", n.median_after_deg)),
+            n.map_or("-".to_string(), |n| format!(
+                "{} ({})",
+                if n.report.accepted { "yes" } else { "no" },
+                n.report.chosen_iterations
+            )),
+            n.map_or("-".to_string(), |n| format!(
+                "{:.2}",
+                n.report.mean_tilt_deg
+            )),
+            heldout,
+            ours.map_or("-".to_string(), f3),
+            unrefined.map_or("-".to_string(), f3),
+            exact.map_or("-".to_string(), f3),
+            ratio(ours),
+            ratio(unrefined),
+        );
+        rows.push((r.rig.label(), ours, unrefined, exact));
+    }
+    s += "\n| scenes | median normal error after / before (geometric mean) | ours / exact (geometric mean) | unrefined / exact (geometric mean) |\n|---|---|---|---|\n";
+    let mut groups: Vec<String> = vec!["all".to_string()];
+    groups.extend(spec.rigs.iter().map(Rig::label));
+    for g in groups {
+        let pick = |r: &SceneResult| g == "all" || r.rig.label() == g;
+        let normal: Vec<f64> = results
+            .iter()
+            .filter(|r| pick(r))
+            .filter_map(|r| r.normals.as_ref())
+            .filter(|n| n.median_before_deg > 0.0)
+            .map(|n| n.median_after_deg / n.median_before_deg)
+            .collect();
+        let sel: Vec<&Row> = rows.iter().filter(|x| g == "all" || x.0 == g).collect();
+        let ours: Vec<f64> = sel
+            .iter()
+            .filter_map(|x| Some(x.1? / x.3?))
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        let unref: Vec<f64> = sel
+            .iter()
+            .filter_map(|x| Some(x.2? / x.3?))
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        s += &format!(
+            "| {g}: {} | {} | {} | {} |\n",
+            sel.len(),
+            f3(geometric_mean(&normal)),
+            f3(geometric_mean(&ours)),
+            f3(geometric_mean(&unref))
         );
     }
     s

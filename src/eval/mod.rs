@@ -30,7 +30,10 @@ use crate::reconstruct::core::{CoreError, CoreSettings, reconstruct_observations
 use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observe::{Observation, ObserveSettings};
-use crate::reconstruct::pipeline::{ReconstructError, Settings, load_scene, observe_scene};
+use crate::reconstruct::pipeline::{
+    Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene, refine_prepared,
+};
+use crate::reconstruct::refine::{RefineReport, RefineSettings, normal_error_deg};
 use crate::reconstruct::synthetic::{SceneSpec, write_scene};
 use crate::reconstruct::{Job, prior::Candidate};
 use crate::render::probe::{
@@ -266,6 +269,16 @@ pub fn observe_case(
     observe: &ObserveSettings,
     perturb: &Perturb,
 ) -> Result<Vec<Observation>, EvalError> {
+    let scene = load_case(job, observe, perturb)?;
+    Ok(observe_scene(&scene, observe).observations)
+}
+
+/// Loads a job and applies `perturb` to its images and lights.
+pub fn load_case(
+    job: &Job,
+    observe: &ObserveSettings,
+    perturb: &Perturb,
+) -> Result<Scene, EvalError> {
     let settings = Settings {
         observe: *observe,
         ..Settings::default()
@@ -305,8 +318,82 @@ pub fn observe_case(
                 Rotation3::from_axis_angle(&axis, perturb.light_error_deg.to_radians()) * l;
         }
     }
+    Ok(scene)
+}
+
+/// The normals of a scene's mesh against the truth, before and after a refinement.
+#[derive(Clone, Debug, Serialize)]
+pub struct NormalStudy {
+    pub report: RefineReport,
+    /// Vertices that some pixel shows (the errors are over these).
+    pub seen_vertices: usize,
+    /// Angle to the true vertex normal, degrees: median and mean.
+    pub median_before_deg: f64,
+    pub mean_before_deg: f64,
+    pub median_after_deg: f64,
+    pub mean_after_deg: f64,
+}
+
+/// Observations of a loaded scene with its normals refined (`reconstruct::refine`), those
+/// without, and the normals measured against `truth` (same vertices and faces as the scene's
+/// mesh, as `geometry::sfm_like` makes them).
+pub struct RefinedCase {
+    /// With the refined normals when the refinement was accepted, else the unrefined ones.
+    pub observations: Vec<Observation>,
+    pub unrefined: Vec<Observation>,
+    pub study: Option<NormalStudy>,
+}
+
+/// Refines the normals of `scene` and observes it both ways.
+pub fn refine_case(
+    scene: Scene,
+    observe: &ObserveSettings,
+    refine: &RefineSettings,
+    truth: &Mesh,
+) -> RefinedCase {
     let observed = observe_scene(&scene, observe);
-    Ok(observed.observations)
+    let unrefined = observed.observations.clone();
+    let before = scene.mesh.vertex_normals().to_vec();
+    let mut prepared = Prepared {
+        scene,
+        observed,
+        refinement: None,
+        timings: Vec::new(),
+    };
+    let seen = refine_prepared(&mut prepared, observe, refine, &mut |_| {});
+    let after = prepared.scene.mesh.vertex_normals();
+    let study = if truth.positions().len() == before.len() {
+        let tn = truth.vertex_normals();
+        match (
+            normal_error_deg(&before, tn, &seen),
+            normal_error_deg(after, tn, &seen),
+            prepared.refinement.clone(),
+        ) {
+            (Some(b), Some(a), Some(report)) => Some(NormalStudy {
+                report,
+                seen_vertices: seen.iter().filter(|s| **s).count(),
+                median_before_deg: b.0,
+                mean_before_deg: b.1,
+                median_after_deg: a.0,
+                mean_after_deg: a.1,
+            }),
+            _ => None,
+        }
+    } else {
+        None
+    };
+    RefinedCase {
+        observations: prepared.observed.observations,
+        unrefined,
+        study,
+    }
+}
+
+/// Observations of a loaded scene with its mesh replaced by the exact one (the reference a
+/// refinement is measured against).
+pub fn exact_case(mut scene: Scene, observe: &ObserveSettings, truth: &Mesh) -> Vec<Observation> {
+    scene.mesh = truth.clone();
+    observe_scene(&scene, observe).observations
 }
 
 /// One reconstruction of one scene, scored.

@@ -177,6 +177,50 @@ impl Mesh {
         true
     }
 
+    /// Replaces the vertex normals (e.g. refined from images), keeping positions, faces, face
+    /// normals and bounds. Each normal is renormalised. Returns `false` and leaves the mesh
+    /// unchanged when the count differs or a normal is not finite or is zero.
+    pub fn set_vertex_normals(&mut self, normals: Vec<Vector3<f64>>) -> bool {
+        if normals.len() != self.vertex_normals.len() {
+            return false;
+        }
+        let mut unit = Vec::with_capacity(normals.len());
+        for (n, old) in normals.iter().zip(&self.vertex_normals) {
+            let len = n.norm();
+            if !len.is_finite() {
+                return false;
+            }
+            // an unreferenced vertex keeps its zero normal
+            if *old == Vector3::zeros() || len == 0.0 {
+                if len != 0.0 || *old != Vector3::zeros() {
+                    return false;
+                }
+                unit.push(Vector3::zeros());
+            } else {
+                unit.push(n / len);
+            }
+        }
+        self.vertex_normals = unit;
+        true
+    }
+
+    /// The one-ring of every vertex: the vertices it shares an edge with (sorted, unique).
+    pub fn vertex_neighbours(&self) -> Vec<Vec<u32>> {
+        let mut nb = vec![Vec::new(); self.positions.len()];
+        for f in &self.faces {
+            for j in 0..3 {
+                let a = f[j] as usize;
+                nb[a].push(f[(j + 1) % 3]);
+                nb[a].push(f[(j + 2) % 3]);
+            }
+        }
+        for n in &mut nb {
+            n.sort_unstable();
+            n.dedup();
+        }
+        nb
+    }
+
     /// Recomputes the cached bounds and the normals after the positions changed.
     fn recompute_normals(&mut self) {
         let mut lo = Point3::from([f64::INFINITY; 3]);
@@ -298,5 +342,31 @@ mod tests {
         let e = Mesh::new(p, tetra().1, "y.obj").unwrap_err();
         assert!(matches!(e, MeshError::NonFiniteVertex { vertex: 2, .. }));
         assert!(e.to_string().starts_with("y.obj"));
+    }
+
+    #[test]
+    fn vertex_normals_can_be_replaced_but_not_with_nonsense() {
+        let (p, f) = tetra();
+        let (mut m, _) = Mesh::new(p, f, "t").expect("valid");
+        let faces = m.faces().to_vec();
+        let turned: Vec<Vector3<f64>> = m.vertex_normals().iter().map(|n| n * 3.0).collect();
+        assert!(m.set_vertex_normals(turned));
+        assert!(
+            m.vertex_normals()
+                .iter()
+                .all(|n| (n.norm() - 1.0).abs() < 1e-12)
+        );
+        assert_eq!(m.faces(), &faces[..], "topology kept");
+        let before = m.vertex_normals().to_vec();
+        assert!(!m.set_vertex_normals(vec![Vector3::x()]), "wrong count");
+        let mut bad = before.clone();
+        bad[0] = Vector3::new(f64::NAN, 0.0, 1.0);
+        assert!(!m.set_vertex_normals(bad), "not finite");
+        let mut zero = before.clone();
+        zero[1] = Vector3::zeros();
+        assert!(!m.set_vertex_normals(zero), "zero on a used vertex");
+        assert_eq!(m.vertex_normals(), &before[..], "unchanged after a refusal");
+        let nb = m.vertex_neighbours();
+        assert!(nb.iter().all(|n| n.len() == 3), "a tetrahedron: three each");
     }
 }

@@ -40,23 +40,6 @@ impl Default for SfmLikeParams {
     }
 }
 
-/// Vertex neighbours (sorted, unique) from the faces.
-fn neighbours(mesh: &Mesh) -> Vec<Vec<u32>> {
-    let mut nb = vec![Vec::new(); mesh.positions().len()];
-    for f in mesh.faces() {
-        for j in 0..3 {
-            let a = f[j] as usize;
-            nb[a].push(f[(j + 1) % 3]);
-            nb[a].push(f[(j + 2) % 3]);
-        }
-    }
-    for n in &mut nb {
-        n.sort_unstable();
-        n.dedup();
-    }
-    nb
-}
-
 /// Mean length of the face edges (each interior edge counted twice; a scale, not a statistic).
 pub fn mean_edge_length(mesh: &Mesh) -> f64 {
     let p = mesh.positions();
@@ -71,7 +54,7 @@ pub fn mean_edge_length(mesh: &Mesh) -> f64 {
 
 /// Taubin-smooths the positions in place (uniform Laplacian).
 pub fn taubin_smooth(mesh: &mut Mesh, iterations: usize, lambda: f64, mu: f64) {
-    let nb = neighbours(mesh);
+    let nb = mesh.vertex_neighbours();
     let mut p: Vec<Point3<f64>> = mesh.positions().to_vec();
     for _ in 0..iterations {
         for factor in [lambda, mu] {

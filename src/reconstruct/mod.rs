@@ -7,7 +7,8 @@
 //! - [`reliable`]: the three assumptions (curvature, monotonicity, brightest pixel);
 //! - [`prior`]: what a BRDF prior offers (sample selection, ridge fit), [`nielsen`] the real one;
 //! - [`components`]: the number of basis components, by validation on held-back pixels;
-//! - [`trials`]: random trials, chosen by cosine similarity with the captured images.
+//! - [`trials`]: random trials, chosen by cosine similarity with the captured images;
+//! - [`refine`]: optional: the mesh's normals refined from the images before all of the above.
 //!
 //! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and runs
 //! everything; [`output`] writes the results; [`synthetic`] writes simulated scenes. Only
@@ -29,6 +30,7 @@ pub mod output;
 pub mod pipeline;
 pub mod plausible;
 pub mod prior;
+pub mod refine;
 pub mod reliable;
 pub mod synthetic;
 pub mod trials;

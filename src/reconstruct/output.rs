@@ -1,5 +1,6 @@
 //! The report of a reconstruction and the files written for it: `brdf.binary` (MERL),
-//! `report.json`, and sphere renders of the result (`sphere.exr`, linear; `sphere.png`, preview).
+//! `report.json`, sphere renders of the result (`sphere.exr`, linear; `sphere.png`, preview),
+//! the photo/re-render panels, and `mesh_refined.ply` when the normals were refined.
 //!
 //! The sphere is seen by a camera on +z looking at the origin, lit from 45 degrees above-right in
 //! the camera's plane (a fixed, documented view, so reports compare across runs).
@@ -14,6 +15,7 @@ use super::trials::Trial;
 use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
 use crate::geometry::camera::{Intrinsics, Pose};
+use crate::geometry::mesh_io::{PlyEncoding, write_ply};
 use crate::imageio::{self, ExrPrecision};
 use crate::render::image::LinearImage;
 use crate::render::light::DirectionalLight;
@@ -100,6 +102,8 @@ pub struct Report {
     pub comparisons: Vec<ComparisonReport>,
     /// How far the result can be trusted, and why not (`reconstruct::confidence`).
     pub confidence: super::confidence::Confidence,
+    /// What the normal refinement did (`reconstruct::refine`); `None` when it was off.
+    pub normals: Option<super::refine::RefineReport>,
     pub timings: Vec<StageTiming>,
     pub peak_memory_bytes: Option<u64>,
     pub warnings: Vec<String>,
@@ -116,6 +120,7 @@ impl Report {
         observed: &Observed,
         core: &CoreOutput,
         comparisons: &[super::compare::Comparison],
+        normals: Option<super::refine::RefineReport>,
         timings: Vec<(String, f64)>,
     ) -> Self {
         let s = basis.settings().stride;
@@ -187,6 +192,7 @@ impl Report {
                 })
                 .collect(),
             confidence: core.confidence.clone(),
+            normals,
             timings: timings
                 .into_iter()
                 .map(|(stage, seconds)| StageTiming { stage, seconds })
@@ -208,6 +214,8 @@ pub enum OutputError {
     Merl(#[from] crate::brdf::merl::MerlError),
     #[error(transparent)]
     Image(#[from] imageio::ImageIoError),
+    #[error(transparent)]
+    Mesh(#[from] crate::geometry::mesh_io::MeshIoError),
 }
 
 /// A preview of a BRDF on a sphere (see the module header), `size` pixels square.
@@ -243,6 +251,13 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
     imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;
+    if let Some(mesh) = &output.refined_mesh {
+        write_ply(
+            &dir.join("mesh_refined.ply"),
+            mesh,
+            PlyEncoding::BinaryLittleEndian,
+        )?;
+    }
     if !output.comparisons.is_empty() {
         let cdir = dir.join("compare");
         std::fs::create_dir_all(&cdir).map_err(|source| OutputError::Io {

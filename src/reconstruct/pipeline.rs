@@ -9,6 +9,9 @@ use super::nielsen::{NielsenPrior, NielsenSettings};
 use super::observe::{
     DropCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
 };
+use super::refine::{
+    MeshNormals, RefinePixel, RefineReport, RefineSettings, refine_normals, seen_vertices,
+};
 use crate::brdf::basis::{Basis, BasisSettings};
 use crate::brdf::basis_cache::{self, BasisCacheError, CacheStatus};
 use crate::brdf::merl::MerlTable;
@@ -19,7 +22,7 @@ use crate::geometry::colmap::{ColmapError, read_model};
 use crate::geometry::curvature::principal_curvatures;
 use crate::geometry::mesh::{Mesh, MeshReport};
 use crate::geometry::mesh_io::{MeshIoError, load_mesh};
-use crate::geometry::raster::rasterise;
+use crate::geometry::raster::{GBuffer, rasterise};
 use crate::geometry::shadow::shadow_mask;
 use crate::imageio::{self, ImageIoError};
 use crate::render::image::LinearImage;
@@ -43,6 +46,8 @@ pub struct Settings {
     /// Clip level; `None` = `png_scale` for 16-bit files (the largest storable value), no
     /// clipping for EXR.
     pub saturation: Option<f64>,
+    /// Refine the mesh's normals from the images first (`reconstruct::refine`); `None` = off.
+    pub refine: Option<RefineSettings>,
 }
 
 impl Default for Settings {
@@ -56,6 +61,7 @@ impl Default for Settings {
             basis_cache: None,
             png_scale: 1.0,
             saturation: None,
+            refine: None,
         }
     }
 }
@@ -269,6 +275,16 @@ pub struct Observed {
 /// Rasterises the mesh from every light camera (with per-vertex mean curvature and shadow
 /// rays) and turns pixels into observations.
 pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
+    observe_scene_with(scene, settings, |_, _| {})
+}
+
+/// [`observe_scene`], handing every view's G-buffer and observations to `each` (the normal
+/// refinement needs the face and barycentrics behind each observation).
+pub fn observe_scene_with(
+    scene: &Scene,
+    settings: &ObserveSettings,
+    mut each: impl FnMut(&GBuffer, &[Observation]),
+) -> Observed {
     let bvh = Bvh::build(&scene.mesh);
     let curvature = principal_curvatures(&scene.mesh);
     let mut observations = Vec::new();
@@ -315,6 +331,7 @@ pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
             ..*settings
         };
         let (obs, drops) = observe_view(&input, &surface, &s);
+        each(&gbuf, &obs);
         dropped.add(&drops);
         images.push(ImageCounts {
             file: view.file.clone(),
@@ -329,6 +346,24 @@ pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
         images,
         dropped,
     }
+}
+
+/// The pixels the normal refinement works on: every observation of every view, with no
+/// grazing threshold beyond the horizon (a refined normal may turn a grazing pixel towards
+/// the light), tied to the face and barycentrics it was rasterised from.
+pub fn refine_pixels(scene: &Scene, settings: &ObserveSettings) -> Vec<RefinePixel> {
+    let loose = ObserveSettings {
+        min_cos: 0.0,
+        ..*settings
+    };
+    let mut pixels = Vec::new();
+    observe_scene_with(scene, &loose, |gbuf, obs| {
+        pixels.extend(obs.iter().filter_map(|o| {
+            let f = gbuf.get(o.x as usize, o.y as usize)?;
+            Some(RefinePixel::new(o, f.face, f.bary, f.normal))
+        }));
+    });
+    pixels
 }
 
 /// The basis for the settings: from the cache, or built from the neural fits and cached.
@@ -353,6 +388,9 @@ pub struct Output {
     pub report: super::output::Report,
     /// Per light image: the photo beside its re-render (written by `output::write`).
     pub comparisons: Vec<Comparison>,
+    /// The mesh with its refined normals, when a normal refinement was accepted
+    /// (`mesh_refined.ply`).
+    pub refined_mesh: Option<Mesh>,
 }
 
 /// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is unavailable.
@@ -365,8 +403,12 @@ pub fn peak_memory_bytes() -> Option<u64> {
 
 /// A job loaded and observed: what every reconstruction of it starts from.
 pub struct Prepared {
+    /// The scene as reconstructed: its mesh carries the refined normals when a refinement was
+    /// accepted.
     pub scene: Scene,
     pub observed: Observed,
+    /// What the normal refinement did, when it ran.
+    pub refinement: Option<RefineReport>,
     /// (stage, seconds)
     pub timings: Vec<(String, f64)>,
 }
@@ -406,11 +448,56 @@ pub fn prepare(
             drops: observed.dropped,
         });
     }
-    Ok(Prepared {
+    let mut prepared = Prepared {
         scene,
         observed,
+        refinement: None,
         timings,
-    })
+    };
+    if let Some(refine) = &settings.refine {
+        let _seen = refine_prepared(&mut prepared, &settings.observe, refine, progress);
+    }
+    Ok(prepared)
+}
+
+/// Refines the normals of a prepared scene from its images; when the refinement is accepted,
+/// the mesh takes the refined normals and the images are observed again with them. Returns
+/// which vertices some pixel shows.
+pub fn refine_prepared(
+    prepared: &mut Prepared,
+    observe: &ObserveSettings,
+    settings: &RefineSettings,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<bool> {
+    let t = Instant::now();
+    progress("normal refinement: gathering pixels");
+    let scene = &mut prepared.scene;
+    let pixels = refine_pixels(scene, observe);
+    let seen = seen_vertices(scene.mesh.faces(), &pixels, scene.mesh.positions().len());
+    let neighbours = scene.mesh.vertex_neighbours();
+    let refinement = refine_normals(
+        &MeshNormals {
+            faces: scene.mesh.faces(),
+            normals: scene.mesh.vertex_normals(),
+            neighbours: &neighbours,
+        },
+        &pixels,
+        settings,
+        progress,
+    );
+    prepared
+        .timings
+        .push(("refine normals".to_string(), t.elapsed().as_secs_f64()));
+    if refinement.report.accepted && scene.mesh.set_vertex_normals(refinement.normals) {
+        let t = Instant::now();
+        progress("observing again with the refined normals");
+        prepared.observed = observe_scene(scene, observe);
+        prepared
+            .timings
+            .push(("observe (refined)".to_string(), t.elapsed().as_secs_f64()));
+    }
+    prepared.refinement = Some(refinement.report);
+    seen
 }
 
 /// Reconstructs the BRDF of a job: loads and checks the job, then the basis (cache or build).
@@ -457,6 +544,7 @@ pub fn finish(
     let Prepared {
         scene,
         observed,
+        refinement,
         mut timings,
     } = prepared;
     let prior = NielsenPrior {
@@ -482,10 +570,17 @@ pub fn finish(
         &observed,
         &core,
         &comparisons,
+        refinement,
         timings,
     );
+    let refined_mesh = report
+        .normals
+        .as_ref()
+        .is_some_and(|r| r.accepted)
+        .then_some(scene.mesh);
     Ok(Output {
         table,
+        refined_mesh,
         core,
         observed,
         report,
