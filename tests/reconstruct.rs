@@ -397,6 +397,16 @@ fn cli_refine_normals_reports_what_it_did() {
             .contains("at least 3")
     );
     assert!(!out.join("mesh_refined.ply").exists());
+    // The HTML report says what the refinement did.
+    let o = Command::new(util::bin())
+        .arg("report")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("Normals refined from the images"));
+    assert!(html.contains("<b>kept</b>") && html.contains("at least 3"));
     // Out of range: refused before any work, naming the option.
     let o = run_cli(&job.source, &out, &["--refine-normals", "--max-tilt", "90"]);
     assert!(!o.status.success());

@@ -981,7 +981,10 @@ mod tests {
         let before = normal_error_deg(&start, &truth, &seen).expect("seen").0;
         let r = run(&mesh, &start, &px, &RefineSettings::default());
         let after = normal_error_deg(&r.normals, &truth, &seen).expect("seen").0;
-        eprintln!("median error {before:.2} -> {after:.2} deg: {}", r.report.reason);
+        eprintln!(
+            "median error {before:.2} -> {after:.2} deg: {}",
+            r.report.reason
+        );
         assert!(r.report.accepted, "{}", r.report.reason);
         assert!(
             after < 0.5 * before,

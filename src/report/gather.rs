@@ -175,6 +175,31 @@ pub struct ReportData {
     pub ladder: Avail<LadderSection>,
     /// Every light image beside its re-render (`comparisons`).
     pub comparisons: Avail<Vec<ComparisonRow>>,
+    /// The normal refinement (`normals`); `None` when it did not run.
+    pub normals: Option<NormalsSection>,
+}
+
+/// One alternation of the normal refinement, as shown.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalsRow {
+    pub iteration: u64,
+    pub mean_tilt_deg: Option<f64>,
+    pub max_tilt_deg: Option<f64>,
+    pub train_error: Option<f64>,
+    pub held_out_error: Option<f64>,
+}
+
+/// What the normal refinement did (`report.json` `normals`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalsSection {
+    pub accepted: bool,
+    pub reason: String,
+    pub held_out_images: String,
+    pub chosen_iterations: Option<u64>,
+    pub mean_tilt_deg: Option<f64>,
+    pub max_tilt_deg: Option<f64>,
+    pub vertices_refined: Option<u64>,
+    pub rows: Vec<NormalsRow>,
 }
 
 /// One rung of the ladder, as shown.
@@ -365,6 +390,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         other_facts,
         provenance: rj.map(provenance).unwrap_or_default(),
         ladder: rj.map_or_else(|| Avail::No("no report.json".into()), ladder_section),
+        normals: rj.and_then(normals_section),
         comparisons: match (rj, &recon_dir) {
             (Some(v), Some(d)) => comparisons_section(v, d),
             _ => Avail::No("no report.json".into()),
@@ -446,6 +472,37 @@ fn ladder_section(v: &Value) -> Avail<LadderSection> {
         scheme,
         rows,
         plausibility,
+    })
+}
+
+/// `normals` of report.json; `None` when the refinement did not run (absent or null).
+fn normals_section(v: &Value) -> Option<NormalsSection> {
+    let n = v.get("normals").filter(|n| !n.is_null())?;
+    let f = |x: &Value, k: &str| x.get(k).and_then(Value::as_f64);
+    let rows = n
+        .get("iterations")
+        .and_then(Value::as_array)
+        .map(|its| {
+            its.iter()
+                .map(|it| NormalsRow {
+                    iteration: it.get("iteration").and_then(Value::as_u64).unwrap_or(0),
+                    mean_tilt_deg: f(it, "mean_tilt_deg"),
+                    max_tilt_deg: f(it, "max_tilt_deg"),
+                    train_error: f(it, "train_error"),
+                    held_out_error: f(it, "held_out_error"),
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    Some(NormalsSection {
+        accepted: n.get("accepted").and_then(Value::as_bool).unwrap_or(false),
+        reason: n.get("reason").map(value_text).unwrap_or_default(),
+        held_out_images: n.get("held_out_images").map(value_text).unwrap_or_default(),
+        chosen_iterations: n.get("chosen_iterations").and_then(Value::as_u64),
+        mean_tilt_deg: f(n, "mean_tilt_deg"),
+        max_tilt_deg: f(n, "max_tilt_deg"),
+        vertices_refined: n.get("vertices_refined").and_then(Value::as_u64),
+        rows,
     })
 }
 
@@ -1070,8 +1127,9 @@ fn confidence(v: &Value) -> Option<(String, Vec<String>)> {
     Some((level, strings_at(c, "reasons")))
 }
 
-const INTERPRETED: [&str; 23] = [
+const INTERPRETED: [&str; 24] = [
     "model",
+    "normals",
     "ladder",
     "plausibility",
     "comparisons",
@@ -1120,6 +1178,28 @@ fn other_facts(v: &Value) -> Vec<(String, String)> {
 mod tests {
     use super::*;
     use serde_json::json;
+
+    #[test]
+    fn normals_section_when_the_refinement_ran() {
+        assert_eq!(normals_section(&json!({})), None);
+        assert_eq!(normals_section(&json!({"normals": null})), None);
+        let v = json!({"normals": {
+        "accepted": true, "reason": "1 iteration(s) lowered ...", "held_out_images": [1, 5],
+        "chosen_iterations": 1, "mean_tilt_deg": 1.5, "max_tilt_deg": 9.0,
+        "vertices_refined": 300,
+        "iterations": [
+            {"iteration": 0, "mean_tilt_deg": 0.0, "max_tilt_deg": 0.0,
+             "train_error": 0.3, "held_out_error": 0.4},
+            {"iteration": 1, "mean_tilt_deg": 1.4, "max_tilt_deg": 8.0,
+             "train_error": 0.25, "held_out_error": 0.35}
+        ]}});
+        let n = normals_section(&v).unwrap();
+        assert!(n.accepted);
+        assert_eq!(n.chosen_iterations, Some(1));
+        assert_eq!(n.rows.len(), 2);
+        assert_eq!(n.rows[1].held_out_error, Some(0.35));
+        assert!(other_facts(&v).iter().all(|(k, _)| k != "normals"));
+    }
 
     #[test]
     fn timings_in_each_accepted_shape() {

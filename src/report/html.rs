@@ -124,6 +124,9 @@ pub fn render_html(data: &ReportData) -> String {
     section_calibration(&mut h, &data.calibration);
     section_brdf(&mut h, data);
     section_ladder(&mut h, &data.ladder);
+    if let Some(n) = &data.normals {
+        section_normals(&mut h, n);
+    }
     section_comparisons(&mut h, &data.comparisons);
     section_trials(&mut h, &data.trials, &data.components);
     section_timing(&mut h, &data.timing);
@@ -336,6 +339,44 @@ fn section_ladder(h: &mut String, ladder: &Avail<LadderSection>) {
                 kv_table(h, &l.plausibility);
             }
         }
+    }
+}
+
+fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
+    h.push_str("<h2 id=\"normals\">Normals refined from the images</h2>");
+    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+    let _ = write!(
+        h,
+        "<p>The mesh's normals were <b>{}</b>: {}. Held-out light images (they never moved a \
+         normal): {}. Normals returned: mean tilt {} deg, largest {} deg, over {} vertices; \
+         with the refined normals when accepted, <code>mesh_refined.ply</code> is beside this \
+         report's <code>report.json</code>. Errors: mean robust log residual of the pixels \
+         (docs/normal-refinement.md); iteration 0 is the mesh's own normals.</p>",
+        if n.accepted { "refined" } else { "kept" },
+        escape(&n.reason),
+        escape(&n.held_out_images),
+        escape(&num(n.mean_tilt_deg)),
+        escape(&num(n.max_tilt_deg)),
+        n.vertices_refined
+            .map_or("-".to_string(), |v| v.to_string()),
+    );
+    if !n.rows.is_empty() {
+        h.push_str("<table><tr><th>iteration</th><th>mean tilt (deg)</th><th>largest tilt (deg)</th><th>training error</th><th>held-out error</th><th></th></tr>");
+        for r in &n.rows {
+            let chosen = n.accepted && Some(r.iteration) == n.chosen_iterations;
+            let _ = write!(
+                h,
+                "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                if chosen { " class=\"chosen\"" } else { "" },
+                r.iteration,
+                escape(&num(r.mean_tilt_deg)),
+                escape(&num(r.max_tilt_deg)),
+                escape(&num(r.train_error)),
+                escape(&num(r.held_out_error)),
+                if chosen { "chosen" } else { "" }
+            );
+        }
+        h.push_str("</table>");
     }
 }
 
