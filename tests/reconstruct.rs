@@ -352,6 +352,7 @@ fn normal_refinement_recovers_turned_normals_from_the_rendered_images() {
     let before = prepared.scene.mesh.vertex_normals().to_vec();
     let seen = brdf_rig::reconstruct::pipeline::refine_prepared(
         &mut prepared,
+        None,
         &settings.observe,
         &brdf_rig::reconstruct::refine::RefineSettings::default(),
         &mut |_| {},

@@ -31,7 +31,8 @@ use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observe::{Observation, ObserveSettings};
 use crate::reconstruct::pipeline::{
-    Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene, refine_prepared,
+    Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene,
+    observe_scene_and_pixels, refine_prepared,
 };
 use crate::reconstruct::refine::{RefineReport, RefineSettings, normal_error_deg};
 use crate::reconstruct::synthetic::{SceneSpec, write_scene};
@@ -351,7 +352,7 @@ pub fn refine_case(
     refine: &RefineSettings,
     truth: &Mesh,
 ) -> RefinedCase {
-    let observed = observe_scene(&scene, observe);
+    let (observed, pixels) = observe_scene_and_pixels(&scene, observe);
     let unrefined = observed.observations.clone();
     let before = scene.mesh.vertex_normals().to_vec();
     let mut prepared = Prepared {
@@ -360,7 +361,7 @@ pub fn refine_case(
         refinement: None,
         timings: Vec::new(),
     };
-    let seen = refine_prepared(&mut prepared, observe, refine, &mut |_| {});
+    let seen = refine_prepared(&mut prepared, Some(pixels), observe, refine, &mut |_| {});
     let after = prepared.scene.mesh.vertex_normals();
     let study = if truth.positions().len() == before.len() {
         let tn = truth.vertex_normals();

@@ -275,15 +275,24 @@ pub struct Observed {
 /// Rasterises the mesh from every light camera (with per-vertex mean curvature and shadow
 /// rays) and turns pixels into observations.
 pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
-    observe_scene_with(scene, settings, |_, _| {})
+    observe_scene_with(scene, settings, |_| {})
 }
 
-/// [`observe_scene`], handing every view's G-buffer and observations to `each` (the normal
-/// refinement needs the face and barycentrics behind each observation).
+/// One view as [`observe_scene_with`] hands it on.
+pub struct ViewPass<'a> {
+    pub gbuffer: &'a GBuffer,
+    pub input: &'a ViewInput<'a>,
+    pub surface: &'a [SurfacePixel],
+    /// The observation settings of this view (its clip level filled in).
+    pub settings: &'a ObserveSettings,
+}
+
+/// [`observe_scene`], handing every view's G-buffer, surface pixels and settings to `each`
+/// (the normal refinement gathers its pixels in the same pass: one rasterisation).
 pub fn observe_scene_with(
     scene: &Scene,
     settings: &ObserveSettings,
-    mut each: impl FnMut(&GBuffer, &[Observation]),
+    mut each: impl FnMut(&ViewPass<'_>),
 ) -> Observed {
     let bvh = Bvh::build(&scene.mesh);
     let curvature = principal_curvatures(&scene.mesh);
@@ -331,7 +340,12 @@ pub fn observe_scene_with(
             ..*settings
         };
         let (obs, drops) = observe_view(&input, &surface, &s);
-        each(&gbuf, &obs);
+        each(&ViewPass {
+            gbuffer: &gbuf,
+            input: &input,
+            surface: &surface,
+            settings: &s,
+        });
         dropped.add(&drops);
         images.push(ImageCounts {
             file: view.file.clone(),
@@ -352,18 +366,27 @@ pub fn observe_scene_with(
 /// grazing threshold beyond the horizon (a refined normal may turn a grazing pixel towards
 /// the light), tied to the face and barycentrics it was rasterised from.
 pub fn refine_pixels(scene: &Scene, settings: &ObserveSettings) -> Vec<RefinePixel> {
-    let loose = ObserveSettings {
-        min_cos: 0.0,
-        ..*settings
-    };
+    observe_scene_and_pixels(scene, settings).1
+}
+
+/// [`observe_scene`] and [`refine_pixels`] from one rasterisation of every view.
+pub fn observe_scene_and_pixels(
+    scene: &Scene,
+    settings: &ObserveSettings,
+) -> (Observed, Vec<RefinePixel>) {
     let mut pixels = Vec::new();
-    observe_scene_with(scene, &loose, |gbuf, obs| {
+    let observed = observe_scene_with(scene, settings, |pass| {
+        let loose = ObserveSettings {
+            min_cos: 0.0,
+            ..*pass.settings
+        };
+        let (obs, _) = observe_view(pass.input, pass.surface, &loose);
         pixels.extend(obs.iter().filter_map(|o| {
-            let f = gbuf.get(o.x as usize, o.y as usize)?;
+            let f = pass.gbuffer.get(o.x as usize, o.y as usize)?;
             Some(RefinePixel::new(o, f.face, f.bary, f.normal))
         }));
     });
-    pixels
+    (observed, pixels)
 }
 
 /// The basis for the settings: from the cache, or built from the neural fits and cached.
@@ -426,7 +449,13 @@ pub fn prepare(
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
     progress("rasterising and observing");
-    let observed = observe_scene(&scene, &settings.observe);
+    let (observed, pixels) = match settings.refine {
+        Some(_) => {
+            let (o, p) = observe_scene_and_pixels(&scene, &settings.observe);
+            (o, Some(p))
+        }
+        None => (observe_scene(&scene, &settings.observe), None),
+    };
     timings.push(("observe".to_string(), t.elapsed().as_secs_f64()));
     // An image that gives no observation is worth a warning: a wrong light direction (the
     // light behind every surface), a black, NaN or negative image, a wrong mask.
@@ -455,24 +484,28 @@ pub fn prepare(
         timings,
     };
     if let Some(refine) = &settings.refine {
-        let _seen = refine_prepared(&mut prepared, &settings.observe, refine, progress);
+        let _seen = refine_prepared(&mut prepared, pixels, &settings.observe, refine, progress);
     }
     Ok(prepared)
 }
 
 /// Refines the normals of a prepared scene from its images; when the refinement is accepted,
 /// the mesh takes the refined normals and the images are observed again with them. Returns
-/// which vertices some pixel shows.
+/// which vertices some pixel shows. `pixels`: the refinement's pixels when the observation
+/// pass gathered them ([`observe_scene_and_pixels`]), else they are gathered here.
 pub fn refine_prepared(
     prepared: &mut Prepared,
+    pixels: Option<Vec<RefinePixel>>,
     observe: &ObserveSettings,
     settings: &RefineSettings,
     progress: &mut dyn FnMut(&str),
 ) -> Vec<bool> {
     let t = Instant::now();
-    progress("normal refinement: gathering pixels");
     let scene = &mut prepared.scene;
-    let pixels = refine_pixels(scene, observe);
+    let pixels = pixels.unwrap_or_else(|| {
+        progress("normal refinement: gathering pixels");
+        refine_pixels(scene, observe)
+    });
     let seen = seen_vertices(scene.mesh.faces(), &pixels, scene.mesh.positions().len());
     let neighbours = scene.mesh.vertex_neighbours();
     let refinement = refine_normals(
