@@ -232,35 +232,9 @@ pub fn grid(
     (p, f)
 }
 
-/// A UV sphere of radius `r` about the origin, outward faces: `rings` latitude bands.
+/// A UV sphere of radius `r` (`geometry::mesh::uv_sphere`).
 pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> Mesh {
-    let mut p = vec![Point3::new(0.0, 0.0, r)];
-    for i in 1..rings {
-        let th = std::f64::consts::PI * i as f64 / rings as f64;
-        for j in 0..segments {
-            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
-            p.push(Point3::new(
-                r * th.sin() * ph.cos(),
-                r * th.sin() * ph.sin(),
-                r * th.cos(),
-            ));
-        }
-    }
-    p.push(Point3::new(0.0, 0.0, -r));
-    let south = (p.len() - 1) as i64;
-    let id = |i: usize, j: usize| (1 + (i - 1) * segments + j % segments) as i64;
-    let mut f = Vec::new();
-    for j in 0..segments {
-        f.push([0, id(1, j), id(1, j + 1)]);
-        f.push([south, id(rings - 1, j + 1), id(rings - 1, j)]);
-    }
-    for i in 1..rings - 1 {
-        for j in 0..segments {
-            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    Mesh::new(p, f, "<uv sphere>").unwrap().0
+    brdf_rig::geometry::mesh::uv_sphere(r, rings, segments).unwrap()
 }
 
 #[test]

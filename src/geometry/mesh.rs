@@ -263,6 +263,40 @@ impl Mesh {
     }
 }
 
+/// A UV sphere of radius `r` about the origin with outward faces: `rings` latitude bands (at
+/// least 2) of `segments` quads (at least 3), poles as single vertices. For tests and studies
+/// that need a closed surface whose true normal is known everywhere (`position / r`).
+pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> Result<Mesh, MeshError> {
+    let (rings, segments) = (rings.max(2), segments.max(3));
+    let mut p = vec![Point3::new(0.0, 0.0, r)];
+    for i in 1..rings {
+        let th = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            p.push(Point3::new(
+                r * th.sin() * ph.cos(),
+                r * th.sin() * ph.sin(),
+                r * th.cos(),
+            ));
+        }
+    }
+    p.push(Point3::new(0.0, 0.0, -r));
+    let south = (p.len() - 1) as i64;
+    let id = |i: usize, j: usize| (1 + (i - 1) * segments + j % segments) as i64;
+    let mut f = Vec::new();
+    for j in 0..segments {
+        f.push([0, id(1, j), id(1, j + 1)]);
+        f.push([south, id(rings - 1, j + 1), id(rings - 1, j)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..segments {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Ok(Mesh::new(p, f, "<uv sphere>")?.0)
+}
+
 /// A face is degenerate when two corners share an index or its area vanishes relative to its
 /// longest edge (collinear corners).
 fn is_degenerate(positions: &[Point3<f64>], f: [u32; 3]) -> bool {
@@ -368,5 +402,21 @@ mod tests {
         assert_eq!(m.vertex_normals(), &before[..], "unchanged after a refusal");
         let nb = m.vertex_neighbours();
         assert!(nb.iter().all(|n| n.len() == 3), "a tetrahedron: three each");
+    }
+
+    #[test]
+    fn a_uv_sphere_is_closed_and_its_normals_are_radial() {
+        let m = uv_sphere(2.0, 8, 12).expect("valid");
+        assert_eq!(m.positions().len(), 2 + 7 * 12);
+        assert_eq!(m.faces().len(), 2 * 12 + 2 * 6 * 12);
+        for (p, n) in m.positions().iter().zip(m.vertex_normals()) {
+            assert!((p.coords.norm() - 2.0).abs() < 1e-12);
+            assert!(n.dot(&(p.coords / 2.0)) > 0.98, "outward, near radial");
+        }
+        // degenerate requests are raised to the smallest closed sphere
+        assert_eq!(
+            uv_sphere(1.0, 0, 0).expect("valid").positions().len(),
+            2 + 3
+        );
     }
 }

@@ -28,6 +28,7 @@
 //! Pure: pixels come from `pipeline::refine_pixels`; no I/O.
 
 use super::observe::Observation;
+use crate::render::frame::ShadingFrame;
 use nalgebra::{Rotation3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -205,19 +206,22 @@ pub fn normal_error_deg(
     truth: &[Vector3<f64>],
     which: &[bool],
 ) -> Option<(f64, f64)> {
-    let mut a: Vec<f64> = estimated
+    let a = angles_deg(estimated, truth, which);
+    let mean = a.iter().sum::<f64>() / a.len().max(1) as f64;
+    Some((*a.get(a.len() / 2)?, mean))
+}
+
+/// Angles between `a` and `b` over the vertices in `which`, degrees, sorted.
+fn angles_deg(a: &[Vector3<f64>], b: &[Vector3<f64>], which: &[bool]) -> Vec<f64> {
+    let mut t: Vec<f64> = a
         .iter()
-        .zip(truth)
+        .zip(b)
         .zip(which)
         .filter(|(_, w)| **w)
-        .map(|((e, t), _)| angle_deg(e, t))
+        .map(|((x, y), _)| angle_deg(x, y))
         .collect();
-    if a.is_empty() {
-        return None;
-    }
-    a.sort_by(f64::total_cmp);
-    let mean = a.iter().sum::<f64>() / a.len() as f64;
-    Some((a[a.len() / 2], mean))
+    t.sort_by(f64::total_cmp);
+    t
 }
 
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
@@ -543,13 +547,7 @@ impl Problem<'_> {
     ) -> Vector3<f64> {
         let s = self.settings;
         let cur = n[v];
-        let helper = if cur.x.abs() < 0.9 {
-            Vector3::x()
-        } else {
-            Vector3::y()
-        };
-        let t1 = cur.cross(&helper).normalize();
-        let t2 = cur.cross(&t1);
+        let ShadingFrame { t: t1, b: t2, .. } = ShadingFrame::new(cur);
         let parts: Vec<(&RefinePixel, Vector3<f64>, f64)> = window
             .iter()
             .filter_map(|&(i, w)| {
@@ -661,19 +659,10 @@ fn clamp_tilt(n: &Vector3<f64>, n0: &Vector3<f64>, max: f64) -> Vector3<f64> {
 
 /// Tilt from `n0` over the vertices in `which`, degrees: (mean, max).
 fn tilt_stats(n: &[Vector3<f64>], n0: &[Vector3<f64>], which: &[bool]) -> (f64, f64) {
-    let t: Vec<f64> = n
-        .iter()
-        .zip(n0)
-        .zip(which)
-        .filter(|(_, w)| **w)
-        .map(|((a, b), _)| angle_deg(a, b))
-        .collect();
-    if t.is_empty() {
-        return (0.0, 0.0);
-    }
+    let t = angles_deg(n, n0, which);
     (
-        t.iter().sum::<f64>() / t.len() as f64,
-        t.iter().copied().fold(0.0, f64::max),
+        t.iter().sum::<f64>() / t.len().max(1) as f64,
+        t.last().copied().unwrap_or(0.0),
     )
 }
 
@@ -843,38 +832,10 @@ pub fn refine_normals(
 mod tests {
     use super::*;
     use crate::geometry::mesh::Mesh;
-    use nalgebra::Point3;
     use rand::{Rng, SeedableRng};
 
-    /// A UV sphere of radius 1 (`rings` x `segments`), outward faces.
     fn sphere(rings: usize, segments: usize) -> Mesh {
-        let mut p = vec![Point3::new(0.0, 0.0, 1.0)];
-        for r in 1..rings {
-            let th = PI * r as f64 / rings as f64;
-            for s in 0..segments {
-                let ph = 2.0 * PI * s as f64 / segments as f64;
-                p.push(Point3::new(
-                    th.sin() * ph.cos(),
-                    th.sin() * ph.sin(),
-                    th.cos(),
-                ));
-            }
-        }
-        p.push(Point3::new(0.0, 0.0, -1.0));
-        let last = (p.len() - 1) as i64;
-        let idx = |r: usize, s: usize| (1 + (r - 1) * segments + s % segments) as i64;
-        let mut f = Vec::new();
-        for s in 0..segments {
-            f.push([0, idx(1, s), idx(1, s + 1)]);
-            f.push([last, idx(rings - 1, s + 1), idx(rings - 1, s)]);
-        }
-        for r in 1..rings - 1 {
-            for s in 0..segments {
-                f.push([idx(r, s), idx(r + 1, s), idx(r + 1, s + 1)]);
-                f.push([idx(r, s), idx(r + 1, s + 1), idx(r, s + 1)]);
-            }
-        }
-        Mesh::new(p, f, "sphere").expect("valid sphere").0
+        crate::geometry::mesh::uv_sphere(1.0, rings, segments).expect("valid sphere")
     }
 
     /// A BRDF as `sum_c f_c`: a Lambertian plus a Blinn-Phong lobe of exponent `e`.
