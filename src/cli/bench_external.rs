@@ -31,10 +31,18 @@ pub struct BenchExternalArgs {
     /// Output folder for external.md and external.json.
     #[arg(long, default_value = "docs/eval")]
     pub out: PathBuf,
+    /// Reconstruct with the normals refined from the images (`reconstruct --refine-normals`).
+    #[arg(long)]
+    pub refine_normals: bool,
 }
 
 pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
-    let settings = Settings::default();
+    let settings = Settings {
+        refine: a
+            .refine_normals
+            .then(brdf_rig::reconstruct::refine::RefineSettings::default),
+        ..Settings::default()
+    };
     let materials = nbrdf::load_dir(&settings.nbrdf_dir).with_context(|| {
         format!(
             "loading the neural MERL fits from {}",
@@ -48,10 +56,15 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let (basis, _) = basis_cache::load_or_build(&BasisSettings::default(), &materials, &cache)
         .context("loading the basis")?;
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --bin-step {} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --bin-step {}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.bin_step,
+        if a.refine_normals {
+            " --refine-normals"
+        } else {
+            ""
+        },
         a.out.display()
     );
     let machine = super::bench::machine();
