@@ -406,8 +406,9 @@ fn a_port_gone_longer_than_the_watchdog_comes_back_with_the_light_on() {
     assert!(ev.contains(&RigEvent::LightsRestored), "{ev:?}");
 }
 
-/// A board that ignores its port for 400 ms after it starts and after every re-plug, as an
-/// Arduino's bootloader does after the reset that opening its port causes. With 20 ms x 3
+/// A board that ignores its port for 400 ms from the host's open after it starts and after every
+/// re-plug, as an Arduino's bootloader does after the reset that opening its port causes (timed
+/// from the open, so a host that reconnects late on a loaded machine still meets the bootloader). With 20 ms x 3
 /// attempts and no boot window the handshake gives up; with a boot window it waits the board
 /// out, at start and again after the port vanished and came back.
 #[test]

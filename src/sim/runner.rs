@@ -51,9 +51,10 @@ pub struct SimConfig {
     pub faults: LinkFaults,
     /// Seed of the fault RNG.
     pub seed: u64,
-    /// After it starts, and after the port comes back from an unplug, the board ignores what
-    /// it receives for this long, as an Arduino's bootloader holds the UART after the reset
-    /// that opening (or plugging in) its port causes.
+    /// When a host first opens the port after the board started, and after the port came back
+    /// from an unplug, the board ignores what it receives for this long, as an Arduino's
+    /// bootloader holds the UART after the reset that opening its port causes. The window runs
+    /// from the host's open, however late the host comes.
     pub boot_delay: Duration,
     /// Where to put the port symlink; a fresh temporary directory when `None`.
     pub link_path: Option<PathBuf>,
@@ -176,11 +177,11 @@ pub struct SimRig {
     _dir: Option<tempfile::TempDir>,
 }
 
-/// The two ends of one pty. The runner keeps the slave open too, so reading the master never
-/// fails with EIO while no host has the port open.
+/// The master side of one pty. The runner does not keep the slave open: reading the master
+/// fails (EIO) while no host has the port open, which is how the board sees the host open the
+/// port and starts its bootloader then, as the reset that opening an Arduino's port causes.
 struct Pty {
     master: TTYPort,
-    _slave: TTYPort,
 }
 
 /// A bare pty pair `(master, slave)`, made under the same lock as the runner's (for tests that
@@ -204,10 +205,8 @@ fn open_pty(link: &Path) -> std::io::Result<Pty> {
     let _ = std::fs::remove_file(&tmp);
     std::os::unix::fs::symlink(&target, &tmp)?;
     std::fs::rename(&tmp, link)?;
-    Ok(Pty {
-        master,
-        _slave: slave,
-    })
+    drop(slave);
+    Ok(Pty { master })
 }
 
 impl SimRig {
@@ -245,7 +244,9 @@ impl SimRig {
             rx: Vec::new(),
             outbox: VecDeque::new(),
             boot_delay: config.boot_delay,
-            booted_at: Instant::now() + config.boot_delay,
+            booted_at: Instant::now(),
+            host_open: false,
+            boot_pending: true,
         };
         let thread = std::thread::Builder::new()
             .name("brdf-sim-firmware".into())
@@ -287,6 +288,10 @@ struct Server {
     boot_delay: Duration,
     /// Until then the bootloader runs: received bytes are discarded.
     booted_at: Instant,
+    /// Whether a host has the port open (the master's reads do not fail).
+    host_open: bool,
+    /// The board has started (or come back from an unplug) and boots when a host opens it.
+    boot_pending: bool,
 }
 
 impl Server {
@@ -302,13 +307,28 @@ impl Server {
                 return;
             };
             let n = match pty.master.read(&mut buf) {
-                Ok(n) => n,
-                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => 0,
-                Err(_) => {
-                    std::thread::sleep(Duration::from_millis(1));
-                    0
-                }
+                Ok(n) => Some(n),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Some(0),
+                Err(_) => None,
             };
+            let Some(n) = n else {
+                // No host has the port open: nothing to read, nothing to answer, and the
+                // firmware keeps running (watchdog, motion).
+                self.host_open = false;
+                self.outbox.clear();
+                let now = self.sim.now_us();
+                self.sim.lock().advance(now);
+                std::thread::sleep(Duration::from_millis(1));
+                continue;
+            };
+            if !self.host_open {
+                self.host_open = true;
+                if self.boot_pending {
+                    // Opening the port resets the board: its bootloader holds the UART from now.
+                    self.boot_pending = false;
+                    self.booted_at = Instant::now() + self.boot_delay;
+                }
+            }
             if Instant::now() < self.booted_at {
                 // The bootloader reads the UART and finds no programmer: the bytes are gone.
                 continue;
@@ -397,7 +417,8 @@ impl Server {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
-        self.booted_at = Instant::now() + self.boot_delay;
+        self.host_open = false;
+        self.boot_pending = true;
         self.faults.lock().unplugged = false;
     }
 }
