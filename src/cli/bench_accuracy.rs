@@ -353,9 +353,11 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
             }
             if let Some(n) = &r.normals {
                 eprintln!(
-                    "  normals: median error {:.2} -> {:.2} deg ({}, {} iteration(s), mean tilt {:.2} deg); unrefined env {:.3}, exact env {:.3}",
+                    "  normals: median error {:.2} -> {:.2} deg (pixels {:.2} -> {:.2}; {}, {} iteration(s), mean tilt {:.2} deg); unrefined env {:.3}, exact env {:.3}",
                     n.median_before_deg,
                     n.median_after_deg,
+                    n.pixel_median_before_deg,
+                    n.pixel_median_after_deg,
                     if n.report.accepted { "accepted" } else { "refused" },
                     n.report.chosen_iterations,
                     n.report.mean_tilt_deg,

@@ -34,7 +34,9 @@ use crate::reconstruct::pipeline::{
     Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene,
     observe_scene_and_pixels, refine_prepared,
 };
-use crate::reconstruct::refine::{RefineReport, RefineSettings, normal_error_deg};
+use crate::reconstruct::refine::{
+    RefineReport, RefineSettings, normal_error_deg, pixel_normal_error_deg,
+};
 use crate::reconstruct::synthetic::{SceneSpec, write_scene};
 use crate::reconstruct::{Job, prior::Candidate};
 use crate::render::probe::{
@@ -333,6 +335,10 @@ pub struct NormalStudy {
     pub mean_before_deg: f64,
     pub median_after_deg: f64,
     pub mean_after_deg: f64,
+    /// Angle between the normal a pixel gets (its face's corners blended) and the true one,
+    /// over every refinement pixel, degrees: median before and after.
+    pub pixel_median_before_deg: f64,
+    pub pixel_median_after_deg: f64,
 }
 
 /// Observations of a loaded scene with its normals refined (`reconstruct::refine`), those
@@ -361,16 +367,27 @@ pub fn refine_case(
         refinement: None,
         timings: Vec::new(),
     };
-    let seen = refine_prepared(&mut prepared, Some(pixels), observe, refine, &mut |_| {});
+    let seen = refine_prepared(
+        &mut prepared,
+        Some(pixels.clone()),
+        observe,
+        refine,
+        &mut |_| {},
+    );
     let after = prepared.scene.mesh.vertex_normals();
     let study = if truth.positions().len() == before.len() {
         let tn = truth.vertex_normals();
+        let faces = prepared.scene.mesh.faces();
         match (
             normal_error_deg(&before, tn, &seen),
             normal_error_deg(after, tn, &seen),
+            pixel_normal_error_deg(faces, &pixels, &before, tn),
+            pixel_normal_error_deg(faces, &pixels, after, tn),
             prepared.refinement.clone(),
         ) {
-            (Some(b), Some(a), Some(report)) => Some(NormalStudy {
+            (Some(b), Some(a), Some(pb), Some(pa), Some(report)) => Some(NormalStudy {
+                pixel_median_before_deg: pb.0,
+                pixel_median_after_deg: pa.0,
                 report,
                 seen_vertices: seen.iter().filter(|s| **s).count(),
                 median_before_deg: b.0,

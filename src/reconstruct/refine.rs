@@ -5,13 +5,19 @@
 //! several light images, each lighting it from another direction relative to the surface (on a
 //! turntable the object turns under the light), so the images constrain the normals. The
 //! refinement alternates:
-//! 1. fit a bivariate reflectance table f(theta_h, theta_d) (bilinear, so normals have
-//!    gradients) to the pixels with the current normals;
-//! 2. move every vertex normal to lower the robust log-space residual of the pixels around it
-//!    (Gauss-Newton on two tangent angles, numeric derivatives, Jacobi sweeps in parallel),
-//!    under a smoothness prior on the correction (a vertex's change of normal against the mean
-//!    change of its one-ring: the mesh's own detail is kept, the offset field is smooth) and an
-//!    anchor towards the mesh's own normal, and never further than a bounded tilt from it.
+//! 1. fit a reflectance table f(theta_h, theta_d, phi_d) (32x16x8 cells, trilinear, so normals
+//!    have gradients) to the pixels with the current normals;
+//! 2. move every vertex normal at once to lower the robust log-space residual of the pixels
+//!    (damped Gauss-Newton on two tangent angles per vertex, numeric derivatives of the table).
+//!    A pixel's normal is the blend of its face's three vertex normals, so each residual couples
+//!    three vertices and a vertex moves for its own share of each pixel: the normal equations
+//!    are solved jointly (conjugate gradients, matrix-free, in parallel). A photogrammetry
+//!    mesh's normal error is high-frequency (a displaced vertex tilts its neighbours the other
+//!    way), which a per-vertex window fit cannot follow (tried first: it smoothed the field and
+//!    left the error). Priors on the offset field (refined minus mesh normal): an anchor to the
+//!    mesh's normal and a smoothness (a vertex's offset against the mean of its one-ring's),
+//!    weighted like the mean pixels of a vertex, so a vertex finer than the pixels follows its
+//!    neighbours; and never further than a bounded tilt from the mesh's normal.
 //!
 //! Guard against explaining the reflectance away: the number of iterations is chosen on
 //! held-out light images (every `hold_out_every`-th image; they never move a normal), and a
@@ -29,7 +35,7 @@
 
 use super::observe::Observation;
 use crate::render::frame::ShadingFrame;
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -76,10 +82,11 @@ impl RefinePixel {
 pub struct RefineSettings {
     /// Most alternations of fit and normal update.
     pub max_iterations: usize,
-    /// Jacobi sweeps over the vertices per alternation.
+    /// Gauss-Newton steps on all the normals per alternation.
     pub sweeps: usize,
-    /// Step factor of a Jacobi sweep (each pixel is shared by three vertices that move at once;
-    /// a full step would overshoot).
+    /// Conjugate-gradient iterations per Gauss-Newton step.
+    pub cg_iterations: usize,
+    /// First trial length of a Gauss-Newton step (halved until the cost drops).
     pub step: f64,
     /// No normal turns further than this from the mesh's own, degrees.
     pub max_tilt_deg: f64,
@@ -90,15 +97,7 @@ pub struct RefineSettings {
     pub smooth_deg: f64,
     /// Expected error of the mesh's normals, degrees (the anchor).
     pub anchor_deg: f64,
-    /// A vertex's window grows ring by ring over the mesh until it holds this many pixels (a
-    /// mesh finer than the pixels still gets a smooth field; a coarse one uses only the faces
-    /// around the vertex).
-    pub window_pixels: usize,
-    /// Largest window, in rings of the mesh.
-    pub max_rings: usize,
-    /// Pixels per window used (evenly drawn when more).
-    pub max_pixels_per_vertex: usize,
-    /// A vertex whose largest window holds fewer pixels keeps its normal.
+    /// A vertex with fewer pixels on its faces keeps its normal.
     pub min_pixels_per_vertex: usize,
     /// Every this-many-th light image is held out to choose the iterations (at least 3 images).
     pub hold_out_every: usize,
@@ -117,15 +116,13 @@ impl Default for RefineSettings {
         Self {
             max_iterations: 8,
             sweeps: 3,
+            cg_iterations: 60,
             step: 1.0,
             max_tilt_deg: 20.0,
             residual_sigma: 0.1,
-            smooth_deg: 10.0,
+            smooth_deg: 20.0,
             anchor_deg: 20.0,
-            window_pixels: 24,
-            max_rings: 6,
-            max_pixels_per_vertex: 48,
-            min_pixels_per_vertex: 8,
+            min_pixels_per_vertex: 2,
             hold_out_every: 4,
             min_gain: 0.005,
             max_fit_pixels: 20_000,
@@ -207,6 +204,32 @@ pub fn normal_error_deg(
     which: &[bool],
 ) -> Option<(f64, f64)> {
     let a = angles_deg(estimated, truth, which);
+    let mean = a.iter().sum::<f64>() / a.len().max(1) as f64;
+    Some((*a.get(a.len() / 2)?, mean))
+}
+
+/// Angles between the normals two sets of vertex normals give the pixels (each pixel's blend of
+/// its face's corners, as the rasteriser makes it), degrees: (median, mean). The error as the
+/// images see it: a vertex finer than the pixels counts only through the pixels it shades.
+/// `None` without pixels.
+pub fn pixel_normal_error_deg(
+    faces: &[[u32; 3]],
+    pixels: &[RefinePixel],
+    estimated: &[Vector3<f64>],
+    truth: &[Vector3<f64>],
+) -> Option<(f64, f64)> {
+    let blend = |p: &RefinePixel, n: &[Vector3<f64>]| -> Option<Vector3<f64>> {
+        let f = faces.get(p.face as usize)?;
+        let m: Vector3<f64> = (0..3)
+            .map(|j| n.get(f[j] as usize).map(|v| v * f64::from(p.bary[j])))
+            .sum::<Option<Vector3<f64>>>()?;
+        m.try_normalize(1e-12)
+    };
+    let mut a: Vec<f64> = pixels
+        .iter()
+        .filter_map(|p| Some(angle_deg(&blend(p, estimated)?, &blend(p, truth)?)))
+        .collect();
+    a.sort_by(f64::total_cmp);
     let mean = a.iter().sum::<f64>() / a.len().max(1) as f64;
     Some((*a.get(a.len() / 2)?, mean))
 }
@@ -379,7 +402,7 @@ struct Problem<'a> {
     eps: f64,
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
     fn pixel_normal(&self, p: &RefinePixel, n: &[Vector3<f64>]) -> Option<Vector3<f64>> {
         let f = self.mesh.faces.get(p.face as usize)?;
         let blend: Vector3<f64> = (0..3)
@@ -441,206 +464,383 @@ impl Problem<'_> {
         Model::fit(&samples)
     }
 
-    /// Per vertex, the window of pixels that moves it, with a weight per pixel (1 on the faces
-    /// around the vertex, `1 / (1 + ring)` beyond), capped and evenly drawn.
-    fn windows(&self, idx: &[usize]) -> Vec<Vec<(u32, f32)>> {
+    /// The priors for a refinement from the pixels `idx`: a vertex moves when at least
+    /// `min_pixels_per_vertex` of them lie on its faces; the priors weigh like the mean data
+    /// weight (both cosines) a movable vertex gets.
+    fn prior(&self, idx: &[usize]) -> Prior<'a> {
         let s = self.settings;
         let vertices = self.mesh.normals.len();
-        let mut face_pixels: Vec<Vec<u32>> = vec![Vec::new(); self.mesh.faces.len()];
+        let mut count = vec![0usize; vertices];
+        let mut weight = vec![0.0f64; vertices];
         for &i in idx {
-            if let Some(l) = face_pixels.get_mut(self.pixels[i].face as usize) {
-                l.push(i as u32);
-            }
-        }
-        let mut vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); vertices];
-        for (f, face) in self.mesh.faces.iter().enumerate() {
-            if face_pixels[f].is_empty() {
+            let p = &self.pixels[i];
+            let Some(f) = self.mesh.faces.get(p.face as usize) else {
                 continue;
-            }
-            for &v in face {
-                vertex_faces[v as usize].push(f as u32);
+            };
+            let w = self
+                .pixel_normal(p, self.mesh.normals)
+                .map_or(0.0, |np| (np.dot(&p.light) * np.dot(&p.view)).max(0.0));
+            for k in 0..3 {
+                count[f[k] as usize] += 1;
+                weight[f[k] as usize] += w * f64::from(p.bary[k]);
             }
         }
-        let cap = s.max_pixels_per_vertex.max(1);
-        (0..vertices)
-            .into_par_iter()
+        let movable: Vec<bool> = (0..vertices)
             .map(|v| {
-                let mut seen_v = std::collections::HashSet::from([v as u32]);
-                let mut seen_f = std::collections::HashSet::new();
-                let mut frontier = vec![v as u32];
-                let mut picked: Vec<(u32, f32)> = Vec::new();
-                for ring in 0..=s.max_rings {
-                    let weight = 1.0 / (1.0 + ring as f32);
-                    for &u in &frontier {
-                        for &f in &vertex_faces[u as usize] {
-                            if seen_f.insert(f) {
-                                picked.extend(face_pixels[f as usize].iter().map(|&p| (p, weight)));
-                            }
-                        }
-                    }
-                    if picked.len() >= s.window_pixels {
-                        break;
-                    }
-                    let mut next = Vec::new();
-                    for &u in &frontier {
-                        for &w in &self.mesh.neighbours[u as usize] {
-                            if seen_v.insert(w) {
-                                next.push(w);
-                            }
-                        }
-                    }
-                    if next.is_empty() {
-                        break;
-                    }
-                    frontier = next;
-                }
-                if picked.len() > cap {
-                    let n = picked.len();
-                    picked = (0..cap).map(|k| picked[k * n / cap]).collect();
-                }
-                picked
+                count[v] >= s.min_pixels_per_vertex.max(1)
+                    && self.mesh.normals[v] != Vector3::zeros()
             })
-            .collect()
-    }
-
-    /// The normal of every pixel in `idx` under vertex normals `n` (indexed like the pixels).
-    fn pixel_normals(&self, n: &[Vector3<f64>]) -> Vec<Option<Vector3<f64>>> {
-        self.pixels
-            .par_iter()
-            .map(|p| self.pixel_normal(p, n))
-            .collect()
-    }
-
-    /// One Jacobi sweep: every vertex's new normal given the others' current ones.
-    fn sweep(
-        &self,
-        model: &Model,
-        windows: &[Vec<(u32, f32)>],
-        n: &[Vector3<f64>],
-        n0: &[Vector3<f64>],
-    ) -> Vec<Vector3<f64>> {
-        let normals = self.pixel_normals(n);
-        (0..n.len())
-            .into_par_iter()
-            .map(|v| {
-                if windows[v].len() < self.settings.min_pixels_per_vertex
-                    || n[v] == Vector3::zeros()
-                {
-                    return n[v];
-                }
-                self.solve_vertex(model, v, &windows[v], &normals, n, n0)
-            })
-            .collect()
-    }
-
-    /// One damped Gauss-Newton step on the rotation (two angles about the tangent axes of
-    /// vertex `v`) that best explains the pixels of its window, applied to its normal; the
-    /// Cauchy loss as iteratively reweighted least squares.
-    fn solve_vertex(
-        &self,
-        model: &Model,
-        v: usize,
-        window: &[(u32, f32)],
-        pixel_normals: &[Option<Vector3<f64>>],
-        n: &[Vector3<f64>],
-        n0: &[Vector3<f64>],
-    ) -> Vector3<f64> {
-        let s = self.settings;
-        let cur = n[v];
-        let ShadingFrame { t: t1, b: t2, .. } = ShadingFrame::new(cur);
-        let parts: Vec<(&RefinePixel, Vector3<f64>, f64)> = window
+            .collect();
+        let (sum, k) = movable
             .iter()
-            .filter_map(|&(i, w)| {
-                let np = pixel_normals[i as usize]?;
-                let p = &self.pixels[i as usize];
+            .zip(&weight)
+            .filter(|(m, _)| **m)
+            .fold((0.0, 0usize), |(s, k), (_, w)| (s + w, k + 1));
+        let mean = if k > 0 { sum / k as f64 } else { 1.0 };
+        let sigma2 = s.residual_sigma * s.residual_sigma;
+        let per_rad2 = |deg: f64| mean * sigma2 / deg.to_radians().max(1e-6).powi(2);
+        Prior {
+            n0: self.mesh.normals,
+            neighbours: self.mesh.neighbours,
+            movable,
+            anchor: per_rad2(s.anchor_deg),
+            smooth: per_rad2(s.smooth_deg),
+        }
+    }
+
+    /// The linearised residual of every pixel in `idx` that may move normals (both cosines
+    /// at least `move_min_cos`) under vertex normals `n` with tangent axes `frames`.
+    fn linearise(
+        &self,
+        model: &Model,
+        idx: &[usize],
+        n: &[Vector3<f64>],
+        frames: &[(Vector3<f64>, Vector3<f64>)],
+    ) -> Vec<Lin> {
+        let s = self.settings;
+        let sigma2 = s.residual_sigma * s.residual_sigma;
+        let h = 1e-4;
+        idx.par_iter()
+            .filter_map(|&i| {
+                let p = &self.pixels[i];
+                let f = self.mesh.faces.get(p.face as usize)?;
+                let m: Vector3<f64> = (0..3)
+                    .map(|j| n[f[j] as usize] * f64::from(p.bary[j]))
+                    .sum();
+                let len = m.norm();
+                if len < 1e-12 {
+                    return None;
+                }
+                let np = m * (f64::from(p.sign) / len);
                 // Grazing pixels would steer the normal most (d ln cos / d theta = tan theta)
                 // and are where the table fits worst: they are weighted by both cosines, and
                 // left out beyond `move_min_cos`.
                 let (ci, co) = (np.dot(&p.light), np.dot(&p.view));
-                let min = self.settings.move_min_cos;
-                (ci >= min && co >= min).then_some((p, np, f64::from(w) * ci * co))
+                if ci < s.move_min_cos || co < s.move_min_cos {
+                    return None;
+                }
+                let r = self.residual(model, p, &np);
+                let ShadingFrame { t: u1, b: u2, .. } = ShadingFrame::new(np);
+                let g1 = (self.residual(model, p, &(np + u1 * h).normalize()) - r) / h;
+                let g2 = (self.residual(model, p, &(np + u2 * h).normalize()) - r) / h;
+                let g = u1 * g1 + u2 * g2;
+                let j = std::array::from_fn(|k| {
+                    let (t1, t2) = &frames[f[k] as usize];
+                    let c = f64::from(p.sign) * f64::from(p.bary[k]) / len;
+                    [c * g.dot(t1), c * g.dot(t2)]
+                });
+                Some(Lin {
+                    vertices: *f,
+                    j,
+                    r,
+                    weight: ci * co,
+                    irls: 1.0 / (1.0 + r * r / sigma2),
+                })
+            })
+            .collect()
+    }
+
+    /// Robust data cost of the pixels `idx` that may move normals, plus the priors.
+    fn cost(&self, model: &Model, idx: &[usize], n: &[Vector3<f64>], prior: &Prior) -> f64 {
+        let s = self.settings;
+        let sigma2 = s.residual_sigma * s.residual_sigma;
+        let data: f64 = idx
+            .par_iter()
+            .map(|&i| {
+                let p = &self.pixels[i];
+                let Some(np) = self.pixel_normal(p, n) else {
+                    return 0.0;
+                };
+                let (ci, co) = (np.dot(&p.light), np.dot(&p.view));
+                if ci < s.move_min_cos || co < s.move_min_cos {
+                    return 0.0;
+                }
+                let r = self.residual(model, p, &np);
+                ci * co * sigma2 * (1.0 + r * r / sigma2).ln()
+            })
+            .sum();
+        let d: Vec<Vector3<f64>> = n.iter().zip(prior.n0).map(|(a, b)| a - b).collect();
+        data + prior.cost(&d)
+    }
+
+    /// One damped Gauss-Newton step on every movable vertex normal at once (two tangent angles
+    /// each): the pixels' residuals couple the three corners of their face, so a vertex moves
+    /// for its own share of each pixel, not for its whole window. Normal equations solved by
+    /// preconditioned conjugate gradients, matrix-free; the step is halved until the robust
+    /// cost drops, and refused when it never does.
+    fn step(
+        &self,
+        model: &Model,
+        idx: &[usize],
+        n: &[Vector3<f64>],
+        prior: &Prior,
+    ) -> Vec<Vector3<f64>> {
+        let frames: Vec<(Vector3<f64>, Vector3<f64>)> = n
+            .iter()
+            .map(|v| {
+                let f = ShadingFrame::new(*v);
+                (f.t, f.b)
             })
             .collect();
-        // The smoothness prior acts on the correction, not on the normals: the mesh's own
-        // detail is kept, the offset field is smooth. Target: this vertex's mesh normal moved by
-        // the mean correction of its one-ring.
-        let ring = &self.mesh.neighbours[v];
-        let ring_mean = (!ring.is_empty()).then(|| {
-            let d: Vector3<f64> = ring
-                .iter()
-                .map(|&u| n[u as usize] - n0[u as usize])
-                .sum::<Vector3<f64>>()
-                / ring.len() as f64;
-            n0[v] + d
-        });
-        let smooth = s.smooth_deg.to_radians().max(1e-6);
-        let anchor = s.anchor_deg.to_radians().max(1e-6);
-        let sigma2 = s.residual_sigma * s.residual_sigma;
-        // Residuals (data: sqrt(weight) r; priors: the components of a difference over its
-        // scale, times sqrt of the data weight so the priors count like pixels).
-        let data_weight: f64 = parts.iter().map(|x| x.2).sum::<f64>().max(1e-12);
-        let k = (data_weight * sigma2).sqrt();
-        let residuals = |a: f64, b: f64, out: &mut Vec<f64>| {
-            out.clear();
-            let rot = Rotation3::new(t1 * a + t2 * b);
-            for (p, np, w) in &parts {
-                out.push(w.sqrt() * self.residual(model, p, &(rot * np)));
-            }
-            let nv = rot * cur;
-            if let Some(m) = ring_mean {
-                out.extend((nv - m).iter().map(|d| k * d / smooth));
-            }
-            out.extend((nv - n0[v]).iter().map(|d| k * d / anchor));
-        };
-        let np = parts.len();
-        let cost = |r: &[f64]| -> f64 {
-            r[..np]
-                .iter()
-                .map(|x| sigma2 * (1.0 + x * x / sigma2).ln())
-                .sum::<f64>()
-                + r[np..].iter().map(|x| x * x).sum::<f64>()
-        };
-        let h = 1e-4;
-        let (mut r0, mut ra, mut rb) = (Vec::new(), Vec::new(), Vec::new());
-        residuals(0.0, 0.0, &mut r0);
-        residuals(h, 0.0, &mut ra);
-        residuals(0.0, h, &mut rb);
-        let (mut jtj, mut jtr) = ([[0.0f64; 2]; 2], [0.0f64; 2]);
-        for i in 0..r0.len() {
-            // Cauchy IRLS weight for pixels, 1 for the priors
-            let w = if i < np {
-                1.0 / (1.0 + r0[i] * r0[i] / sigma2)
-            } else {
-                1.0
-            };
-            let ja = (ra[i] - r0[i]) / h;
-            let jb = (rb[i] - r0[i]) / h;
-            jtj[0][0] += w * ja * ja;
-            jtj[0][1] += w * ja * jb;
-            jtj[1][1] += w * jb * jb;
-            jtr[0] += w * ja * r0[i];
-            jtr[1] += w * jb * r0[i];
+        let lins = self.linearise(model, idx, n, &frames);
+        let vars = 2 * n.len();
+        // Gradient and diagonal of the data term.
+        let (grad, diag) = lins
+            .par_chunks(LIN_CHUNK)
+            .map(|chunk| {
+                let (mut g, mut d) = (vec![0.0; vars], vec![0.0; vars]);
+                for l in chunk {
+                    let w = l.weight * l.irls;
+                    for k in 0..3 {
+                        let v = 2 * l.vertices[k] as usize;
+                        for a in 0..2 {
+                            g[v + a] += w * l.j[k][a] * l.r;
+                            d[v + a] += w * l.j[k][a] * l.j[k][a];
+                        }
+                    }
+                }
+                (g, d)
+            })
+            .reduce(
+                || (vec![0.0; vars], vec![0.0; vars]),
+                |(mut g, mut d), (g2, d2)| {
+                    add_into(&mut g, &g2);
+                    add_into(&mut d, &d2);
+                    (g, d)
+                },
+            );
+        let offsets: Vec<Vector3<f64>> = n.iter().zip(prior.n0).map(|(a, b)| a - b).collect();
+        let mut rhs = grad;
+        add_into(&mut rhs, &prior.gradient(&offsets, &frames));
+        let fixed = |k: usize| !prior.movable[k / 2];
+        for (k, r) in rhs.iter_mut().enumerate() {
+            *r = if fixed(k) { 0.0 } else { -*r };
         }
-        let c0 = cost(&r0);
-        let mut lambda = 1e-3 * (jtj[0][0] + jtj[1][1]).max(1e-12);
-        let mut trial = Vec::new();
+        let damping = 1e-6 * diag.iter().sum::<f64>() / vars.max(1) as f64;
+        let apply = |x: &[f64]| -> Vec<f64> {
+            // Large chunks: each accumulates into its own vector of every unknown.
+            let mut out = lins
+                .par_chunks(LIN_CHUNK)
+                .map(|chunk| {
+                    let mut acc = vec![0.0; vars];
+                    for l in chunk {
+                        let w = l.weight * l.irls;
+                        let mut z = 0.0;
+                        for k in 0..3 {
+                            let v = 2 * l.vertices[k] as usize;
+                            z += l.j[k][0] * x[v] + l.j[k][1] * x[v + 1];
+                        }
+                        for k in 0..3 {
+                            let v = 2 * l.vertices[k] as usize;
+                            acc[v] += w * l.j[k][0] * z;
+                            acc[v + 1] += w * l.j[k][1] * z;
+                        }
+                    }
+                    acc
+                })
+                .reduce(
+                    || vec![0.0; vars],
+                    |mut a, b| {
+                        add_into(&mut a, &b);
+                        a
+                    },
+                );
+            let moves: Vec<Vector3<f64>> = (0..n.len())
+                .map(|v| frames[v].0 * x[2 * v] + frames[v].1 * x[2 * v + 1])
+                .collect();
+            add_into(&mut out, &prior.gradient(&moves, &frames));
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = if fixed(k) { 0.0 } else { *o + damping * x[k] };
+            }
+            out
+        };
+        let precond: Vec<f64> = (0..vars)
+            .map(|k| {
+                let d = diag[k] + prior.diagonal(k / 2) + damping;
+                if fixed(k) || d <= 0.0 { 0.0 } else { 1.0 / d }
+            })
+            .collect();
+        let x = conjugate_gradients(apply, &rhs, &precond, self.settings.cg_iterations);
+        let max_tilt = self.settings.max_tilt_deg.to_radians();
+        let c0 = self.cost(model, idx, n, prior);
+        let mut scale = self.settings.step;
         for _ in 0..4 {
-            let (a11, a12, a22) = (jtj[0][0] + lambda, jtj[0][1], jtj[1][1] + lambda);
-            let det = a11 * a22 - a12 * a12;
-            if !(det.is_finite() && det > 0.0) {
-                return cur;
+            let trial: Vec<Vector3<f64>> = (0..n.len())
+                .map(|v| {
+                    if !prior.movable[v] {
+                        return n[v];
+                    }
+                    let (t1, t2) = &frames[v];
+                    let moved = (n[v] + (t1 * x[2 * v] + t2 * x[2 * v + 1]) * scale).normalize();
+                    clamp_tilt(&moved, &prior.n0[v], max_tilt)
+                })
+                .collect();
+            if self.cost(model, idx, &trial, prior) < c0 {
+                return trial;
             }
-            let da = -(a22 * jtr[0] - a12 * jtr[1]) / det;
-            let db = -(a11 * jtr[1] - a12 * jtr[0]) / det;
-            residuals(da, db, &mut trial);
-            if cost(&trial) < c0 {
-                let step = Rotation3::new((t1 * da + t2 * db) * s.step);
-                return clamp_tilt(&(step * cur), &n0[v], s.max_tilt_deg.to_radians());
-            }
-            lambda *= 10.0;
+            scale *= 0.5;
         }
-        cur
+        n.to_vec()
     }
+}
+
+/// Linearised pixels per parallel chunk of the normal equations' product.
+const LIN_CHUNK: usize = 16_384;
+
+/// One pixel's residual linearised in the tangent angles of its face's three vertex normals.
+struct Lin {
+    vertices: [u32; 3],
+    /// d residual / d (angle along t, angle along b), per corner.
+    j: [[f64; 2]; 3],
+    r: f64,
+    /// Both cosines (grazing pixels count less).
+    weight: f64,
+    /// Cauchy loss as iteratively reweighted least squares.
+    irls: f64,
+}
+
+/// The priors on the offset field `d_v = n_v - n0_v`: an anchor `|d_v|^2 / anchor^2` and a
+/// smoothness `|d_v - mean of the one-ring's d|^2 / smooth^2`, both weighted like the mean
+/// data weight of a vertex so they count like its pixels; vertices without pixels enough stay.
+struct Prior<'a> {
+    n0: &'a [Vector3<f64>],
+    neighbours: &'a [Vec<u32>],
+    movable: Vec<bool>,
+    anchor: f64,
+    smooth: f64,
+}
+
+impl Prior<'_> {
+    /// The Laplacian residual of the offsets at vertex `v`.
+    fn laplacian(&self, d: &[Vector3<f64>], v: usize) -> Option<Vector3<f64>> {
+        let ring = &self.neighbours[v];
+        (!ring.is_empty()).then(|| {
+            d[v] - ring.iter().map(|&u| d[u as usize]).sum::<Vector3<f64>>() / ring.len() as f64
+        })
+    }
+
+    fn cost(&self, d: &[Vector3<f64>]) -> f64 {
+        (0..d.len())
+            .map(|v| {
+                self.anchor * d[v].norm_squared()
+                    + self
+                        .laplacian(d, v)
+                        .map_or(0.0, |e| self.smooth * e.norm_squared())
+            })
+            .sum()
+    }
+
+    /// Half the gradient of `cost` at offsets `d`, in the tangent angles of `frames` (also the
+    /// prior's Hessian times a move, since the prior is quadratic in the offsets). The one-rings
+    /// are symmetric (mesh edges), so a vertex collects its neighbours' Laplacian terms from its
+    /// own ring: two parallel passes, no scatter.
+    fn gradient(&self, d: &[Vector3<f64>], frames: &[(Vector3<f64>, Vector3<f64>)]) -> Vec<f64> {
+        let lap: Vec<Option<Vector3<f64>>> = (0..d.len())
+            .into_par_iter()
+            .map(|v| self.laplacian(d, v))
+            .collect();
+        (0..d.len())
+            .into_par_iter()
+            .flat_map_iter(|v| {
+                let mut g = d[v] * self.anchor;
+                if let Some(e) = lap[v] {
+                    g += e * self.smooth;
+                }
+                for &u in &self.neighbours[v] {
+                    let u = u as usize;
+                    if let Some(e) = lap[u] {
+                        g -= e * (self.smooth / self.neighbours[u].len() as f64);
+                    }
+                }
+                let (t1, t2) = &frames[v];
+                [g.dot(t1), g.dot(t2)]
+            })
+            .collect()
+    }
+
+    /// The prior's diagonal for either angle of vertex `v`.
+    fn diagonal(&self, v: usize) -> f64 {
+        let own = if self.neighbours[v].is_empty() {
+            0.0
+        } else {
+            self.smooth
+        };
+        let from_ring: f64 = self.neighbours[v]
+            .iter()
+            .map(|&u| {
+                let k = self.neighbours[u as usize].len().max(1) as f64;
+                self.smooth / (k * k)
+            })
+            .sum();
+        self.anchor + own + from_ring
+    }
+}
+
+fn add_into(a: &mut [f64], b: &[f64]) {
+    for (x, y) in a.iter_mut().zip(b) {
+        *x += y;
+    }
+}
+
+/// Preconditioned conjugate gradients for `A x = b` (`A` symmetric positive semi-definite,
+/// given as its product), from `x = 0`, at most `iterations` steps or until the residual is
+/// a thousandth of `b`'s.
+fn conjugate_gradients(
+    apply: impl Fn(&[f64]) -> Vec<f64>,
+    b: &[f64],
+    precond: &[f64],
+    iterations: usize,
+) -> Vec<f64> {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut x = vec![0.0; b.len()];
+    let mut r = b.to_vec();
+    let mut z: Vec<f64> = r.iter().zip(precond).map(|(a, m)| a * m).collect();
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let stop = 1e-6 * dot(b, b);
+    for _ in 0..iterations {
+        if dot(&r, &r) <= stop || rz <= 0.0 {
+            break;
+        }
+        let ap = apply(&p);
+        let pap = dot(&p, &ap);
+        if !(pap.is_finite() && pap > 0.0) {
+            break;
+        }
+        let alpha = rz / pap;
+        for k in 0..x.len() {
+            x[k] += alpha * p[k];
+            r[k] -= alpha * ap[k];
+        }
+        z = r.iter().zip(precond).map(|(a, m)| a * m).collect();
+        let rz_next = dot(&r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        for k in 0..p.len() {
+            p[k] = z[k] + beta * p[k];
+        }
+    }
+    x
 }
 
 /// `n` turned back towards `n0` so the angle between them is at most `max` radians.
@@ -726,14 +926,13 @@ pub fn refine_normals(
     let (train, held_idx): (Vec<usize>, Vec<usize>) =
         (0..pixels.len()).partition(|&i| !held.contains(&pixels[i].image));
     let all: Vec<usize> = (0..pixels.len()).collect();
-    progress("normal refinement: pixel windows");
-    let lists_train = problem.windows(&train);
-    let movable: Vec<bool> = lists_train
-        .iter()
-        .map(|l| l.len() >= settings.min_pixels_per_vertex)
-        .collect();
+    let prior_train = problem.prior(&train);
+    let movable = prior_train.movable.clone();
 
-    // Choose the number of alternations on the held-out images.
+    // Choose the number of alternations on the held-out images. The reflectance is fitted to
+    // every image: the held-out images judge the normals, and where each image has its own
+    // theta_d (a spread rig) a table from the training images alone could not predict a
+    // held-out image at all. Normals move from the training images only.
     let Some(fit0) = problem.fit(&all, n0) else {
         return refuse(
             report,
@@ -758,7 +957,7 @@ pub fn refine_normals(
         ));
         let t = Instant::now();
         for _ in 0..settings.sweeps {
-            n = problem.sweep(&model, &lists_train, &n, n0);
+            n = problem.step(&model, &train, &n, &prior_train);
         }
         let Some(fit) = problem.fit(&all, &n) else {
             break;
@@ -797,12 +996,12 @@ pub fn refine_normals(
         "normal refinement: {} iteration(s) from every image",
         best.0
     ));
-    let lists_all = problem.windows(&all);
+    let prior_all = problem.prior(&all);
     let mut n = n0.to_vec();
     let mut model = problem.fit(&all, n0).unwrap_or(fit0);
     for it in 0..best.0 {
         for _ in 0..settings.sweeps {
-            n = problem.sweep(&model, &lists_all, &n, n0);
+            n = problem.step(&model, &all, &n, &prior_all);
         }
         if it + 1 < best.0
             && let Some(f) = problem.fit(&all, &n)
@@ -810,10 +1009,7 @@ pub fn refine_normals(
             model = f;
         }
     }
-    let refined: Vec<bool> = lists_all
-        .iter()
-        .map(|l| l.len() >= settings.min_pixels_per_vertex)
-        .collect();
+    let refined = prior_all.movable.clone();
     let (mean_tilt, max_tilt) = tilt_stats(&n, n0, &refined);
     report.accepted = true;
     report.chosen_iterations = best.0;
@@ -832,6 +1028,7 @@ pub fn refine_normals(
 mod tests {
     use super::*;
     use crate::geometry::mesh::Mesh;
+    use nalgebra::Rotation3;
     use rand::{Rng, SeedableRng};
 
     fn sphere(rings: usize, segments: usize) -> Mesh {
@@ -958,6 +1155,27 @@ mod tests {
         let it = &r.report.iterations;
         assert!(it.len() >= 2 && it[0].iteration == 0);
         assert!(it[r.report.chosen_iterations].held_out_error < it[0].held_out_error);
+    }
+
+    #[test]
+    fn conjugate_gradients_solve_a_small_system() {
+        // A symmetric positive definite system with a known solution.
+        let a = [[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]];
+        let x_true = [1.0, -2.0, 0.5];
+        let apply = |x: &[f64]| -> Vec<f64> {
+            (0..3)
+                .map(|i| (0..3).map(|j| a[i][j] * x[j]).sum())
+                .collect()
+        };
+        let b = apply(&x_true);
+        let precond = [0.25, 1.0 / 3.0, 0.5];
+        let x = conjugate_gradients(apply, &b, &precond, 10);
+        for k in 0..3 {
+            assert!((x[k] - x_true[k]).abs() < 1e-6, "{x:?}");
+        }
+        // a zero preconditioner entry keeps that unknown at zero (a fixed vertex)
+        let x = conjugate_gradients(apply, &b, &[0.25, 0.0, 0.5], 10);
+        assert_eq!(x[1], 0.0);
     }
 
     #[test]

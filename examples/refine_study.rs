@@ -1,0 +1,135 @@
+//! Normal refinement study (investigation tool, issue #12): one simulated scene, the
+//! refinement run with several settings, the vertex-normal error against the truth before and
+//! after, and the held-out image error it saw; plus the same held-out error with the true
+//! normals (how much the objective could gain). Neural MERL fits as truth (approximations of
+//! MERL, not measured MERL data).
+//!
+//! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
+//! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
+//! iters, sweeps, step, tilt, sigma, smooth, anchor, cg, minpx, gain, movecos, fitcos
+//! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
+
+use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
+use brdf_rig::eval::{Perturb, find_material, load_case, refine_case, write_case};
+use brdf_rig::geometry::mesh_io::load_mesh;
+use brdf_rig::geometry::sfm_like::SfmLikeParams;
+use brdf_rig::reconstruct::observe::ObserveSettings;
+use brdf_rig::reconstruct::refine::RefineSettings;
+use brdf_rig::reconstruct::synthetic::SceneSpec;
+use std::time::Instant;
+
+fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
+    let mut s = RefineSettings::default();
+    for kv in spec.split(',').filter(|x| !x.is_empty()) {
+        let (k, v) = kv
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("{kv:?} is not key=value"))?;
+        let f: f64 = v.parse()?;
+        match k {
+            "iters" => s.max_iterations = f as usize,
+            "sweeps" => s.sweeps = f as usize,
+            "step" => s.step = f,
+            "tilt" => s.max_tilt_deg = f,
+            "sigma" => s.residual_sigma = f,
+            "smooth" => s.smooth_deg = f,
+            "anchor" => s.anchor_deg = f,
+            "cg" => s.cg_iterations = f as usize,
+            "minpx" => s.min_pixels_per_vertex = f as usize,
+            "gain" => s.min_gain = f,
+            "movecos" => s.move_min_cos = f,
+            "fitcos" => s.fit_min_cos = f,
+            _ => anyhow::bail!("unknown key {k:?}"),
+        }
+    }
+    Ok(s)
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
+    let material = arg(0, "alum-bronze");
+    let mesh_name = arg(1, "spot");
+    let rig = arg(2, "spread");
+    let size = arg(3, "320x240");
+    let seed: u64 = arg(4, "0").parse()?;
+    let (w, h) = size
+        .split_once('x')
+        .ok_or_else(|| anyhow::anyhow!("size {size:?} is not WxH"))?;
+    let variants: Vec<String> = if args.len() > 5 {
+        args[5..].to_vec()
+    } else {
+        vec![String::new()]
+    };
+    let materials = load_dir(&default_dir())?;
+    let net = find_material(&materials, &material)?;
+    let data = brdf_rig::data::data_dir().join("meshes");
+    let file = match mesh_name.as_str() {
+        "spot" => data.join("spot_triangulated.obj"),
+        "bunny" => data.join("stanford-bunny.obj"),
+        other => other.into(),
+    };
+    let (mesh, _) = load_mesh(&file)?;
+    let base = match rig.as_str() {
+        "spread" => SceneSpec::default(),
+        "one30" => SceneSpec::one_light(30.0),
+        other => anyhow::bail!("unknown rig {other:?}"),
+    };
+    let spec = SceneSpec {
+        views: 11,
+        width: w.parse()?,
+        height: h.parse()?,
+        ..base
+    };
+    let sfm = SfmLikeParams {
+        seed: 7 + seed,
+        ..SfmLikeParams::default()
+    };
+    let dir = tempfile::tempdir()?;
+    let job = write_case(dir.path(), &mesh, &sfm, net, &spec)?;
+    let observe = ObserveSettings::default();
+    // The objective's headroom: the held-out error with the true normals.
+    {
+        let mut scene = load_case(&job, &observe, &Perturb::default())?;
+        scene.mesh = mesh.clone();
+        let s = RefineSettings {
+            max_iterations: 1,
+            ..RefineSettings::default()
+        };
+        let c = refine_case(scene, &observe, &s, &mesh);
+        if let Some(st) = c.study {
+            println!(
+                "true normals: held-out error {:.4} (training {:.4})",
+                st.report.iterations[0].held_out_error, st.report.iterations[0].train_error
+            );
+        }
+    }
+    for v in &variants {
+        let s = variant(v)?;
+        let scene = load_case(&job, &observe, &Perturb::default())?;
+        let t = Instant::now();
+        let c = refine_case(scene, &observe, &s, &mesh);
+        let secs = t.elapsed().as_secs_f64();
+        let Some(st) = c.study else {
+            println!("{v:?}: no study");
+            continue;
+        };
+        let its: Vec<String> = st
+            .report
+            .iterations
+            .iter()
+            .map(|i| format!("{:.4}/{:.4}", i.train_error, i.held_out_error))
+            .collect();
+        println!(
+            "{v:?}: normal error median {:.2} -> {:.2} (mean {:.2} -> {:.2}), accepted {} ({} it), \
+             train/held {}, {secs:.1} s",
+            st.median_before_deg,
+            st.median_after_deg,
+            st.mean_before_deg,
+            st.mean_after_deg,
+            st.report.accepted,
+            st.report.chosen_iterations,
+            its.join(" "),
+        );
+    }
+    Ok(())
+}
