@@ -21,8 +21,10 @@
 //! sphere's highlight centroid, the light direction from a DNG went from 0.017 to 0.098 deg off
 //! the same images' EXR (`tests/raw_input.rs`, calibrate), so it is not done.
 //!
-//! Errors name the file; a corrupt or truncated file is an error, never a panic (rawloader
-//! catches its decoders' panics). Depends on rawloader and `render::image` only; no devices.
+//! Errors name the file; a corrupt or truncated file is an error, never a panic: a TIFF-based
+//! file cut short is refused before decoding (`tiff_extent`), and rawloader catches its
+//! decoders' panics on other corrupt data (the default panic hook still prints them to stderr).
+//! Depends on rawloader, rayon and `render::image` only; no devices.
 
 use super::ImageIoError;
 use crate::render::image::LinearImage;
@@ -54,29 +56,39 @@ pub struct LinearRaw {
 
 /// Decodes a RAW file (any format rawloader reads: DNG, CR2, NEF, ARW, ...).
 pub fn decode_raw_file(path: &Path) -> Result<LinearRaw, ImageIoError> {
-    let bytes = std::fs::read(path).map_err(|source| ImageIoError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    decode_raw(&bytes, path)
+    // the file's bytes are dropped before the larger linear image is made
+    let raw = {
+        let bytes = std::fs::read(path).map_err(|source| ImageIoError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        decode_sensor_data(&bytes, path)?
+    };
+    linearise_named(&raw, path)
 }
 
 /// Decodes RAW bytes held in memory; `name` is used in errors.
 pub fn decode_raw_bytes(bytes: &[u8], name: &str) -> Result<LinearRaw, ImageIoError> {
-    decode_raw(bytes, Path::new(name))
+    linearise_named(
+        &decode_sensor_data(bytes, Path::new(name))?,
+        Path::new(name),
+    )
 }
 
-/// A file cut short is refused before rawloader sees it ([`super::tiff_extent`]): some of its
-/// decoders would fill the missing rows with zeros.
-fn decode_raw(bytes: &[u8], path: &Path) -> Result<LinearRaw, ImageIoError> {
+/// rawloader's decoding. A file cut short is refused before rawloader sees it
+/// ([`super::tiff_extent`]): some of its decoders would fill the missing rows with zeros.
+fn decode_sensor_data(bytes: &[u8], path: &Path) -> Result<RawImage, ImageIoError> {
     let decode_error = |message: String| ImageIoError::Decode {
         path: path.to_path_buf(),
         message,
     };
     super::tiff_extent::check(bytes).map_err(decode_error)?;
-    let raw = rawloader::decode(&mut std::io::Cursor::new(bytes))
-        .map_err(|e| decode_error(format!("not a RAW file rawloader can decode: {e}")))?;
-    linearise(&raw).map_err(|message| ImageIoError::Unsupported {
+    rawloader::decode(&mut std::io::Cursor::new(bytes))
+        .map_err(|e| decode_error(format!("not a RAW file rawloader can decode: {e}")))
+}
+
+fn linearise_named(raw: &RawImage, path: &Path) -> Result<LinearRaw, ImageIoError> {
+    linearise(raw).map_err(|message| ImageIoError::Unsupported {
         path: path.to_path_buf(),
         message: format!("RAW file: {message}"),
     })
@@ -172,6 +184,7 @@ pub fn linearise(raw: &RawImage) -> Result<LinearRaw, String> {
             .map(|r| r.iter().map(|&c| if c == 3 { 1 } else { c }).collect())
             .collect();
         demosaic_bilinear(&levelled, w, h, &channels)
+            .ok_or("pixel count does not match the size")?
     };
     Ok(LinearRaw {
         image,
@@ -183,7 +196,12 @@ pub fn linearise(raw: &RawImage) -> Result<LinearRaw, String> {
 
 /// Bilinear demosaic, rows in parallel: each missing colour is the mean of the 3x3 neighbours
 /// that carry it. `channels[y % channels.len()][x]` is the colour (0, 1, 2) of photosite (x, y).
-fn demosaic_bilinear(mosaic: &[f32], w: usize, h: usize, channels: &[Vec<u8>]) -> LinearImage {
+fn demosaic_bilinear(
+    mosaic: &[f32],
+    w: usize,
+    h: usize,
+    channels: &[Vec<u8>],
+) -> Option<LinearImage> {
     let period = channels.len().max(1);
     let mut data = vec![0f32; w * h * 3];
     data.par_chunks_mut(w * 3).enumerate().for_each(|(y, row)| {
@@ -213,7 +231,7 @@ fn demosaic_bilinear(mosaic: &[f32], w: usize, h: usize, channels: &[Vec<u8>]) -
             }
         }
     });
-    LinearImage::from_rgb(w, h, data).unwrap_or_else(|| LinearImage::new(w, h))
+    LinearImage::from_rgb(w, h, data)
 }
 
 #[cfg(test)]

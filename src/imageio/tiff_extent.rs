@@ -15,11 +15,11 @@
 /// At most this many directories are visited (a loop in a corrupt file ends here).
 const MAX_DIRECTORIES: usize = 64;
 
-const STRIP_OFFSETS: u16 = 273;
-const STRIP_BYTE_COUNTS: u16 = 279;
-const TILE_OFFSETS: u16 = 324;
-const TILE_BYTE_COUNTS: u16 = 325;
-const SUB_IFDS: u16 = 330;
+const STRIP_OFFSETS: usize = 273;
+const STRIP_BYTE_COUNTS: usize = 279;
+const TILE_OFFSETS: usize = 324;
+const TILE_BYTE_COUNTS: usize = 325;
+const SUB_IFDS: usize = 330;
 
 /// `Err(why)` when a directory, a value or a data chunk of the file ends beyond its last byte;
 /// `Ok(())` when all lie inside, or the file is not classic TIFF.
@@ -29,22 +29,18 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
         Some(b"MM") => true,
         _ => return Ok(()),
     };
-    let u16_at = |at: usize| -> Option<u16> {
-        let b: [u8; 2] = bytes.get(at..at.checked_add(2)?)?.try_into().ok()?;
+    // The unsigned integer of `n` bytes at `at`, in the file's byte order.
+    let uint_at = |at: usize, n: usize| -> Option<usize> {
+        let b = bytes.get(at..at.checked_add(n)?)?;
+        let digits = |acc: usize, &x: &u8| (acc << 8) | usize::from(x);
         Some(if big_endian {
-            u16::from_be_bytes(b)
+            b.iter().fold(0, digits)
         } else {
-            u16::from_le_bytes(b)
+            b.iter().rev().fold(0, digits)
         })
     };
-    let u32_at = |at: usize| -> Option<u32> {
-        let b: [u8; 4] = bytes.get(at..at.checked_add(4)?)?.try_into().ok()?;
-        Some(if big_endian {
-            u32::from_be_bytes(b)
-        } else {
-            u32::from_le_bytes(b)
-        })
-    };
+    let u16_at = |at: usize| uint_at(at, 2);
+    let u32_at = |at: usize| uint_at(at, 4);
     if !matches!(u16_at(2), Some(42 | 0x55 | 0x4f52 | 0x5352)) {
         return Ok(());
     }
@@ -52,7 +48,7 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
     let short = |what: String| {
         format!("{what} ends beyond the file's {len} bytes: the file is truncated or corrupt")
     };
-    let first = u32_at(4).ok_or_else(|| short("the header".into()))? as usize;
+    let first = u32_at(4).ok_or_else(|| short("the header".into()))?;
     let mut queue = vec![first];
     let mut seen = Vec::new();
     while let Some(ifd) = queue.pop() {
@@ -64,9 +60,9 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
         }
         seen.push(ifd);
         let directory = || short(format!("the directory at byte {ifd}"));
-        let n = usize::from(u16_at(ifd).ok_or_else(directory)?);
+        let n = u16_at(ifd).ok_or_else(directory)?;
         let entries = ifd + 2;
-        let next = u32_at(entries + 12 * n).ok_or_else(directory)? as usize;
+        let next = u32_at(entries + 12 * n).ok_or_else(directory)?;
         queue.push(next);
         // The unsigned values of an entry (SHORT, LONG or IFD), read where they are stored.
         let values = |at: usize| -> Result<Vec<usize>, String> {
@@ -79,21 +75,16 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
                 4 | 13 => 4,
                 _ => return Ok(Vec::new()),
             };
-            let count = count as usize;
             let total = count.saturating_mul(size);
             let start = if total <= 4 {
                 at + 8
             } else {
-                u32_at(at + 8).ok_or_else(directory)? as usize
+                u32_at(at + 8).ok_or_else(directory)?
             };
             (0..count)
                 .map(|i| {
-                    let v = if size == 2 {
-                        u16_at(start + 2 * i).map(usize::from)
-                    } else {
-                        u32_at(start + 4 * i).map(|v| v as usize)
-                    };
-                    v.ok_or_else(|| short(format!("the values of tag {tag} at byte {start}")))
+                    uint_at(start + size * i, size)
+                        .ok_or_else(|| short(format!("the values of tag {tag} at byte {start}")))
                 })
                 .collect()
         };
