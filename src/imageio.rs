@@ -6,14 +6,26 @@
 //!   radiance `q / 65535 * scale`. 8-bit files are refused on a linear read: they are almost
 //!   always gamma-encoded, and guessing would corrupt the reflectance; read as [`Transfer::Srgb`]
 //!   (the caller says so) a code `q` of `n` bits means `srgb_decode(q / (2^n - 1)) * scale`.
-//!   32-bit float TIFF is read as is. [`read_image`] also says whether the file held integer
-//!   codes (whose largest code is a clip level) or floats (which have none).
+//!   32-bit float TIFF is read as is.
+//! - Camera RAW ([`raw`], rawloader: DNG, CR2, CRW, NEF, NRW, ARW, ORF, RW2, RAF, PEF, ...; see
+//!   [`raw::RAW_EXTENSIONS`]; not CR3, which rawloader 0.37 does not read): black level
+//!   subtracted, white-balanced as shot, demosaiced, linear, the white level at 1.0 in green,
+//!   times `scale` as for integer files. A RAW file is linear by definition: asking for the sRGB
+//!   transfer is an error, as for EXR.
+//!
+//! [`read_image`] also says what the file held ([`Samples`]): integer codes (whose largest code
+//! is a clip level), RAW codes (whose white level is one), or floats (which have none). The
+//! format is chosen by the extension, case-insensitively.
 //! - 8-bit PNG previews for humans: multiplied by `2^exposure_stops`, clipped, sRGB-encoded.
 //!   Never read these back as data.
 //!
 //! Every writer is atomic: bytes go to a temp file in the destination's directory, which is
 //! fsynced and renamed over the target, so a crash leaves the old file or the new one, never half
 //! of one. Every error names the file. Depends on `render::image::LinearImage` only.
+
+pub mod dng;
+pub mod raw;
+mod tiff_extent;
 
 use crate::render::image::LinearImage;
 use std::io::{BufWriter, Seek, Write};
@@ -109,8 +121,8 @@ fn ext_of(path: &Path) -> Option<String> {
         .map(|e| e.to_ascii_lowercase())
 }
 
-/// Reads a linear image by extension: `.exr`, or `.png`/`.tif`/`.tiff` as 16-bit linear with
-/// `scale` (see the module header).
+/// Reads a linear image by extension: `.exr`, `.png`/`.tif`/`.tiff` as 16-bit linear with
+/// `scale`, or a camera RAW times `scale` (see the module header).
 pub fn read_linear(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError> {
     read_image(path, scale, Transfer::Linear).map(|d| d.image)
 }
@@ -118,18 +130,39 @@ pub fn read_linear(path: &Path, scale: f32) -> Result<LinearImage, ImageIoError>
 /// How a file's stored values map to radiance, before `scale`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Transfer {
-    /// Linear in radiance: EXR, RAW-derived 16-bit files.
+    /// Linear in radiance: EXR, RAW files and RAW-derived 16-bit files.
     #[default]
     Linear,
     /// The sRGB curve (IEC 61966-2-1), as most 8-bit camera output is encoded.
     Srgb,
 }
 
-/// What a file stored: floats, or integer codes (whose largest code is where the file clips).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What a file stored: floats, integer codes (whose largest code is where the file clips), or
+/// RAW sensor codes (which clip at the sensor's white level).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Samples {
     Float,
-    Integer { bits: u8 },
+    Integer {
+        bits: u8,
+    },
+    /// `clip`: [`raw::LinearRaw::saturation`], the smallest white-balanced channel clip level,
+    /// before `scale`.
+    Raw {
+        clip: f32,
+    },
+}
+
+impl Samples {
+    /// Where a file of these samples read with `scale` clips, in image units: the largest code
+    /// of an integer file (`scale`), the white level of a RAW file (`clip * scale`); none for
+    /// floats.
+    pub fn clip_level(&self, scale: f32) -> Option<f32> {
+        match *self {
+            Samples::Float => None,
+            Samples::Integer { .. } => Some(scale),
+            Samples::Raw { clip } => Some(clip * scale),
+        }
+    }
 }
 
 /// An image read as radiance, with the kind of samples its file held.
@@ -139,30 +172,56 @@ pub struct DecodedImage {
     pub samples: Samples,
 }
 
-/// Reads an image by extension (`.exr`, `.png`, `.tif`, `.tiff`) as radiance: EXR and float TIFF
-/// as stored, integer codes through `transfer` to `[0, 1]` and times `scale`. EXR is linear by
+/// Reads an image by extension (`.exr`, `.png`, `.tif`, `.tiff` or a RAW extension, any case)
+/// as radiance: EXR and float TIFF as stored, integer codes through `transfer` to `[0, 1]` and
+/// times `scale`, RAW files decoded by [`raw`] and times `scale`. EXR and RAW are linear by
 /// definition: asking for sRGB there is an error rather than a silent no-op.
 pub fn read_image(
     path: &Path,
     scale: f32,
     transfer: Transfer,
 ) -> Result<DecodedImage, ImageIoError> {
+    let unsupported = |message: String| ImageIoError::Unsupported {
+        path: path.to_path_buf(),
+        message,
+    };
+    let linear_only = |what: &str| {
+        unsupported(format!(
+            "{what} holds linear values; the sRGB transfer applies to 8/16-bit PNG or TIFF only"
+        ))
+    };
     match ext_of(path).as_deref() {
-        Some("exr") if transfer == Transfer::Srgb => Err(ImageIoError::Unsupported {
-            path: path.to_path_buf(),
-            message: "an EXR file holds linear values; the sRGB transfer applies to 8/16-bit \
-                      PNG or TIFF only"
-                .into(),
-        }),
+        Some("exr") if transfer == Transfer::Srgb => Err(linear_only("an EXR file")),
         Some("exr") => Ok(DecodedImage {
             image: read_exr(path)?,
             samples: Samples::Float,
         }),
         Some("png" | "tif" | "tiff") => read_coded(path, scale, transfer),
-        _ => Err(ImageIoError::Unsupported {
-            path: path.to_path_buf(),
-            message: "unknown image extension (expected .exr, .png, .tif, .tiff)".into(),
-        }),
+        Some(ext) if raw::is_raw_extension(ext) => {
+            if transfer == Transfer::Srgb {
+                return Err(linear_only("a camera RAW file"));
+            }
+            let raw::LinearRaw {
+                mut image,
+                saturation,
+                ..
+            } = raw::decode_raw_file(path)?;
+            image.data_mut().iter_mut().for_each(|v| *v *= scale);
+            Ok(DecodedImage {
+                image,
+                samples: Samples::Raw { clip: saturation },
+            })
+        }
+        Some("cr3") => Err(unsupported(
+            "Canon CR3 is not read by rawloader, which decodes the RAW files here; convert it \
+             to DNG (Adobe DNG Converter) or to 16-bit linear TIFF"
+                .into(),
+        )),
+        _ => Err(unsupported(format!(
+            "unsupported image format (by its extension); supported: .exr, 16-bit linear .png, \
+             .tif, .tiff, and camera RAW .{}",
+            raw::RAW_EXTENSIONS.join(", .")
+        ))),
     }
 }
 
@@ -579,6 +638,49 @@ mod tests {
         );
         let e = read_image(&pe, 1.0, Transfer::Srgb).unwrap_err();
         assert!(e.to_string().contains("linear values"), "{e}");
+    }
+
+    /// A DNG (any case of extension) reads as the linear image it encodes, times the scale, and
+    /// says where it clips; the sRGB transfer, unknown extensions, CR3 and a truncated DNG are
+    /// errors naming the file.
+    #[test]
+    fn raw_files_read_as_linear_radiance_and_errors_name_the_file() {
+        use dng::{BayerEncoding, dng_from_image};
+        let dir = tempfile::tempdir().unwrap();
+        let img = LinearImage::from_rgb(6, 4, vec![0.25; 6 * 4 * 3]).unwrap();
+        let enc = BayerEncoding {
+            black: 100,
+            white: 16_000,
+            as_shot_neutral: [0.5, 1.0, 0.8],
+            full_scale: 1.0,
+        };
+        let bytes = dng_from_image(&img, &enc);
+        let p = dir.path().join("shot.DNG");
+        std::fs::write(&p, &bytes).unwrap();
+        let d = read_image(&p, 4.0, Transfer::Linear).unwrap();
+        // wb (2, 1, 1.25): the clip level is green's white level, 1, times the scale
+        assert_eq!(d.samples, Samples::Raw { clip: 1.0 });
+        assert_eq!(d.samples.clip_level(4.0), Some(4.0));
+        for v in d.image.data() {
+            // half a code of 15900 in the worst channel (red, wb 2), times the scale
+            assert!((v - 1.0).abs() < 4.0 * 2.0 * 0.5 / 15_900.0 + 1e-6, "{v}");
+        }
+        assert_eq!(read_linear(&p, 1.0).unwrap().width(), 6);
+        let e = read_image(&p, 1.0, Transfer::Srgb).unwrap_err();
+        assert!(e.to_string().contains("shot.DNG") && e.to_string().contains("linear"));
+        for (name, needle) in [("a.jpg", ".nef"), ("a.cr3", "DNG"), ("noext", ".exr")] {
+            let q = dir.path().join(name);
+            std::fs::write(&q, &bytes).unwrap();
+            let e = read_linear(&q, 1.0).unwrap_err();
+            assert!(matches!(e, ImageIoError::Unsupported { .. }), "{e}");
+            let e = e.to_string();
+            assert!(e.contains(name) && e.contains(needle), "{e}");
+        }
+        let cut = dir.path().join("cut.dng");
+        std::fs::write(&cut, &bytes[..bytes.len() - 20]).unwrap();
+        let e = read_linear(&cut, 1.0).unwrap_err();
+        assert!(matches!(e, ImageIoError::Decode { .. }), "{e}");
+        assert!(e.to_string().contains("cut.dng"), "{e}");
     }
 
     #[test]

@@ -54,7 +54,7 @@ pub fn materials() -> Vec<(String, Nbrdf)> {
         .collect()
 }
 
-fn reduced_basis(target: &str, materials: &[(String, Nbrdf)]) -> Basis {
+pub fn reduced_basis(target: &str, materials: &[(String, Nbrdf)]) -> Basis {
     let settings = BasisSettings {
         stride: GridStride {
             theta_h: 1,
@@ -113,7 +113,7 @@ fn spot() -> Mesh {
         .0
 }
 
-fn test_settings() -> Settings {
+pub fn test_settings() -> Settings {
     let mut s = Settings::default();
     s.core.trials.trials = 6;
     s.core.trials.samples = 40;

@@ -2,7 +2,8 @@
 //! the pixels: a flat region (a noiseless board, a uniform backdrop, a sharp highlight's core)
 //! is not a clipped one, and a linear HDR image (EXR, float TIFF, a merged bracket) holds
 //! radiance with no ceiling. So the clip level comes from the user (`--saturation`), from the
-//! file format (the largest integer code, times the scale the file is read with), or from the
+//! file format (the largest integer code, or a RAW file's white level, times the scale the file
+//! is read with), or from the
 //! session (a merged bracket clips where its shortest exposure did); otherwise there is none.
 //!
 //! Conventions: levels are in image units (the values the detectors see); a channel value at or
@@ -21,6 +22,9 @@ pub enum ClipSource {
     IntegerFile { bits: u8, scale: f32 },
     /// A float file (EXR, float TIFF): linear radiance without a ceiling.
     FloatFile,
+    /// Camera RAW files: the sensor's white level, white-balanced (the smallest channel's,
+    /// `clip`, over the files), read with `scale`.
+    RawFile { clip: f32, scale: f32 },
     /// A bracket merged to HDR: a value is a lower bound where even the shortest exposure
     /// clipped, `clip_fraction * saturation / shortest`.
     MergedBracket {
@@ -53,6 +57,15 @@ impl ClipLevel {
         Self {
             value: Some(scale),
             source: ClipSource::IntegerFile { bits, scale },
+        }
+    }
+
+    /// RAW files read with `scale`, whose smallest white-balanced white level is `clip`
+    /// (`imageio::raw`): clipped at `clip * scale`.
+    pub fn raw_file(clip: f32, scale: f32) -> Self {
+        Self {
+            value: Some(clip * scale),
+            source: ClipSource::RawFile { clip, scale },
         }
     }
 
@@ -95,6 +108,10 @@ impl fmt::Display for ClipLevel {
                 f,
                 " (the largest code of the {bits}-bit file, times the scale {scale})"
             ),
+            ClipSource::RawFile { clip, scale } => write!(
+                f,
+                " (the RAW files' white level, white-balanced: {clip}, times the scale {scale})"
+            ),
             ClipSource::FloatFile => write!(
                 f,
                 " (a float image holds linear radiance without a ceiling; give --saturation if \
@@ -125,6 +142,9 @@ mod tests {
         let i = ClipLevel::integer_file(16, 2.0);
         assert_eq!(i.value, Some(2.0));
         assert!(i.to_string().contains("16-bit"));
+        let r = ClipLevel::raw_file(0.8, 2.0);
+        assert_eq!(r.value, Some(1.6));
+        assert!(r.to_string().contains("RAW files' white level"));
         let f = ClipLevel::float_file();
         assert_eq!(f.value, None);
         assert!(f.to_string().starts_with("none"));

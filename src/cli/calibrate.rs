@@ -53,8 +53,10 @@ impl From<TransferArg> for Transfer {
     }
 }
 
-/// Images: EXR (linear, no clip level unless --saturation), or 16-bit PNG/TIFF read as
-/// `value / 65535 * scale` (clip level: the largest code), or 8-bit sRGB with `--transfer srgb`.
+/// Images: EXR (linear, no clip level unless --saturation), 16-bit PNG/TIFF read as
+/// `value / 65535 * scale` (clip level: the largest code), 8-bit sRGB with `--transfer srgb`, or
+/// camera RAW (DNG, CR2, NEF, ARW, ...: demosaiced, white-balanced as shot, times `scale`; clip
+/// level: the white level).
 #[derive(Args, Debug)]
 pub struct SphereArgs {
     /// Single-light image of the sphere; repeat for several (combined, with their spread).
@@ -76,17 +78,19 @@ pub struct SphereArgs {
     )]
     pub intrinsics: String,
     /// Clip level of the camera, in image units (after --scale), > 0. Default: the largest code of
-    /// an integer (PNG/TIFF) file; none for EXR or float TIFF, which hold linear radiance.
+    /// an integer (PNG/TIFF) file, the white level of a RAW file; none for EXR or float TIFF,
+    /// which hold linear radiance.
     #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
-    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve.
+    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve (EXR and RAW are linear).
     #[arg(long, value_enum, default_value_t = TransferArg::Linear)]
     pub transfer: TransferArg,
     /// Normal-incidence Fresnel reflectance of the sphere, to correct the outline for its rim
     /// fading into the backdrop; "none" for a chrome sphere or a matte outline image.
     #[arg(long = "rim-f0", default_value = "0.04", value_name = "F0|none")]
     pub rim_f0: String,
-    /// Scale of 16-bit PNG/TIFF images, > 0.
+    /// Scale of PNG/TIFF and RAW images (the radiance of the largest code, or of the white
+    /// level in green), > 0.
     #[arg(long, default_value_t = 1.0, value_parser = real32_in(Open(0.0), Unbounded))]
     pub scale: f32,
     /// Print JSON instead of text.
@@ -112,13 +116,15 @@ pub struct WhiteArgs {
     #[arg(long, value_name = "X,Y,W,H")]
     pub roi: Option<String>,
     /// Clip level of the camera, in image units (after --scale), > 0. Default: the largest code of
-    /// an integer (PNG/TIFF) file; none for EXR or float TIFF, which hold linear radiance.
+    /// an integer (PNG/TIFF) file, the white level of a RAW file; none for EXR or float TIFF,
+    /// which hold linear radiance.
     #[arg(long, value_parser = real32_in(Open(0.0), Unbounded))]
     pub saturation: Option<f32>,
-    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve.
+    /// How PNG/TIFF values map to radiance: linear, or the sRGB curve (EXR and RAW are linear).
     #[arg(long, value_enum, default_value_t = TransferArg::Linear)]
     pub transfer: TransferArg,
-    /// Scale of 16-bit PNG/TIFF images, > 0.
+    /// Scale of PNG/TIFF and RAW images (the radiance of the largest code, or of the white
+    /// level in green), > 0.
     #[arg(long, default_value_t = 1.0, value_parser = real32_in(Open(0.0), Unbounded))]
     pub scale: f32,
     /// Print JSON instead of text.
@@ -157,8 +163,8 @@ fn vector(field: &str, text: &str) -> Result<Vector3<f64>> {
     Ok(v.normalize())
 }
 
-/// Reads an image as radiance (EXR; PNG/TIFF codes through `transfer`, times `scale`); the
-/// error names the file.
+/// Reads an image as radiance (EXR; PNG/TIFF codes through `transfer`, times `scale`; RAW times
+/// `scale`); the error names the file.
 fn read_image(path: &Path, scale: f32, transfer: TransferArg) -> Result<DecodedImage> {
     if !(scale.is_finite() && scale > 0.0) {
         bail!("--scale: must be a positive number, got {scale}");
@@ -167,8 +173,9 @@ fn read_image(path: &Path, scale: f32, transfer: TransferArg) -> Result<DecodedI
 }
 
 /// The clip level of the images: given, or what their files say (the largest code of an integer
-/// file; none for floats). Never guessed from the pixels (`calib::clip`). Files of different
-/// kinds clip at different levels: the user must then say where.
+/// file, the lowest white level of RAW files; none for floats). Never guessed from the pixels
+/// (`calib::clip`). Files of different kinds clip at different levels: the user must then say
+/// where.
 fn clip_level(given: Option<f32>, files: &[(&Path, Samples)], scale: f32) -> Result<ClipLevel> {
     if let Some(s) = given {
         return Ok(ClipLevel::given(s));
@@ -176,7 +183,12 @@ fn clip_level(given: Option<f32>, files: &[(&Path, Samples)], scale: f32) -> Res
     let Some(&(first_path, first)) = files.first() else {
         bail!("no image given");
     };
-    if let Some((p, other)) = files.iter().find(|(_, s)| *s != first) {
+    // RAW files of one camera are one kind whatever their white balance (and so clip level).
+    let kind = |s: &Samples| match s {
+        Samples::Raw { .. } => Samples::Raw { clip: 0.0 },
+        other => *other,
+    };
+    if let Some((p, other)) = files.iter().find(|(_, s)| kind(s) != kind(&first)) {
         bail!(
             "{} holds {other:?} samples but {} holds {first:?}: they clip at different levels; \
              give the camera's clip level with --saturation",
@@ -187,6 +199,16 @@ fn clip_level(given: Option<f32>, files: &[(&Path, Samples)], scale: f32) -> Res
     Ok(match first {
         Samples::Float => ClipLevel::float_file(),
         Samples::Integer { bits } => ClipLevel::integer_file(bits, scale),
+        Samples::Raw { .. } => {
+            let clip = files
+                .iter()
+                .filter_map(|(_, s)| match s {
+                    Samples::Raw { clip } => Some(*clip),
+                    _ => None,
+                })
+                .fold(f32::INFINITY, f32::min);
+            ClipLevel::raw_file(clip, scale)
+        }
     })
 }
 

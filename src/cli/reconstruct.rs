@@ -69,7 +69,7 @@ pub struct Args {
     #[arg(long, env = "BRDF_RIG_BASIS_CACHE")]
     pub basis_cache: Option<PathBuf>,
     /// Pixel values at or above this are clipped (dropped), > 0; default: 1.0 for 16-bit files,
-    /// none for EXR.
+    /// the white level for camera RAW, none for EXR.
     #[arg(long, value_parser = real_in(Open(0.0), Unbounded))]
     pub saturation: Option<f64>,
     /// Basis grid stride along theta_h, theta_d, phi_d (coarser = faster, less exact), each 1

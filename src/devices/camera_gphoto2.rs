@@ -1,5 +1,5 @@
 //! A DSLR (or any camera libgphoto2 drives) through the `gphoto2` command line: set shutter speed
-//! and ISO, capture, download the RAW file, decode it to linear RGB (`camera_raw`).
+//! and ISO, capture, download the RAW file, decode it to linear RGB (`imageio::raw`).
 //!
 //! Why the command line and not libgphoto2: no C bindings to build, and `gphoto2` is what
 //! operators already use to check their camera. Each shot is one process:
@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::camera_raw::decode_raw_file;
 use super::{Camera, DeviceError, ShotMetadata, ShotSettings};
+use crate::imageio::raw::decode_raw_file;
 use crate::render::image::LinearImage;
 
 /// Settings of the gphoto2 backend.
@@ -378,7 +378,7 @@ pub fn list(program: &Path) -> Result<Vec<(String, String)>, String> {
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
-    use crate::devices::camera_raw::write_minimal_dng;
+    use crate::imageio::dng::write_minimal_dng;
 
     #[test]
     fn command_line_sets_exposure_and_iso_and_downloads_to_the_folder() {

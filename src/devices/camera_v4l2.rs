@@ -13,8 +13,8 @@ use v4l::io::traits::CaptureStream;
 use v4l::video::Capture;
 use v4l::{Device, FourCC};
 
-use super::camera_raw::srgb_to_linear;
 use super::{Camera, DeviceError, ShotMetadata, ShotSettings};
+use crate::imageio::srgb_decode;
 use crate::render::image::LinearImage;
 
 const CID_EXPOSURE_AUTO: u32 = 0x009a_0901;
@@ -68,7 +68,7 @@ pub fn yuyv_to_linear(buf: &[u8], width: usize, height: usize) -> Option<LinearI
                 img.set(
                     x + dx,
                     y,
-                    [srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b)],
+                    [r, g, b].map(|c| srgb_decode(f32::from(c) / 255.0)),
                 );
             }
         }

@@ -13,8 +13,8 @@ use nokhwa::utils::{
     RequestedFormatType,
 };
 
-use super::camera_raw::srgb_to_linear;
 use super::{Camera, DeviceError, ShotMetadata, ShotSettings};
+use crate::imageio::srgb_decode;
 use crate::render::image::LinearImage;
 
 /// V4L2's "exposure auto" control id (value 1 = manual).
@@ -80,7 +80,10 @@ impl Camera for WebcamCamera {
             .decode_image_to_buffer::<RgbFormat>(&mut rgb)
             .map_err(|e| self.fail("decoding the frame", e))?;
         let _ = cam.stop_stream();
-        let data = rgb.iter().map(|&c| srgb_to_linear(c)).collect();
+        let data = rgb
+            .iter()
+            .map(|&c| srgb_decode(f32::from(c) / 255.0))
+            .collect();
         let image = LinearImage::from_rgb(w, h, data)
             .ok_or_else(|| self.fail("decoding the frame", "size mismatch"))?;
         Ok((

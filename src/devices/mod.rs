@@ -7,7 +7,6 @@
 
 pub mod bench;
 pub mod camera_gphoto2;
-pub mod camera_raw;
 #[cfg(feature = "v4l2")]
 pub mod camera_v4l2;
 #[cfg(feature = "webcam")]

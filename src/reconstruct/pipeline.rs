@@ -41,10 +41,12 @@ pub struct Settings {
     pub nbrdf_dir: PathBuf,
     /// Basis cache folder; `None` = `basis_cache::default_cache_dir()`.
     pub basis_cache: Option<PathBuf>,
-    /// 16-bit PNG/TIFF: a stored `q` is radiance `q / 65535 * png_scale`.
+    /// 16-bit PNG/TIFF: a stored `q` is radiance `q / 65535 * png_scale`; camera RAW: times
+    /// `png_scale` (the white level reads 1 in green before it).
     pub png_scale: f32,
-    /// Clip level; `None` = `png_scale` for 16-bit files (the largest storable value), no
-    /// clipping for EXR.
+    /// Clip level; `None` = what the file says (`imageio::Samples::clip_level`): `png_scale`
+    /// for 16-bit files (the largest storable value), the white level for RAW, none for EXR
+    /// and float TIFF.
     pub saturation: Option<f64>,
     /// Refine the mesh's normals from the images first (`reconstruct::refine`); `None` = off.
     pub refine: Option<RefineSettings>,
@@ -194,13 +196,13 @@ pub fn load_scene(job: &Job, settings: &Settings) -> Result<Scene, ReconstructEr
                 known,
             });
         };
-        let image = imageio::read_linear(&spec.file, settings.png_scale).map_err(|source| {
-            ReconstructError::Image {
-                job: job.source.clone(),
-                index,
-                source,
-            }
-        })?;
+        let imageio::DecodedImage { image, samples } =
+            imageio::read_image(&spec.file, settings.png_scale, imageio::Transfer::Linear)
+                .map_err(|source| ReconstructError::Image {
+                    job: job.source.clone(),
+                    index,
+                    source,
+                })?;
         if (image.width(), image.height()) != (intrinsics.width, intrinsics.height) {
             return Err(ReconstructError::SizeMismatch {
                 job: job.source.clone(),
@@ -224,13 +226,9 @@ pub fn load_scene(job: &Job, settings: &Settings) -> Result<Scene, ReconstructEr
                 },
             )?),
         };
-        let is_exr = spec
-            .file
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         let saturation = settings
             .saturation
-            .or((!is_exr).then_some(f64::from(settings.png_scale)));
+            .or(samples.clip_level(settings.png_scale).map(f64::from));
         views.push(View {
             index,
             file: spec.file.clone(),
