@@ -799,20 +799,19 @@ fn normals_section(spec: &AccuracySpec, results: &[SceneResult]) -> String {
     groups.extend(spec.rigs.iter().map(Rig::label));
     for g in groups {
         let pick = |r: &SceneResult| g == "all" || r.rig.label() == g;
-        let normal: Vec<f64> = results
-            .iter()
-            .filter(|r| pick(r))
-            .filter_map(|r| r.normals.as_ref())
-            .filter(|n| n.median_before_deg > 0.0)
-            .map(|n| n.median_after_deg / n.median_before_deg)
-            .collect();
-        let pixel: Vec<f64> = results
-            .iter()
-            .filter(|r| pick(r))
-            .filter_map(|r| r.normals.as_ref())
-            .filter(|n| n.pixel_median_before_deg > 0.0)
-            .map(|n| n.pixel_median_after_deg / n.pixel_median_before_deg)
-            .collect();
+        // after / before of one of the studies' medians, over the scenes of this group
+        let shrink = |before_after: fn(&NormalStudy) -> (f64, f64)| -> Vec<f64> {
+            results
+                .iter()
+                .filter(|r| pick(r))
+                .filter_map(|r| r.normals.as_ref())
+                .map(before_after)
+                .filter(|(b, _)| *b > 0.0)
+                .map(|(b, a)| a / b)
+                .collect()
+        };
+        let normal = shrink(|n| (n.median_before_deg, n.median_after_deg));
+        let pixel = shrink(|n| (n.pixel_median_before_deg, n.pixel_median_after_deg));
         let sel: Vec<&Row> = rows.iter().filter(|x| g == "all" || x.0 == g).collect();
         let ours: Vec<f64> = sel
             .iter()

@@ -218,20 +218,28 @@ pub fn pixel_normal_error_deg(
     estimated: &[Vector3<f64>],
     truth: &[Vector3<f64>],
 ) -> Option<(f64, f64)> {
-    let blend = |p: &RefinePixel, n: &[Vector3<f64>]| -> Option<Vector3<f64>> {
-        let f = faces.get(p.face as usize)?;
-        let m: Vector3<f64> = (0..3)
-            .map(|j| n.get(f[j] as usize).map(|v| v * f64::from(p.bary[j])))
-            .sum::<Option<Vector3<f64>>>()?;
-        m.try_normalize(1e-12)
-    };
     let mut a: Vec<f64> = pixels
         .iter()
-        .filter_map(|p| Some(angle_deg(&blend(p, estimated)?, &blend(p, truth)?)))
+        .filter_map(|p| {
+            Some(angle_deg(
+                &blended_normal(faces, p, estimated)?,
+                &blended_normal(faces, p, truth)?,
+            ))
+        })
         .collect();
     a.sort_by(f64::total_cmp);
     let mean = a.iter().sum::<f64>() / a.len().max(1) as f64;
     Some((*a.get(a.len() / 2)?, mean))
+}
+
+/// The unit blend of a pixel's face corners' normals `n` by its barycentric weights (before
+/// the pixel's sign); `None` for a face or vertex out of range or a blend of zero length.
+fn blended_normal(faces: &[[u32; 3]], p: &RefinePixel, n: &[Vector3<f64>]) -> Option<Vector3<f64>> {
+    let f = faces.get(p.face as usize)?;
+    let m: Vector3<f64> = (0..3)
+        .map(|j| n.get(f[j] as usize).map(|v| v * f64::from(p.bary[j])))
+        .sum::<Option<Vector3<f64>>>()?;
+    m.try_normalize(1e-12)
 }
 
 /// Angles between `a` and `b` over the vertices in `which`, degrees, sorted.
@@ -404,12 +412,7 @@ struct Problem<'a> {
 
 impl<'a> Problem<'a> {
     fn pixel_normal(&self, p: &RefinePixel, n: &[Vector3<f64>]) -> Option<Vector3<f64>> {
-        let f = self.mesh.faces.get(p.face as usize)?;
-        let blend: Vector3<f64> = (0..3)
-            .map(|j| n[f[j] as usize] * f64::from(p.bary[j]))
-            .sum();
-        let len = blend.norm();
-        (len > 1e-12).then(|| blend * (f64::from(p.sign) / len))
+        blended_normal(self.mesh.faces, p, n).map(|b| b * f64::from(p.sign))
     }
 
     fn residual(&self, model: &Model, p: &RefinePixel, np: &Vector3<f64>) -> f64 {
