@@ -6,7 +6,8 @@
 //!
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
-//! iters, sweeps, step, tilt, sigma, smooth, anchor, cg, minpx, gain, movecos, fitcos
+//! iters, sweeps, step, tilt, sigma, smooth, anchor, cg, cgtol, minpx, gain, movecos, fitcos, facecap,
+//! final
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
@@ -34,10 +35,13 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "smooth" => s.smooth_deg = f,
             "anchor" => s.anchor_deg = f,
             "cg" => s.cg_iterations = f as usize,
+            "cgtol" => s.cg_tolerance = f,
             "minpx" => s.min_pixels_per_vertex = f as usize,
             "gain" => s.min_gain = f,
             "movecos" => s.move_min_cos = f,
             "fitcos" => s.fit_min_cos = f,
+            "facecap" => s.max_pixels_per_face = f as usize,
+            "final" => s.final_alternations = f as usize,
             _ => anyhow::bail!("unknown key {k:?}"),
         }
     }
@@ -121,7 +125,7 @@ fn main() -> anyhow::Result<()> {
             .collect();
         println!(
             "{v:?}: normal error median {:.2} -> {:.2} (mean {:.2} -> {:.2}), accepted {} ({} it), \
-             train/held {}, {secs:.1} s",
+             train/held {}, {secs:.1} s (refinement {:.1} s on {} of {} pixels)",
             st.median_before_deg,
             st.median_after_deg,
             st.mean_before_deg,
@@ -129,6 +133,9 @@ fn main() -> anyhow::Result<()> {
             st.report.accepted,
             st.report.chosen_iterations,
             its.join(" "),
+            st.report.seconds,
+            st.report.pixels,
+            st.report.pixels_offered,
         );
     }
     Ok(())

@@ -720,11 +720,16 @@ fn normals_section(spec: &AccuracySpec, results: &[SceneResult]) -> String {
     if let Some(r) = &spec.refine {
         s += &format!(
             "Refinement settings: {} iterations at most, {} Gauss-Newton steps of at most {} \
-             conjugate-gradient iterations each, tilt at most {} deg, sigma {}, smoothness {} deg, \
-             anchor {} deg, every {}th image held out.\n\n",
+             conjugate-gradient iterations each (stopped at a residual of {} of the right-hand \
+             side), at most {} pixels per face and image, {} final alternation(s) on every \
+             image, tilt at most {} deg, sigma {}, smoothness {} deg, anchor {} deg, every {}th \
+             image held out.\n\n",
             r.max_iterations,
             r.sweeps,
             r.cg_iterations,
+            r.cg_tolerance,
+            r.max_pixels_per_face,
+            r.final_alternations,
             r.max_tilt_deg,
             r.residual_sigma,
             r.smooth_deg,

@@ -84,8 +84,12 @@ pub struct RefineSettings {
     pub max_iterations: usize,
     /// Gauss-Newton steps on all the normals per alternation.
     pub sweeps: usize,
-    /// Conjugate-gradient iterations per Gauss-Newton step.
+    /// Most conjugate-gradient iterations per Gauss-Newton step.
     pub cg_iterations: usize,
+    /// The conjugate gradients stop once the normal equations' residual is this fraction of
+    /// their right-hand side (an inexact Newton step: the line search and the next step correct
+    /// what is left, and a tight solve of a linearisation costs time for nothing).
+    pub cg_tolerance: f64,
     /// First trial length of a Gauss-Newton step (halved until the cost drops).
     pub step: f64,
     /// No normal turns further than this from the mesh's own, degrees.
@@ -109,6 +113,13 @@ pub struct RefineSettings {
     pub fit_min_cos: f64,
     /// Pixels more grazing than this (either cosine) do not move a normal.
     pub move_min_cos: f64,
+    /// At most this many pixels of one face in one image (evenly drawn) enter the refinement:
+    /// a face's three corners are fixed by a few pixels at different barycentrics, and more of
+    /// them only cost time (0: all).
+    pub max_pixels_per_face: usize,
+    /// Alternations on every image (held-out ones included) after the chosen count, started
+    /// from the chosen normals (0: the normals of the selection pass are returned as they are).
+    pub final_alternations: usize,
 }
 
 impl Default for RefineSettings {
@@ -117,6 +128,7 @@ impl Default for RefineSettings {
             max_iterations: 8,
             sweeps: 3,
             cg_iterations: 60,
+            cg_tolerance: 0.03,
             step: 1.0,
             max_tilt_deg: 20.0,
             residual_sigma: 0.1,
@@ -128,6 +140,8 @@ impl Default for RefineSettings {
             max_fit_pixels: 20_000,
             fit_min_cos: 80f64.to_radians().cos(),
             move_min_cos: 0.3,
+            max_pixels_per_face: 6,
+            final_alternations: 1,
         }
     }
 }
@@ -152,7 +166,9 @@ pub struct RefineReport {
     pub accepted: bool,
     pub reason: String,
     pub settings: RefineSettings,
+    /// Pixels the refinement worked on, of the `pixels_offered` (`max_pixels_per_face`).
     pub pixels: usize,
+    pub pixels_offered: usize,
     pub held_out_images: Vec<usize>,
     /// Vertices with enough pixels to move.
     pub vertices_refined: usize,
@@ -683,7 +699,13 @@ impl<'a> Problem<'a> {
                 if fixed(k) || d <= 0.0 { 0.0 } else { 1.0 / d }
             })
             .collect();
-        let x = conjugate_gradients(apply, &rhs, &precond, self.settings.cg_iterations);
+        let x = conjugate_gradients(
+            apply,
+            &rhs,
+            &precond,
+            self.settings.cg_iterations,
+            self.settings.cg_tolerance,
+        );
         let max_tilt = self.settings.max_tilt_deg.to_radians();
         let c0 = self.cost(model, idx, n, prior);
         let mut scale = self.settings.step;
@@ -813,6 +835,7 @@ fn conjugate_gradients(
     b: &[f64],
     precond: &[f64],
     iterations: usize,
+    tolerance: f64,
 ) -> Vec<f64> {
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let mut x = vec![0.0; b.len()];
@@ -820,7 +843,7 @@ fn conjugate_gradients(
     let mut z: Vec<f64> = r.iter().zip(precond).map(|(a, m)| a * m).collect();
     let mut p = z.clone();
     let mut rz = dot(&r, &z);
-    let stop = 1e-6 * dot(b, b);
+    let stop = tolerance * tolerance * dot(b, b);
     for _ in 0..iterations {
         if dot(&r, &r) <= stop || rz <= 0.0 {
             break;
@@ -869,6 +892,28 @@ fn tilt_stats(n: &[Vector3<f64>], n0: &[Vector3<f64>], which: &[bool]) -> (f64, 
     )
 }
 
+/// At most `cap` pixels of each (image, face), evenly spread over the face's pixels in the
+/// order given (raster order: across the face).
+fn thin_per_face(pixels: &[RefinePixel], cap: usize) -> Vec<RefinePixel> {
+    use std::collections::HashMap;
+    let mut count: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+    for p in pixels {
+        count.entry((p.image, p.face)).or_insert((0, 0)).0 += 1;
+    }
+    pixels
+        .iter()
+        .filter(|p| {
+            let Some((n, j)) = count.get_mut(&(p.image, p.face)) else {
+                return false;
+            };
+            let keep = (*j + 1) * cap / *n > *j * cap / *n;
+            *j += 1;
+            keep
+        })
+        .copied()
+        .collect()
+}
+
 /// Refines the vertex normals of `mesh` from `pixels` (see the module header).
 pub fn refine_normals(
     mesh: &MeshNormals<'_>,
@@ -878,6 +923,14 @@ pub fn refine_normals(
 ) -> Refinement {
     let start = Instant::now();
     let n0 = mesh.normals;
+    let total_pixels = pixels.len();
+    let thinned;
+    let pixels = if settings.max_pixels_per_face > 0 {
+        thinned = thin_per_face(pixels, settings.max_pixels_per_face);
+        &thinned[..]
+    } else {
+        pixels
+    };
     let mut images: Vec<u32> = pixels.iter().map(|p| p.image).collect();
     images.sort_unstable();
     images.dedup();
@@ -893,6 +946,7 @@ pub fn refine_normals(
         reason: String::new(),
         settings: settings.clone(),
         pixels: pixels.len(),
+        pixels_offered: total_pixels,
         held_out_images: held.iter().map(|&i| i as usize).collect(),
         vertices_refined: 0,
         iterations: Vec::new(),
@@ -953,6 +1007,8 @@ pub fn refine_normals(
     });
     let mut best = (0usize, report.iterations[0].held_out_error);
     let mut n = n0.to_vec();
+    let mut best_normals = n0.to_vec();
+    let mut best_model = fit0;
     for it in 1..=settings.max_iterations {
         progress(&format!(
             "normal refinement: iteration {it} of at most {} (held-out images {:?})",
@@ -978,6 +1034,8 @@ pub fn refine_normals(
         });
         if held_out_error < best.1 * (1.0 - settings.min_gain) {
             best = (it, held_out_error);
+            best_normals.clone_from(&n);
+            best_model = model.clone();
         } else {
             break;
         }
@@ -994,25 +1052,31 @@ pub fn refine_normals(
         );
     }
 
-    // The chosen count, from every image.
-    progress(&format!(
-        "normal refinement: {} iteration(s) from every image",
-        best.0
-    ));
+    // From the chosen normals, a last alternation (or `final_alternations`) on every image,
+    // so the held-out images' pixels move their vertices too. Started from the selection's
+    // normals, not from the mesh's: repeating the chosen count from scratch cost as much again
+    // and ended at the same error (docs/normal-refinement.md).
     let prior_all = problem.prior(&all);
-    let mut n = n0.to_vec();
-    let mut model = problem.fit(&all, n0).unwrap_or(fit0);
-    for it in 0..best.0 {
+    let mut n = best_normals;
+    let mut model = best_model;
+    for it in 0..settings.final_alternations {
+        progress(&format!(
+            "normal refinement: final alternation {} of {} on every image",
+            it + 1,
+            settings.final_alternations
+        ));
+        if let Some(f) = problem.fit(&all, &n) {
+            model = f;
+        }
         for _ in 0..settings.sweeps {
             n = problem.step(&model, &all, &n, &prior_all);
         }
-        if it + 1 < best.0
-            && let Some(f) = problem.fit(&all, &n)
-        {
-            model = f;
-        }
     }
-    let refined = prior_all.movable.clone();
+    let refined = if settings.final_alternations > 0 {
+        prior_all.movable.clone()
+    } else {
+        movable
+    };
     let (mean_tilt, max_tilt) = tilt_stats(&n, n0, &refined);
     report.accepted = true;
     report.chosen_iterations = best.0;
@@ -1161,6 +1225,38 @@ mod tests {
     }
 
     #[test]
+    fn thinning_keeps_at_most_the_cap_per_face_and_image_spread_over_the_face() {
+        let p = |image: u32, face: u32, t: f32| RefinePixel {
+            image,
+            face,
+            bary: [t, 0.5 * (1.0 - t), 0.5 * (1.0 - t)],
+            sign: 1.0,
+            light: Vector3::z(),
+            view: Vector3::z(),
+            target: 1.0,
+        };
+        let mut px: Vec<RefinePixel> = (0..12).map(|j| p(0, 7, j as f32 / 11.0)).collect();
+        px.extend((0..2).map(|j| p(0, 8, j as f32)));
+        px.extend((0..12).map(|j| p(1, 7, j as f32 / 11.0)));
+        let kept = thin_per_face(&px, 3);
+        let of = |i: u32, f: u32| -> Vec<f32> {
+            kept.iter()
+                .filter(|q| q.image == i && q.face == f)
+                .map(|q| q.bary[0])
+                .collect()
+        };
+        // a face with fewer pixels than the cap keeps them all
+        assert_eq!(of(0, 8), vec![0.0, 1.0]);
+        // a face with more keeps the cap, spread from one side of the face to the other
+        for i in [0, 1] {
+            let t = of(i, 7);
+            assert_eq!(t.len(), 3, "{t:?}");
+            assert!(t[0] < 0.35 && t[2] > 0.65, "{t:?}");
+        }
+        assert_eq!(kept.len(), 8);
+    }
+
+    #[test]
     fn conjugate_gradients_solve_a_small_system() {
         // A symmetric positive definite system with a known solution.
         let a = [[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]];
@@ -1172,12 +1268,12 @@ mod tests {
         };
         let b = apply(&x_true);
         let precond = [0.25, 1.0 / 3.0, 0.5];
-        let x = conjugate_gradients(apply, &b, &precond, 10);
+        let x = conjugate_gradients(apply, &b, &precond, 10, 1e-9);
         for k in 0..3 {
             assert!((x[k] - x_true[k]).abs() < 1e-6, "{x:?}");
         }
         // a zero preconditioner entry keeps that unknown at zero (a fixed vertex)
-        let x = conjugate_gradients(apply, &b, &[0.25, 0.0, 0.5], 10);
+        let x = conjugate_gradients(apply, &b, &[0.25, 0.0, 0.5], 10, 1e-9);
         assert_eq!(x[1], 0.0);
     }
 
