@@ -80,10 +80,11 @@ impl GBuffer {
     }
 }
 
-/// Casts camera rays against one mesh: build once per (mesh, camera), then ask for whole images
-/// ([`Rasteriser::gbuffer`]) or single pixels ([`Rasteriser::fragment`]), e.g. to sample a few
-/// pixels of a full-resolution photograph without holding a G-buffer for all of it (a
-/// `Fragment` is ~120 bytes, so a 24-megapixel G-buffer would need ~3 GB).
+/// One mesh seen by one camera: build once per (mesh, camera), then ask for whole images
+/// ([`Rasteriser::gbuffer`]), the visible face of every pixel ([`Rasteriser::faces`]) or single
+/// pixels ([`Rasteriser::fragment`], [`Rasteriser::fragment_on`]), e.g. to go through a
+/// full-resolution photograph without holding a G-buffer for all of it (a `Fragment` is ~120
+/// bytes, so a 24-megapixel G-buffer would need ~3 GB).
 #[derive(Clone, Copy)]
 pub struct Rasteriser<'a> {
     mesh: &'a Mesh,
