@@ -21,6 +21,7 @@ mod firmware_flash;
 mod firmware_qemu;
 mod geometry;
 mod independent;
+mod observe_sweep;
 mod raw_input;
 mod reconstruct;
 mod regression;

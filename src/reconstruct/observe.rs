@@ -167,8 +167,9 @@ impl Default for ObserveSettings {
 }
 
 /// Pixels dropped, by reason. Each pixel is counted once, under the first reason that applies,
-/// tested in this order: masked out, invalid, grazing, saturated, black, redundant, shadowed
-/// (the shadow ray, the costly test, is cast only for a pixel that would otherwise be kept).
+/// tested in this order: masked out, invalid, turned away from the light (shadowed), grazing,
+/// saturated, black, redundant, cast shadow (shadowed: the shadow ray, the costly test, is cast
+/// only for a pixel that would otherwise be kept).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct DropCounts {
     pub masked_out: usize,
@@ -186,6 +187,8 @@ pub struct DropCounts {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Dropped {
     MaskedOut,
+    /// Turned away from the light (cast shadows need the shadow ray).
+    Shadowed,
     Invalid,
     Grazing,
     Saturated,
@@ -207,6 +210,7 @@ impl DropCounts {
     pub fn count(&mut self, reason: Dropped) {
         match reason {
             Dropped::MaskedOut => self.masked_out += 1,
+            Dropped::Shadowed => self.shadowed += 1,
             Dropped::Invalid => self.invalid += 1,
             Dropped::Grazing => self.grazing += 1,
             Dropped::Saturated => self.saturated += 1,
@@ -277,6 +281,10 @@ pub fn check_pixel(
     }
     let cos_i = normal.dot(&input.light_world);
     let cos_o = normal.dot(&view);
+    if cos_i <= 0.0 {
+        // turned away from the light: in its own shadow, no ray needed
+        return Err(Dropped::Shadowed);
+    }
     if cos_i < settings.min_cos || cos_o < settings.min_cos {
         return Err(Dropped::Grazing);
     }

@@ -1,21 +1,24 @@
-//! Fewer observations where pixels repeat each other: per light image, at most `cap` pixels
-//! per (MERL bin, image region), drawn uniformly at random (a fixed hash of image and pixel, so
-//! a run is reproducible) from the pixels that pass every other test.
+//! Fewer observations where pixels repeat each other, per light image, in two steps:
 //!
-//! Why: a 24-megapixel photograph shows each MERL bin of a smooth object on hundreds of
-//! neighbouring pixels with the same directions and nearly the same value; the core's cost grows
-//! with the number of pixels, its information does not. Stratifying by bin keeps every bin
-//! that any pixel saw (the angular coverage the basis fit and eq. 3 see is unchanged), and by
-//! image region (a grid of `regions` x `regions` cells over the image) keeps pixels from every
-//! part of the surface that shows the bin (positions, curvatures and normal errors differ there),
-//! so the held-out validation still sees every image and every part of it. At the sizes the
-//! tests and the study use (up to ~640x480) few cells hold more than `cap` pixels, and the set
-//! is nearly the full one.
+//! 1. A lattice: above `reference_pixels` (about what the method needs: 1920x1440 by default)
+//!    only every `stride`-th pixel along each axis is looked at, `stride = floor(sqrt(pixels /
+//!    reference_pixels))` (24 MP: 2). A photogrammetry mesh has no detail at that scale (a
+//!    face of the 70k-face Bunny spans ~8x8 pixels of a 24 MP view), so the skipped pixels
+//!    repeat their neighbours' directions and curvature.
+//! 2. Cells: the pixels that pass every other test are grouped by (MERL bin, image region: a
+//!    grid of `regions` x `regions` cells over the image); when there are more than `budget`,
+//!    each cell keeps at most `c` of them, `c` the largest count (up to `cap`) that keeps the
+//!    total within `budget` (water filling: the most repeated cells are thinned first, a bin
+//!    seen once keeps its pixel). When even one per cell is over budget, a uniform random
+//!    `budget` of the cells keep one each (neighbouring bins then stand for each other).
 //!
-//! The selection keeps the `cap` smallest priorities of each cell: a pixel enters while the
-//! cell is not full or when its priority is below the cell's largest, which it evicts. A
-//! caller can ask [`Reservoir::admits`] before paying for a test that only matters for kept
-//! pixels (the shadow ray). Pure.
+//! Which pixels of a cell are kept is uniform at random but reproducible: the smallest values
+//! of a fixed hash of (image, pixel) ([`priority`]). Why: a 24-megapixel photograph shows each
+//! MERL bin of a smooth object on hundreds of neighbouring pixels with the same directions and
+//! nearly the same value; the core's cost grows with the number of pixels, its information does
+//! not. Below the budget (the 640x480 benchmark's busiest view has 38k pixels) only cells over
+//! `cap` are thinned, and the set is nearly the full one. Every image keeps pixels, so the
+//! held-out validation and the eq. 3 choice still see every image. Pure.
 
 use super::observe::Observation;
 use serde::Serialize;
@@ -24,17 +27,23 @@ use std::collections::HashMap;
 /// How far to thin the observations of one light image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Reduction {
+    /// Above this many pixels an image is looked at on a lattice (step 1 of the header).
+    pub reference_pixels: usize,
     /// The image is cut into `regions` x `regions` cells.
     pub regions: u32,
-    /// Pixels kept per (MERL bin, cell).
+    /// Pixels kept at most per (MERL bin, region).
     pub cap: usize,
+    /// Pixels kept at most per image.
+    pub budget: usize,
 }
 
 impl Default for Reduction {
     fn default() -> Self {
         Self {
-            regions: 16,
-            cap: 8,
+            reference_pixels: 1920 * 1440,
+            regions: 4,
+            cap: 16,
+            budget: 40_000,
         }
     }
 }
@@ -48,10 +57,15 @@ impl Reduction {
         (cy * r + cx) as u32
     }
 
-    /// The region row of image row `y` (bands of rows that share no cell).
-    pub fn region_row(&self, y: usize, height: usize) -> usize {
-        let r = self.regions.max(1) as usize;
-        (y * r / height.max(1)).min(r - 1)
+    /// The lattice step of a `width` x `height` image (1: every pixel).
+    pub fn stride(&self, width: usize, height: usize) -> usize {
+        let ratio = (width * height) as f64 / self.reference_pixels.max(1) as f64;
+        (ratio.sqrt().floor() as usize).max(1)
+    }
+
+    /// Whether pixel `(x, y)` lies on the lattice of step `stride` (the middle of each block).
+    pub fn on_lattice(stride: usize, x: usize, y: usize) -> bool {
+        stride <= 1 || (x % stride == stride / 2 && y % stride == stride / 2)
     }
 }
 
@@ -65,71 +79,101 @@ pub fn priority(image: usize, x: u32, y: u32) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The kept pixels of some cells, as the scan goes.
-pub struct Reservoir {
+/// A pixel offered to the cells: its priority and position.
+pub type Entry = (u64, u32, u32);
+
+/// The candidates of one image, by cell, each keeping its `cap` smallest priorities.
+#[derive(Debug, Default)]
+pub struct Cells {
     cap: usize,
-    cells: HashMap<(usize, u32), Vec<(u64, Observation)>>,
-    /// Pixels let in and later pushed out by a smaller priority.
-    evicted: usize,
+    cells: HashMap<(usize, u32), Vec<Entry>>,
+    offered: usize,
 }
 
-impl Reservoir {
+impl Cells {
     pub fn new(cap: usize) -> Self {
         Self {
             cap: cap.max(1),
             cells: HashMap::new(),
-            evicted: 0,
+            offered: 0,
         }
     }
 
-    /// Whether a pixel of cell `key` (bin, region) with `prio` would be kept now.
-    pub fn admits(&self, key: (usize, u32), prio: u64) -> bool {
-        match self.cells.get(&key) {
-            None => true,
-            Some(v) if v.len() < self.cap => true,
-            Some(v) => v.iter().any(|(p, _)| *p > prio),
-        }
-    }
-
-    /// Keeps `o` (call after [`Self::admits`] said yes), evicting the cell's largest priority
-    /// when it is full.
-    pub fn insert(&mut self, key: (usize, u32), prio: u64, o: Observation) {
+    /// Offers a pixel of cell `key` (MERL bin, region).
+    pub fn offer(&mut self, key: (usize, u32), e: Entry) {
+        self.offered += 1;
         let cap = self.cap;
         let cell = self.cells.entry(key).or_default();
         if cell.len() < cap {
-            cell.push((prio, o));
-            return;
-        }
-        if let Some((i, _)) = cell
-            .iter()
-            .enumerate()
-            .max_by_key(|(_, (p, _))| *p)
-            .filter(|(_, (p, _))| *p > prio)
+            cell.push(e);
+        } else if let Some(worst) = cell.iter_mut().max_by_key(|w| w.0)
+            && worst.0 > e.0
         {
-            cell[i] = (prio, o);
-            self.evicted += 1;
+            *worst = e;
         }
     }
 
-    /// Pixels let in and later evicted.
-    pub fn evicted(&self) -> usize {
-        self.evicted
+    /// Merges the cells of another part of the same image.
+    pub fn merge(&mut self, other: Cells) {
+        self.offered += other.offered;
+        for (key, mut es) in other.cells {
+            let cell = self.cells.entry(key).or_default();
+            cell.append(&mut es);
+            if cell.len() > self.cap {
+                cell.sort_unstable();
+                cell.truncate(self.cap);
+            }
+        }
     }
 
-    /// The kept observations in image order (row, then column).
-    pub fn into_observations(self) -> Vec<Observation> {
-        let mut out: Vec<Observation> = self
-            .cells
-            .into_values()
-            .flat_map(|c| c.into_iter().map(|(_, o)| o))
-            .collect();
-        out.sort_by_key(|o| (o.image, o.y, o.x));
-        out
+    /// Pixels offered so far.
+    pub fn offered(&self) -> usize {
+        self.offered
+    }
+
+    /// The kept pixels `(x, y)` within `budget` (module header, step 2), in image order.
+    pub fn select(mut self, budget: usize) -> Vec<(u32, u32)> {
+        let total = |c: usize, cells: &HashMap<(usize, u32), Vec<Entry>>| -> usize {
+            cells.values().map(|v| v.len().min(c)).sum()
+        };
+        let budget = budget.max(1);
+        let mut out: Vec<Entry> = if total(1, &self.cells) > budget {
+            let mut firsts: Vec<Entry> = self
+                .cells
+                .into_values()
+                .filter_map(|v| v.into_iter().min())
+                .collect();
+            firsts.sort_unstable();
+            firsts.truncate(budget);
+            firsts
+        } else {
+            // the largest c in [1, cap] within budget (total is monotone in c)
+            let (mut lo, mut hi) = (1, self.cap);
+            while lo < hi {
+                let mid = (lo + hi).div_ceil(2);
+                if total(mid, &self.cells) <= budget {
+                    lo = mid;
+                } else {
+                    hi = mid - 1;
+                }
+            }
+            self.cells
+                .values_mut()
+                .flat_map(|v| {
+                    v.sort_unstable();
+                    v.truncate(lo);
+                    v.drain(..)
+                })
+                .collect()
+        };
+        let mut px: Vec<(u32, u32)> = out.drain(..).map(|(_, x, y)| (x, y)).collect();
+        px.sort_unstable_by_key(|&(x, y)| (y, x));
+        px
     }
 }
 
-/// Thins the observations of one `width` x `height` light image; returns the kept ones (image
-/// order) and how many were dropped.
+/// Thins the observations of one `width` x `height` light image (step 2 of the header only:
+/// they are already made); returns the kept ones (image order) and how many were dropped.
 pub fn reduce(
     obs: Vec<Observation>,
     width: usize,
@@ -137,17 +181,19 @@ pub fn reduce(
     r: &Reduction,
 ) -> (Vec<Observation>, usize) {
     let n = obs.len();
-    let mut res = Reservoir::new(r.cap);
-    for o in obs {
+    let mut cells = Cells::new(r.cap);
+    for o in &obs {
         let key = (o.bin, r.region(o.x, o.y, width, height));
-        let prio = priority(o.image, o.x, o.y);
-        if res.admits(key, prio) {
-            res.insert(key, prio, o);
-        }
+        cells.offer(key, (priority(o.image, o.x, o.y), o.x, o.y));
     }
-    let kept = res.into_observations();
-    let dropped = n - kept.len();
-    (kept, dropped)
+    let kept: std::collections::HashSet<(u32, u32)> = cells.select(r.budget).into_iter().collect();
+    let mut out: Vec<Observation> = obs
+        .into_iter()
+        .filter(|o| kept.contains(&(o.x, o.y)))
+        .collect();
+    out.sort_by_key(|o| (o.y, o.x));
+    let dropped = n - out.len();
+    (out, dropped)
 }
 
 #[cfg(test)]
@@ -172,8 +218,13 @@ mod tests {
     }
 
     #[test]
-    fn each_cell_keeps_its_cap_of_smallest_priorities_and_every_bin_survives() {
-        let r = Reduction { regions: 2, cap: 3 };
+    fn cells_are_thinned_most_repeated_first_within_the_budget() {
+        let r = Reduction {
+            reference_pixels: 1 << 20,
+            regions: 2,
+            cap: 3,
+            budget: 1000,
+        };
         let a = Vector3::new(0.3, 0.0, 1.0).normalize();
         let b = Vector3::new(0.0, 0.7, 1.0).normalize();
         // 20 x 20 image: bin of `a` everywhere, plus one pixel of bin `b`
@@ -183,38 +234,40 @@ mod tests {
             .collect();
         all.push(obs(3, 3, b));
         let (kept, dropped) = reduce(all.clone(), 20, 20, &r);
-        // 4 cells x 3 of bin a, plus the lone b
+        // 4 cells x cap 3 of bin a, plus the lone b
         assert_eq!(kept.len(), 13);
         assert_eq!(dropped, all.len() - 13);
         assert!(kept.iter().any(|o| o.bin == obs(3, 3, b).bin));
         // within a cell: the 3 smallest priorities
-        let mut cell0: Vec<u64> = all
-            .iter()
-            .filter(|o| o.bin == kept[0].bin && r.region(o.x, o.y, 20, 20) == 0)
-            .map(|o| priority(0, o.x, o.y))
-            .collect();
-        cell0.sort_unstable();
-        let mut got: Vec<u64> = kept
-            .iter()
-            .filter(|o| o.bin == kept[0].bin && r.region(o.x, o.y, 20, 20) == 0)
-            .map(|o| priority(0, o.x, o.y))
-            .collect();
-        got.sort_unstable();
-        assert_eq!(got, cell0[..3]);
-        // image order, and a large cap keeps everything
+        let prios = |v: &[Observation]| {
+            let mut p: Vec<u64> = v
+                .iter()
+                .filter(|o| o.bin == obs(0, 0, a).bin && r.region(o.x, o.y, 20, 20) == 0)
+                .map(|o| priority(0, o.x, o.y))
+                .collect();
+            p.sort_unstable();
+            p
+        };
+        assert_eq!(prios(&kept), prios(&all)[..3]);
         assert!(
             kept.windows(2)
                 .all(|w| (w[0].y, w[0].x) <= (w[1].y, w[1].x))
         );
-        let (kept, dropped) = reduce(
-            all.clone(),
-            20,
-            20,
-            &Reduction {
-                regions: 2,
-                cap: 1000,
-            },
-        );
+        // a budget of 9: water filling gives c = 2 (4 x 2 + 1), the lone b kept
+        let (kept, _) = reduce(all.clone(), 20, 20, &Reduction { budget: 9, ..r });
+        assert_eq!(kept.len(), 9);
+        assert!(kept.iter().any(|o| o.bin == obs(3, 3, b).bin));
+        // a budget below the number of cells: one pixel in each of `budget` cells
+        let (kept, _) = reduce(all.clone(), 20, 20, &Reduction { budget: 3, ..r });
+        assert_eq!(kept.len(), 3);
+        // a large cap and budget keep everything
+        let big = Reduction { cap: 1000, ..r };
+        let (kept, dropped) = reduce(all.clone(), 20, 20, &big);
         assert_eq!((kept.len(), dropped), (all.len(), 0));
+        // the lattice: 24 MP against a 1920x1440 reference steps by 2
+        let d = Reduction::default();
+        assert_eq!(d.stride(6000, 4000), 2);
+        assert_eq!(d.stride(640, 480), 1);
+        assert!(Reduction::on_lattice(2, 1, 3) && !Reduction::on_lattice(2, 0, 3));
     }
 }
