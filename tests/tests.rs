@@ -8,6 +8,7 @@ mod brdf;
 mod calib_cli;
 mod calib_fixtures;
 mod calib_hdr;
+mod calib_large;
 mod calib_session;
 mod calib_sphere;
 mod calib_synth;
