@@ -364,6 +364,29 @@ fn surface_pixels(gbuf: &GBuffer, lit: &[Option<bool>]) -> Vec<SurfacePixel> {
         .collect()
 }
 
+/// A G-buffer view's observations (every pixel's, from `observe_view`) reduced as `s` says.
+fn reduced(
+    obs: Vec<Observation>,
+    mut dropped: DropCounts,
+    surface: &[SurfacePixel],
+    gbuf: &GBuffer,
+    s: &ObserveSettings,
+) -> ViewSweep {
+    let observations = match &s.reduce {
+        Some(red) => {
+            let (kept, n) = reduce(obs, gbuf.width(), gbuf.height(), red);
+            dropped.redundant += n;
+            kept
+        }
+        None => obs,
+    };
+    ViewSweep {
+        observations,
+        dropped,
+        covered: surface.len(),
+    }
+}
+
 /// What every view's observation needs of the mesh, built once.
 struct MeshAids {
     bvh: Bvh,
@@ -416,20 +439,8 @@ fn observe_one(
             let gbuf = r.gbuffer_ray_cast();
             let lit = shadow_mask(mesh, &aids.bvh, &gbuf, &centre, &view.light_world);
             let surface = surface_pixels(&gbuf, &lit);
-            let (obs, mut dropped) = observe_view(&input, &surface, &s);
-            let observations = match &s.reduce {
-                Some(red) => {
-                    let (kept, n) = reduce(obs, gbuf.width(), gbuf.height(), red);
-                    dropped.redundant += n;
-                    kept
-                }
-                None => obs,
-            };
-            ViewSweep {
-                observations,
-                dropped,
-                covered: surface.len(),
-            }
+            let (obs, dropped) = observe_view(&input, &surface, &s);
+            reduced(obs, dropped, &surface, &gbuf, &s)
         }
     };
     (sweep, Thumbnail::of(image, COMPARISON_WIDTH))
@@ -553,26 +564,14 @@ pub fn observe_scene_with(
             saturation: settings.saturation.or(view.saturation),
             ..*settings
         };
-        let (obs, mut dropped) = observe_view(&input, &surface, &s);
+        let (obs, dropped) = observe_view(&input, &surface, &s);
         each(&ViewPass {
             gbuffer: &gbuf,
             input: &input,
             surface: &surface,
             settings: &s,
         });
-        let observations = match &s.reduce {
-            Some(red) => {
-                let (kept, n) = reduce(obs, gbuf.width(), gbuf.height(), red);
-                dropped.redundant += n;
-                kept
-            }
-            None => obs,
-        };
-        let sweep = ViewSweep {
-            observations,
-            dropped,
-            covered: surface.len(),
-        };
+        let sweep = reduced(obs, dropped, &surface, &gbuf, &s);
         observed.push(
             &view.file,
             sweep,

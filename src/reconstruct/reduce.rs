@@ -227,9 +227,10 @@ mod tests {
         };
         let a = Vector3::new(0.3, 0.0, 1.0).normalize();
         let b = Vector3::new(0.0, 0.7, 1.0).normalize();
-        // 20 x 20 image: bin of `a` everywhere, plus one pixel of bin `b`
+        // 20 x 20 image: bin of `a` everywhere but at (3, 3), which shows bin `b`
         let mut all: Vec<Observation> = (0..20)
             .flat_map(|y| (0..20).map(move |x| (x, y)))
+            .filter(|&p| p != (3, 3))
             .map(|(x, y)| obs(x, y, a))
             .collect();
         all.push(obs(3, 3, b));
