@@ -80,6 +80,12 @@ pub struct BenchReconstructArgs {
     /// Time the reconstruction with `--refine-normals` (the normal refinement's cost).
     #[arg(long)]
     pub refine_normals: bool,
+    /// Time the reconstruction with `--all-pixels` (no reduction of redundant pixels).
+    #[arg(long)]
+    pub all_pixels: bool,
+    /// Seed of the timed run's trials (the spread over seeds is the run-to-run noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 fn stride(v: &[usize]) -> GridStride {
@@ -188,6 +194,13 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     if a.refine_normals {
         cmd_args.push("--refine-normals".into());
     }
+    if a.all_pixels {
+        cmd_args.push("--all-pixels".into());
+    }
+    if a.seed != 1 {
+        cmd_args.extend(["--seed".into(), a.seed.to_string()]);
+    }
+    let uptime = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     eprintln!("timed: brdf-rig {}", cmd_args.join(" "));
     let t = Instant::now();
     let status = std::process::Command::new(std::env::current_exe()?)
@@ -201,6 +214,10 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         serde_json::from_slice(&std::fs::read(out_dir.join("report.json"))?)?;
     let table = MerlTable::read(&out_dir.join("brdf.binary"))?;
     let e = err(&bins, truth_of(&a.material)?, &table);
+    eprintln!("rendered error: the sphere probe under the standard environment");
+    let env = brdf_rig::eval::Truth::new(truth_of(&a.material)?, 3)
+        .errors_of(&table)
+        .environment;
 
     let mut md = String::new();
     let mut command = format!(
@@ -218,6 +235,12 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     if a.refine_normals {
         command += " --refine-normals";
     }
+    if a.all_pixels {
+        command += " --all-pixels";
+    }
+    if a.seed != 1 {
+        command += &format!(" --seed {}", a.seed);
+    }
     if let Some(w) = &a.write {
         command += &format!(" --write {}", w.display());
     }
@@ -230,7 +253,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     writeln!(md, "## Time and memory (paper scale)\n")?;
     writeln!(
         md,
-        "Stanford Bunny ({} single-light images at {}x{}, SfM-like mesh: Taubin smoothing + normal noise, `geometry::sfm_like` defaults), material {}, basis stride {:?}, {} components, basis read from the cache (building it took {:.1} s in the bench process; cached afterwards). Child process `brdf-rig {}`: wall {:.2} s, peak memory (VmHWM) {:.0} MiB.\n",
+        "Stanford Bunny ({} single-light images at {}x{}, SfM-like mesh: Taubin smoothing + normal noise, `geometry::sfm_like` defaults), material {}, basis stride {:?}, {} components, basis read from the cache (building it took {:.1} s in the bench process; cached afterwards). Child process `brdf-rig {}`: wall {:.2} s, peak memory (VmHWM) {:.0} MiB; load average before it (/proc/loadavg) {}.\n",
         a.views,
         a.width,
         a.height,
@@ -242,7 +265,12 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             .join(" ")
             .replace(&root.display().to_string(), "$SCENE"),
         wall,
-        report["peak_memory_bytes"].as_f64().unwrap_or(0.0) / 1048576.0
+        report["peak_memory_bytes"].as_f64().unwrap_or(0.0) / 1048576.0,
+        uptime
+            .split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
     )?;
     writeln!(md, "| stage | seconds |\n|---|---:|")?;
     if let Some(ts) = report["timings"].as_array() {
@@ -257,7 +285,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     }
     writeln!(
         md,
-        "\nObserved pixels {}, reliable {}, k = {}, eta = {}, chosen trial {} of {}; cosine-weighted relative error {:.4} (relative {:.4}, near-specular {:.4}).\n",
+        "\nObserved pixels {}, reliable {}, k = {}, eta = {}, chosen trial {} of {}; rendered (environment) error {env:.4}; cosine-weighted relative error {:.4} (relative {:.4}, near-specular {:.4}).\n",
         report["observed_pixels"],
         report["reliable_pixels"],
         report["components"]["k"],

@@ -104,6 +104,13 @@ pub struct Args {
     /// Largest tilt the refinement may give a normal, degrees (0 to 60).
     #[arg(long, default_value_t = 20.0, value_parser = real_in(Closed(0.0), Closed(60.0)))]
     pub max_tilt: f64,
+    /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
+    /// "Cost at camera resolution"; slower and larger at camera resolutions).
+    #[arg(long)]
+    pub all_pixels: bool,
+    /// Pixels kept at most per light image by the reduction.
+    #[arg(long, default_value_t = 40_000, value_parser = int_in(1usize, 1_000_000_000))]
+    pub pixel_budget: usize,
     /// Random seed of the trials.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -192,6 +199,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     settings.basis_cache = args.basis_cache;
     settings.saturation = args.saturation;
+    settings.observe.reduce = match (args.all_pixels, settings.observe.reduce) {
+        (false, Some(r)) => Some(reconstruct::reduce::Reduction {
+            budget: args.pixel_budget,
+            ..r
+        }),
+        _ => None,
+    };
     if args.refine_normals {
         settings.refine = Some(reconstruct::refine::RefineSettings {
             max_tilt_deg: args.max_tilt,

@@ -292,16 +292,20 @@ pub fn load_case(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(perturb.seed);
     for view in &mut scene.views {
-        let peak = view.image.data().iter().copied().fold(0.0f32, f32::max);
+        // `load_scene` holds every image
+        let Some(image) = view.image.as_mut() else {
+            continue;
+        };
+        let peak = image.data().iter().copied().fold(0.0f32, f32::max);
         if perturb.image_noise > 0.0 {
             let sd = perturb.image_noise * f64::from(peak);
-            for v in view.image.data_mut() {
+            for v in image.data_mut() {
                 *v = (f64::from(*v) + sd * gaussian(&mut rng)).max(0.0) as f32;
             }
         }
         if perturb.clip_fraction < 1.0 {
             let level = perturb.clip_fraction as f32 * peak;
-            for v in view.image.data_mut() {
+            for v in image.data_mut() {
                 *v = v.min(level);
             }
             view.saturation = Some(f64::from(level));

@@ -218,6 +218,25 @@ impl Bvh {
     }
 }
 
+/// The ray against one triangle `(p0, p1, p2)` with the arithmetic of the BVH's own test, so a
+/// caller that already knows the face (a z-buffer) gets the hit a traversal would report:
+/// `(t, u, v)` with `t_min < t < t_max`, `(u, v)` weighting corners 1 and 2.
+pub fn intersect_triangle(
+    corners: &[Point3<f64>; 3],
+    ray: &Ray,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64, f64)> {
+    let [a, b, c] = corners;
+    let tri = Tri {
+        p0: a.coords,
+        e1: b - a,
+        e2: c - a,
+        face: 0,
+    };
+    moller_trumbore(&tri, ray, t_min, t_max)
+}
+
 /// Entry distance of the ray into the node's box within `[t_min, t_max]`, if it enters.
 #[inline]
 fn slab(n: &Node, o: &Vector3<f64>, inv: &Vector3<f64>, t_min: f64, t_max: f64) -> Option<f64> {

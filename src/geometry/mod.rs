@@ -1,5 +1,5 @@
 //! Geometry: cameras, meshes and their import/export (PLY, OBJ), COLMAP models, the BVH, the
-//! ray-cast rasteriser, shadows, curvature and SfM-like meshes.
+//! rasteriser (z-buffer visibility, exact per-pixel rays), shadows, curvature and SfM-like meshes.
 //! Pure computation except the importers/exporters (`mesh_io`, `colmap`), which read and write
 //! files and name them in their errors (writes go through `crate::imageio::write_atomic`). Must
 //! not depend on `render`, `brdf` or anything at the edges (devices, capture, sim): those depend
@@ -14,3 +14,4 @@ pub mod mesh_io;
 pub mod raster;
 pub mod sfm_like;
 pub mod shadow;
+pub mod zbuffer;

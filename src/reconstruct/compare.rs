@@ -10,7 +10,8 @@
 //! The panel is three images side by side at a common exposure (the photo's 99th percentile
 //! maps to 1): photo, re-render, error. The error map is the signed difference on the same
 //! scale, red where the re-render is brighter than the photo, blue where it is darker. Images
-//! are box-downsampled by an integer factor to at most `max_width` pixels per panel. Pure.
+//! are box-downsampled by an integer factor to at most a panel's width ([`Thumbnail`]: taken
+//! while the image is read, so the full image is not held). Pure.
 
 use super::observe::Observation;
 use crate::brdf::merl::MerlTable;
@@ -31,21 +32,68 @@ pub struct Comparison {
 /// Value shown where no pixel was observed.
 const UNOBSERVED: f32 = 0.08;
 
-/// The comparison of one light image (see the module header).
+/// A light image box-downsampled by an integer factor for the photo panel: all a comparison
+/// needs of the photo besides the observed pixels' values (which the observations carry), so
+/// the full image need not be held until the BRDF is known. Non-finite values count as 0.
+#[derive(Clone, Debug)]
+pub struct Thumbnail {
+    /// Size of the full image.
+    pub width: usize,
+    pub height: usize,
+    /// Full-resolution pixels per thumbnail pixel, along each axis.
+    pub step: usize,
+    /// Block means.
+    pub image: LinearImage,
+}
+
+impl Thumbnail {
+    /// `photo` downsampled to at most `max_width` pixels across.
+    pub fn of(photo: &LinearImage, max_width: usize) -> Self {
+        let (w, h) = (photo.width(), photo.height());
+        let step = w.div_ceil(max_width.max(1)).max(1);
+        let (sw, sh) = (w.div_ceil(step), h.div_ceil(step));
+        let mut image = LinearImage::new(sw, sh);
+        for py in 0..sh {
+            for px in 0..sw {
+                let (mut p, mut n) = ([0.0f32; 3], 0.0f32);
+                for y in py * step..((py + 1) * step).min(h) {
+                    for x in px * step..((px + 1) * step).min(w) {
+                        let ph = photo.get(x, y);
+                        n += 1.0;
+                        for c in 0..3 {
+                            p[c] += if ph[c].is_finite() { ph[c] } else { 0.0 };
+                        }
+                    }
+                }
+                image.set(px, py, p.map(|v| v / n));
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            step,
+            image,
+        }
+    }
+}
+
+/// The comparison of one light image (see the module header), from its thumbnail
+/// ([`Thumbnail::of`] with the panel width) and its observations.
 pub fn compare_image(
     image_index: usize,
-    photo: &LinearImage,
+    photo: &Thumbnail,
     obs: &[&Observation],
     table: &MerlTable,
-    max_width: usize,
 ) -> Comparison {
-    let (w, h) = (photo.width(), photo.height());
-    let step = w.div_ceil(max_width.max(1)).max(1);
-    let (sw, sh) = (w.div_ceil(step), h.div_ceil(step));
-    // Full-resolution re-render and mask.
-    let mut render = vec![[0.0f64; 3]; w * h];
-    let mut seen = vec![false; w * h];
+    let (w, h, step) = (photo.width, photo.height, photo.step);
+    let (sw, sh) = (photo.image.width(), photo.image.height());
+    // Per thumbnail pixel: sums of the re-render and of re-render minus photo over the observed
+    // pixels, and their number.
+    let mut render = vec![[0.0f64; 3]; sw * sh];
+    let mut diff = vec![0.0f64; sw * sh];
+    let mut n_seen = vec![0usize; sw * sh];
     let (mut num, mut den) = (0.0, 0.0);
+    let mut vals: Vec<f32> = Vec::with_capacity(3 * obs.len());
     for o in obs {
         let (x, y) = (o.x as usize, o.y as usize);
         if x >= w || y >= h {
@@ -57,17 +105,22 @@ pub fn compare_image(
             num += (vc - rc).powi(2);
             den += rc.powi(2);
         }
-        render[y * w + x] = v;
-        seen[y * w + x] = true;
+        let i = (y / step) * sw + x / step;
+        for c in 0..3 {
+            render[i][c] += v[c];
+            // the photo's value as the pixel was read (f32), as the panel shows it
+            let ph = o.radiance[c] as f32;
+            diff[i] += v[c] - f64::from(ph);
+            vals.push(ph);
+        }
+        n_seen[i] += 1;
     }
     // Exposure: the photo's 99th percentile channel value over the observed pixels (the
-    // object, not the backdrop); the whole photo's when none was observed.
-    let any_seen = seen.iter().any(|s| *s);
-    let mut vals: Vec<f32> = (0..w * h)
-        .filter(|&i| seen[i] || !any_seen)
-        .flat_map(|i| photo.get(i % w, i / w))
-        .filter(|v| v.is_finite())
-        .collect();
+    // object, not the backdrop); the thumbnail's when none was observed.
+    if vals.is_empty() {
+        vals = photo.image.data().to_vec();
+    }
+    vals.retain(|v| v.is_finite());
     vals.sort_by(f32::total_cmp);
     let p99 = vals
         .get(((vals.len().max(1) - 1) as f64 * 0.99) as usize)
@@ -77,30 +130,17 @@ pub fn compare_image(
     let mut panel = LinearImage::new(3 * sw, sh);
     for py in 0..sh {
         for px in 0..sw {
-            let (mut p, mut r, mut e) = ([0.0f32; 3], [0.0f32; 3], [0.0f32; 3]);
-            let (mut n, mut n_seen) = (0.0f32, 0.0f32);
-            for y in py * step..((py + 1) * step).min(h) {
-                for x in px * step..((px + 1) * step).min(w) {
-                    let ph = photo.get(x, y);
-                    n += 1.0;
-                    for c in 0..3 {
-                        p[c] += if ph[c].is_finite() { ph[c] } else { 0.0 };
-                    }
-                    if seen[y * w + x] {
-                        n_seen += 1.0;
-                        let rv = render[y * w + x];
-                        for c in 0..3 {
-                            r[c] += rv[c] as f32;
-                            e[c] += rv[c] as f32 - ph[c];
-                        }
-                    }
-                }
-            }
-            let photo_px = p.map(|v| (v / n / p99).clamp(0.0, 1.0));
-            panel.set(px, py, photo_px);
-            if n_seen > 0.0 {
-                panel.set(sw + px, py, r.map(|v| (v / n_seen / p99).clamp(0.0, 1.0)));
-                let d = (e.iter().sum::<f32>() / 3.0 / n_seen / p99).clamp(-1.0, 1.0);
+            let i = py * sw + px;
+            panel.set(
+                px,
+                py,
+                photo.image.get(px, py).map(|v| (v / p99).clamp(0.0, 1.0)),
+            );
+            if n_seen[i] > 0 {
+                let n = n_seen[i] as f64;
+                let r = render[i].map(|v| ((v / n) as f32 / p99).clamp(0.0, 1.0));
+                panel.set(sw + px, py, r);
+                let d = ((diff[i] / 3.0 / n) as f32 / p99).clamp(-1.0, 1.0);
                 let err = if d >= 0.0 {
                     [d, 0.0, 0.0]
                 } else {
@@ -164,7 +204,7 @@ mod tests {
             }
         }
         let refs: Vec<&Observation> = obs.iter().collect();
-        let c = compare_image(3, &photo, &refs, &table, 10);
+        let c = compare_image(3, &Thumbnail::of(&photo, 10), &refs, &table);
         assert_eq!(c.image, 3);
         assert!(c.error < 1e-6, "{}", c.error);
         assert_eq!((c.panel.width(), c.panel.height()), (30, 5));
@@ -176,7 +216,7 @@ mod tests {
         let bright = MerlTable::tabulate(&Lambert {
             albedo: [2.0 * albedo; 3],
         });
-        let c = compare_image(3, &photo, &refs, &bright, 10);
+        let c = compare_image(3, &Thumbnail::of(&photo, 10), &refs, &bright);
         assert!((c.error - 1.0).abs() < 1e-3, "{}", c.error);
         let e = c.panel.get(20, 0);
         assert!(e[0] > 0.5 && e[2] == 0.0, "{e:?}");

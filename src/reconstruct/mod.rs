@@ -4,6 +4,8 @@
 //! The flow, one file per concept:
 //! - [`job`]: the job file (mesh, COLMAP model, light images with light direction and irradiance);
 //! - [`observe`]: per pixel directions, reflectance, Rusinkiewicz angles and MERL bin;
+//!   [`sweep`] makes them for a whole view from its z-buffer, [`reduce`] thins out redundant
+//!   pixels (per MERL bin and image region);
 //! - [`reliable`]: the three assumptions (curvature, monotonicity, brightest pixel);
 //! - [`prior`]: what a BRDF prior offers (sample selection, ridge fit), [`nielsen`] the real one;
 //! - [`components`]: the number of basis components, by validation on held-back pixels;
@@ -30,8 +32,10 @@ pub mod output;
 pub mod pipeline;
 pub mod plausible;
 pub mod prior;
+pub mod reduce;
 pub mod refine;
 pub mod reliable;
+pub mod sweep;
 pub mod synthetic;
 pub mod trials;
 

@@ -12,6 +12,7 @@
 //!
 //! Pure: the surface samples come from the rasteriser, the image and mask from the loader.
 
+use super::reduce::Reduction;
 use crate::brdf::coords::{HalfDiff, merl_index};
 use crate::render::frame::ShadingFrame;
 use crate::render::image::LinearImage;
@@ -150,6 +151,8 @@ pub struct ObserveSettings {
     /// Drop a pixel whose mean value is at or below this fraction of the image's maximum mean
     /// (black: no signal, and the log mapping of the basis needs positive values).
     pub black_fraction: f64,
+    /// Thin out redundant pixels per light image (`reduce`); `None` = keep every pixel.
+    pub reduce: Option<Reduction>,
 }
 
 impl Default for ObserveSettings {
@@ -158,12 +161,15 @@ impl Default for ObserveSettings {
             min_cos: 80f64.to_radians().cos(),
             saturation: None,
             black_fraction: 1e-4,
+            reduce: Some(Reduction::default()),
         }
     }
 }
 
-/// Pixels dropped, by reason (each pixel is counted once, under the first reason that applies,
-/// in the order of the fields).
+/// Pixels dropped, by reason. Each pixel is counted once, under the first reason that applies,
+/// tested in this order: masked out, invalid, turned away from the light (shadowed), grazing,
+/// saturated, black, redundant, cast shadow (shadowed: the shadow ray, the costly test, is cast
+/// only for a pixel that would otherwise be kept).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct DropCounts {
     pub masked_out: usize,
@@ -173,6 +179,20 @@ pub struct DropCounts {
     pub black: usize,
     /// NaN or infinite pixel values or geometry.
     pub invalid: usize,
+    /// Left out by the reduction (`reduce`): their (MERL bin, image region) cell was full.
+    pub redundant: usize,
+}
+
+/// Why a pixel was dropped before its shadow ray (see [`DropCounts`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dropped {
+    MaskedOut,
+    /// Turned away from the light (cast shadows need the shadow ray).
+    Shadowed,
+    Invalid,
+    Grazing,
+    Saturated,
+    Black,
 }
 
 impl DropCounts {
@@ -183,10 +203,29 @@ impl DropCounts {
         self.saturated += o.saturated;
         self.black += o.black;
         self.invalid += o.invalid;
+        self.redundant += o.redundant;
+    }
+
+    /// Counts one pixel under `reason`.
+    pub fn count(&mut self, reason: Dropped) {
+        match reason {
+            Dropped::MaskedOut => self.masked_out += 1,
+            Dropped::Shadowed => self.shadowed += 1,
+            Dropped::Invalid => self.invalid += 1,
+            Dropped::Grazing => self.grazing += 1,
+            Dropped::Saturated => self.saturated += 1,
+            Dropped::Black => self.black += 1,
+        }
     }
 
     pub fn total(&self) -> usize {
-        self.masked_out + self.shadowed + self.grazing + self.saturated + self.black + self.invalid
+        self.masked_out
+            + self.shadowed
+            + self.grazing
+            + self.saturated
+            + self.black
+            + self.invalid
+            + self.redundant
     }
 }
 
@@ -202,79 +241,98 @@ pub struct ViewInput<'a> {
     pub irradiance: [f64; 3],
 }
 
-/// Turns the surface pixels of one view into observations, counting what was dropped and why.
+/// The black level of a view: `black_fraction` of the largest mean pixel value over the
+/// pixels where the mesh is seen (`values`: their mean values).
+pub fn black_level(values: impl Iterator<Item = f32>, settings: &ObserveSettings) -> f64 {
+    let max_mean = values
+        .map(f64::from)
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    max_mean * settings.black_fraction
+}
+
+/// Every test of one pixel but the shadow ray: its observation, or why it is dropped.
+/// `black`: the view's [`black_level`].
+pub fn check_pixel(
+    input: &ViewInput<'_>,
+    s: &SurfacePixel,
+    settings: &ObserveSettings,
+    black: f64,
+) -> Result<Observation, Dropped> {
+    let img = input.image;
+    let (px, py) = (s.x as usize, s.y as usize);
+    if let Some(mask) = input.mask
+        && !mask.get(py * img.width() + px).copied().unwrap_or(false)
+    {
+        return Err(Dropped::MaskedOut);
+    }
+    let rgb = img.get(px, py).map(f64::from);
+    let view = input.camera_centre - s.position;
+    let finite = rgb.iter().all(|v| v.is_finite())
+        && s.normal.iter().all(|v| v.is_finite())
+        && view.iter().all(|v| v.is_finite());
+    if !finite {
+        return Err(Dropped::Invalid);
+    }
+    let view = view.normalize();
+    let mut normal = s.normal;
+    if normal.dot(&view) < 0.0 {
+        normal = -normal;
+    }
+    let cos_i = normal.dot(&input.light_world);
+    let cos_o = normal.dot(&view);
+    if cos_i <= 0.0 {
+        // turned away from the light: in its own shadow, no ray needed
+        return Err(Dropped::Shadowed);
+    }
+    if cos_i < settings.min_cos || cos_o < settings.min_cos {
+        return Err(Dropped::Grazing);
+    }
+    if let Some(sat) = settings.saturation
+        && rgb.iter().any(|&v| v >= sat)
+    {
+        return Err(Dropped::Saturated);
+    }
+    let mean = (rgb[0] + rgb[1] + rgb[2]) / 3.0;
+    if mean <= black || rgb.iter().any(|&v| v <= 0.0) {
+        return Err(Dropped::Black);
+    }
+    Observation::new(
+        input.image_index,
+        s.x,
+        s.y,
+        s.position,
+        normal,
+        input.light_world,
+        view,
+        s.mean_curvature,
+        rgb,
+        input.irradiance,
+    )
+    .ok_or(Dropped::Grazing)
+}
+
+/// Turns the surface pixels of one view into observations, counting what was dropped and why
+/// (every pixel; no reduction).
 pub fn observe_view(
     input: &ViewInput<'_>,
     surface: &[SurfacePixel],
     settings: &ObserveSettings,
 ) -> (Vec<Observation>, DropCounts) {
     let img = input.image;
-    let width = img.width();
-    let max_mean = surface
-        .iter()
-        .map(|s| img.luminance(s.x as usize, s.y as usize) as f64)
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
-    let black_level = max_mean * settings.black_fraction;
+    let black = black_level(
+        surface
+            .iter()
+            .map(|s| img.luminance(s.x as usize, s.y as usize)),
+        settings,
+    );
     let mut drops = DropCounts::default();
     let mut out = Vec::with_capacity(surface.len());
     for s in surface {
-        let (px, py) = (s.x as usize, s.y as usize);
-        if let Some(mask) = input.mask
-            && !mask.get(py * width + px).copied().unwrap_or(false)
-        {
-            drops.masked_out += 1;
-            continue;
-        }
-        if !s.lit {
-            drops.shadowed += 1;
-            continue;
-        }
-        let rgb = img.get(px, py).map(f64::from);
-        let view = input.camera_centre - s.position;
-        let finite = rgb.iter().all(|v| v.is_finite())
-            && s.normal.iter().all(|v| v.is_finite())
-            && view.iter().all(|v| v.is_finite());
-        if !finite {
-            drops.invalid += 1;
-            continue;
-        }
-        let view = view.normalize();
-        let mut normal = s.normal;
-        if normal.dot(&view) < 0.0 {
-            normal = -normal;
-        }
-        let cos_i = normal.dot(&input.light_world);
-        let cos_o = normal.dot(&view);
-        if cos_i < settings.min_cos || cos_o < settings.min_cos {
-            drops.grazing += 1;
-            continue;
-        }
-        if let Some(sat) = settings.saturation
-            && rgb.iter().any(|&v| v >= sat)
-        {
-            drops.saturated += 1;
-            continue;
-        }
-        let mean = (rgb[0] + rgb[1] + rgb[2]) / 3.0;
-        if mean <= black_level || rgb.iter().any(|&v| v <= 0.0) {
-            drops.black += 1;
-            continue;
-        }
-        match Observation::new(
-            input.image_index,
-            s.x,
-            s.y,
-            s.position,
-            normal,
-            input.light_world,
-            view,
-            s.mean_curvature,
-            rgb,
-            input.irradiance,
-        ) {
-            Some(o) => out.push(o),
-            None => drops.grazing += 1,
+        match check_pixel(input, s, settings, black) {
+            Err(reason) => drops.count(reason),
+            Ok(_) if !s.lit => drops.shadowed += 1,
+            Ok(o) => out.push(o),
         }
     }
     (out, drops)
@@ -387,7 +445,8 @@ mod tests {
                 grazing: 1,
                 saturated: 1,
                 black: 1,
-                invalid: 0
+                invalid: 0,
+                redundant: 0
             }
         );
     }

@@ -1,17 +1,25 @@
 //! The whole reconstruction of a job: load its files, rasterise and observe every light image,
 //! build (or read from the cache) the basis, then run the pure core. The only part of
 //! `reconstruct` besides `output` that touches files; every error names the file and the field.
+//!
+//! Images are streamed: [`prepare`] reads one light image, observes it (`sweep`: z-buffer,
+//! reduction, shadow rays for the kept pixels), keeps its thumbnail for the comparison and lets
+//! it go before reading the next, so memory follows the observations, not the sensor. The
+//! normal refinement, which works on every pixel of every view, holds the images instead
+//! ([`load_scene`], [`observe_scene_with`]).
 
-use super::compare::{Comparison, compare_image};
+use super::compare::{Comparison, Thumbnail, compare_image};
 use super::core::{CoreError, CoreOutput, CoreSettings, reconstruct_observations};
 use super::job::{Job, JobError};
 use super::nielsen::{NielsenPrior, NielsenSettings};
 use super::observe::{
     DropCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
 };
+use super::reduce::reduce;
 use super::refine::{
     MeshNormals, RefinePixel, RefineReport, RefineSettings, refine_normals, seen_vertices,
 };
+use super::sweep::{ViewSweep, sweep_view};
 use crate::brdf::basis::{Basis, BasisSettings};
 use crate::brdf::basis_cache::{self, BasisCacheError, CacheStatus};
 use crate::brdf::merl::MerlTable;
@@ -22,7 +30,7 @@ use crate::geometry::colmap::{ColmapError, read_model};
 use crate::geometry::curvature::principal_curvatures;
 use crate::geometry::mesh::{Mesh, MeshReport};
 use crate::geometry::mesh_io::{MeshIoError, load_mesh};
-use crate::geometry::raster::{GBuffer, rasterise};
+use crate::geometry::raster::{GBuffer, Rasteriser, rasterise};
 use crate::geometry::shadow::shadow_mask;
 use crate::imageio::{self, ImageIoError};
 use crate::render::image::LinearImage;
@@ -134,11 +142,16 @@ pub struct View {
     pub file: PathBuf,
     pub intrinsics: Intrinsics,
     pub pose: Pose,
-    pub image: LinearImage,
+    /// The pixels, when held (`load_scene`); `None` when streamed (`load_scene_streamed`):
+    /// read from `file` while observing, then let go.
+    pub image: Option<LinearImage>,
+    /// The mask, when held (and the job names one).
     pub mask: Option<Vec<bool>>,
+    /// The mask file the job names, if any.
+    pub mask_file: Option<PathBuf>,
     pub light_world: nalgebra::Vector3<f64>,
     pub irradiance: [f64; 3],
-    /// Clip level of this image, if any.
+    /// Clip level of this image, if any (known once the image has been read).
     pub saturation: Option<f64>,
 }
 
@@ -160,8 +173,68 @@ pub struct ImageCounts {
     pub dropped: DropCounts,
 }
 
-/// Loads the mesh, the COLMAP model, the images and masks of a job, checking that they agree.
+/// Loads the mesh, the COLMAP model, the images and masks of a job, checking that they agree;
+/// every image is held.
 pub fn load_scene(job: &Job, settings: &Settings) -> Result<Scene, ReconstructError> {
+    load_scene_with(job, settings, true)
+}
+
+/// Loads the mesh and the COLMAP model of a job and checks that every light image has a
+/// camera; the images and masks are read later, one at a time ([`observe_scene_streamed`]).
+pub fn load_scene_streamed(job: &Job, settings: &Settings) -> Result<Scene, ReconstructError> {
+    load_scene_with(job, settings, false)
+}
+
+/// The pixels of one light image: image, mask and clip level, checked against its camera.
+type ViewPixels = (LinearImage, Option<Vec<bool>>, Option<f64>);
+
+/// Reads light image `index` of `job` (and its mask), checking its size against `intrinsics`.
+fn load_view_pixels(
+    job: &Job,
+    index: usize,
+    intrinsics: &Intrinsics,
+    settings: &Settings,
+) -> Result<ViewPixels, ReconstructError> {
+    let spec = &job.light_images[index];
+    let imageio::DecodedImage { image, samples } =
+        imageio::read_image(&spec.file, settings.png_scale, imageio::Transfer::Linear).map_err(
+            |source| ReconstructError::Image {
+                job: job.source.clone(),
+                index,
+                source,
+            },
+        )?;
+    if (image.width(), image.height()) != (intrinsics.width, intrinsics.height) {
+        return Err(ReconstructError::SizeMismatch {
+            job: job.source.clone(),
+            index,
+            path: spec.file.clone(),
+            camera: spec.camera.clone(),
+            got_w: image.width(),
+            got_h: image.height(),
+            want_w: intrinsics.width,
+            want_h: intrinsics.height,
+        });
+    }
+    let mask =
+        match &spec.mask {
+            None => None,
+            Some(path) => Some(read_mask(path, image.width(), image.height()).map_err(
+                |message| ReconstructError::Mask {
+                    job: job.source.clone(),
+                    index,
+                    path: path.clone(),
+                    message,
+                },
+            )?),
+        };
+    let saturation = settings
+        .saturation
+        .or(samples.clip_level(settings.png_scale).map(f64::from));
+    Ok((image, mask, saturation))
+}
+
+fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, ReconstructError> {
     let mut warnings = job.warnings.clone();
     let (mesh, mesh_report) = load_mesh(&job.mesh).map_err(|source| ReconstructError::Mesh {
         job: job.source.clone(),
@@ -196,39 +269,12 @@ pub fn load_scene(job: &Job, settings: &Settings) -> Result<Scene, ReconstructEr
                 known,
             });
         };
-        let imageio::DecodedImage { image, samples } =
-            imageio::read_image(&spec.file, settings.png_scale, imageio::Transfer::Linear)
-                .map_err(|source| ReconstructError::Image {
-                    job: job.source.clone(),
-                    index,
-                    source,
-                })?;
-        if (image.width(), image.height()) != (intrinsics.width, intrinsics.height) {
-            return Err(ReconstructError::SizeMismatch {
-                job: job.source.clone(),
-                index,
-                path: spec.file.clone(),
-                camera: spec.camera.clone(),
-                got_w: image.width(),
-                got_h: image.height(),
-                want_w: intrinsics.width,
-                want_h: intrinsics.height,
-            });
-        }
-        let mask = match &spec.mask {
-            None => None,
-            Some(path) => Some(read_mask(path, image.width(), image.height()).map_err(
-                |message| ReconstructError::Mask {
-                    job: job.source.clone(),
-                    index,
-                    path: path.clone(),
-                    message,
-                },
-            )?),
+        let (image, mask, saturation) = if hold {
+            let (i, m, s) = load_view_pixels(job, index, &intrinsics, settings)?;
+            (Some(i), m, s)
+        } else {
+            (None, None, None)
         };
-        let saturation = settings
-            .saturation
-            .or(samples.clip_level(settings.png_scale).map(f64::from));
         views.push(View {
             index,
             file: spec.file.clone(),
@@ -236,6 +282,7 @@ pub fn load_scene(job: &Job, settings: &Settings) -> Result<Scene, ReconstructEr
             pose,
             image,
             mask,
+            mask_file: spec.mask.clone(),
             light_world: pose.dir_to_world(&spec.light_dir_camera),
             irradiance: spec.irradiance,
             saturation,
@@ -268,12 +315,208 @@ pub struct Observed {
     pub observations: Vec<Observation>,
     pub images: Vec<ImageCounts>,
     pub dropped: DropCounts,
+    /// Per view (as `images`): the photo downsampled for the comparison panel; `None` for a
+    /// view whose image was not at hand.
+    pub thumbnails: Vec<Option<Thumbnail>>,
 }
 
-/// Rasterises the mesh from every light camera (with per-vertex mean curvature and shadow
-/// rays) and turns pixels into observations.
+impl Observed {
+    fn new(capacity: usize) -> Self {
+        Self {
+            observations: Vec::new(),
+            images: Vec::with_capacity(capacity),
+            dropped: DropCounts::default(),
+            thumbnails: Vec::with_capacity(capacity),
+        }
+    }
+
+    fn push(&mut self, file: &Path, sweep: ViewSweep, thumbnail: Option<Thumbnail>) {
+        self.dropped.add(&sweep.dropped);
+        self.images.push(ImageCounts {
+            file: file.to_path_buf(),
+            covered: sweep.covered,
+            observed: sweep.observations.len(),
+            dropped: sweep.dropped,
+        });
+        self.thumbnails.push(thumbnail);
+        self.observations.extend(sweep.observations);
+    }
+}
+
+/// The surface pixels of a G-buffer with their shadow flags.
+fn surface_pixels(gbuf: &GBuffer, lit: &[Option<bool>]) -> Vec<SurfacePixel> {
+    let w = gbuf.width();
+    gbuf.fragments()
+        .iter()
+        .zip(lit)
+        .enumerate()
+        .filter_map(|(i, (f, lit))| {
+            let f = f.as_ref()?;
+            Some(SurfacePixel {
+                x: (i % w) as u32,
+                y: (i / w) as u32,
+                position: f.position,
+                normal: f.normal,
+                mean_curvature: f.mean_curvature.unwrap_or(f64::NAN),
+                lit: lit.unwrap_or(false),
+            })
+        })
+        .collect()
+}
+
+/// A G-buffer view's observations (every pixel's, from `observe_view`) reduced as `s` says.
+fn reduced(
+    obs: Vec<Observation>,
+    mut dropped: DropCounts,
+    surface: &[SurfacePixel],
+    gbuf: &GBuffer,
+    s: &ObserveSettings,
+) -> ViewSweep {
+    let observations = match &s.reduce {
+        Some(red) => {
+            let (kept, n) = reduce(obs, gbuf.width(), gbuf.height(), red);
+            dropped.redundant += n;
+            kept
+        }
+        None => obs,
+    };
+    ViewSweep {
+        observations,
+        dropped,
+        covered: surface.len(),
+    }
+}
+
+/// What every view's observation needs of the mesh, built once.
+struct MeshAids {
+    bvh: Bvh,
+    curvature: Vec<f64>,
+}
+
+impl MeshAids {
+    fn new(mesh: &Mesh) -> Self {
+        Self {
+            bvh: Bvh::build(mesh),
+            curvature: principal_curvatures(mesh).mean,
+        }
+    }
+}
+
+/// Observes one view from its pixels (`sweep`; a view the z-buffer cannot take is ray-cast
+/// with a shadow ray per pixel, then reduced) and takes its thumbnail.
+fn observe_one(
+    mesh: &Mesh,
+    aids: &MeshAids,
+    view: &View,
+    image: &LinearImage,
+    mask: Option<&[bool]>,
+    saturation: Option<f64>,
+    settings: &ObserveSettings,
+) -> (ViewSweep, Thumbnail) {
+    let r = Rasteriser::new(
+        mesh,
+        &aids.bvh,
+        &view.intrinsics,
+        &view.pose,
+        Some(&aids.curvature),
+    );
+    let centre = view.pose.centre();
+    let input = ViewInput {
+        image_index: view.index,
+        image,
+        mask,
+        camera_centre: centre,
+        light_world: view.light_world,
+        irradiance: view.irradiance,
+    };
+    let s = ObserveSettings {
+        saturation: settings.saturation.or(saturation),
+        ..*settings
+    };
+    let sweep = match r.faces() {
+        Some(faces) => sweep_view(mesh, &aids.bvh, &r, &faces, &input, &s),
+        None => {
+            let gbuf = r.gbuffer_ray_cast();
+            let lit = shadow_mask(mesh, &aids.bvh, &gbuf, &centre, &view.light_world);
+            let surface = surface_pixels(&gbuf, &lit);
+            let (obs, dropped) = observe_view(&input, &surface, &s);
+            reduced(obs, dropped, &surface, &gbuf, &s)
+        }
+    };
+    (sweep, Thumbnail::of(image, COMPARISON_WIDTH))
+}
+
+/// Rasterises the mesh from every light camera (z-buffer, per-vertex mean curvature, shadow
+/// rays for the kept pixels) and turns the pixels of the held images into observations
+/// (reduced as `settings.reduce` says). A view whose image is not held (a streamed scene:
+/// use [`observe_scene_streamed`]) contributes nothing.
 pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
-    observe_scene_with(scene, settings, |_| {})
+    let aids = MeshAids::new(&scene.mesh);
+    let mut observed = Observed::new(scene.views.len());
+    for view in &scene.views {
+        match &view.image {
+            Some(image) => {
+                let (sweep, thumb) = observe_one(
+                    &scene.mesh,
+                    &aids,
+                    view,
+                    image,
+                    view.mask.as_deref(),
+                    view.saturation,
+                    settings,
+                );
+                observed.push(&view.file, sweep, Some(thumb));
+            }
+            None => observed.push(&view.file, ViewSweep::default(), None),
+        }
+    }
+    observed
+}
+
+/// [`observe_scene`] reading every image that is not held from its file (and its mask), one
+/// at a time, and letting it go once observed. `progress` hears of each image.
+pub fn observe_scene_streamed(
+    job: &Job,
+    scene: &Scene,
+    settings: &Settings,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Observed, ReconstructError> {
+    let aids = MeshAids::new(&scene.mesh);
+    let mut observed = Observed::new(scene.views.len());
+    for view in &scene.views {
+        progress(&format!(
+            "observing light image {} of {} ({})",
+            view.index + 1,
+            scene.views.len(),
+            view.file.display()
+        ));
+        let (sweep, thumb) = match &view.image {
+            Some(image) => observe_one(
+                &scene.mesh,
+                &aids,
+                view,
+                image,
+                view.mask.as_deref(),
+                view.saturation,
+                &settings.observe,
+            ),
+            None => {
+                let (image, mask, saturation) =
+                    load_view_pixels(job, view.index, &view.intrinsics, settings)?;
+                observe_one(
+                    &scene.mesh,
+                    &aids,
+                    view,
+                    &image,
+                    mask.as_deref(),
+                    saturation,
+                    &settings.observe,
+                )
+            }
+        };
+        observed.push(&view.file, sweep, Some(thumb));
+    }
+    Ok(observed)
 }
 
 /// One view as [`observe_scene_with`] hands it on.
@@ -292,42 +535,26 @@ pub fn observe_scene_with(
     settings: &ObserveSettings,
     mut each: impl FnMut(&ViewPass<'_>),
 ) -> Observed {
-    let bvh = Bvh::build(&scene.mesh);
-    let curvature = principal_curvatures(&scene.mesh);
-    let mut observations = Vec::new();
-    let mut images = Vec::with_capacity(scene.views.len());
-    let mut dropped = DropCounts::default();
+    let aids = MeshAids::new(&scene.mesh);
+    let mut observed = Observed::new(scene.views.len());
     for view in &scene.views {
+        let Some(image) = &view.image else {
+            observed.push(&view.file, ViewSweep::default(), None);
+            continue;
+        };
         let gbuf = rasterise(
             &scene.mesh,
-            &bvh,
+            &aids.bvh,
             &view.intrinsics,
             &view.pose,
-            Some(&curvature.mean),
+            Some(&aids.curvature),
         );
         let centre = view.pose.centre();
-        let lit = shadow_mask(&scene.mesh, &bvh, &gbuf, &centre, &view.light_world);
-        let w = gbuf.width();
-        let surface: Vec<SurfacePixel> = gbuf
-            .fragments()
-            .iter()
-            .zip(&lit)
-            .enumerate()
-            .filter_map(|(i, (f, lit))| {
-                let f = f.as_ref()?;
-                Some(SurfacePixel {
-                    x: (i % w) as u32,
-                    y: (i / w) as u32,
-                    position: f.position,
-                    normal: f.normal,
-                    mean_curvature: f.mean_curvature.unwrap_or(f64::NAN),
-                    lit: lit.unwrap_or(false),
-                })
-            })
-            .collect();
+        let lit = shadow_mask(&scene.mesh, &aids.bvh, &gbuf, &centre, &view.light_world);
+        let surface = surface_pixels(&gbuf, &lit);
         let input = ViewInput {
             image_index: view.index,
-            image: &view.image,
+            image,
             mask: view.mask.as_deref(),
             camera_centre: centre,
             light_world: view.light_world,
@@ -337,27 +564,21 @@ pub fn observe_scene_with(
             saturation: settings.saturation.or(view.saturation),
             ..*settings
         };
-        let (obs, drops) = observe_view(&input, &surface, &s);
+        let (obs, dropped) = observe_view(&input, &surface, &s);
         each(&ViewPass {
             gbuffer: &gbuf,
             input: &input,
             surface: &surface,
             settings: &s,
         });
-        dropped.add(&drops);
-        images.push(ImageCounts {
-            file: view.file.clone(),
-            covered: surface.len(),
-            observed: obs.len(),
-            dropped: drops,
-        });
-        observations.extend(obs);
+        let sweep = reduced(obs, dropped, &surface, &gbuf, &s);
+        observed.push(
+            &view.file,
+            sweep,
+            Some(Thumbnail::of(image, COMPARISON_WIDTH)),
+        );
     }
-    Observed {
-        observations,
-        images,
-        dropped,
-    }
+    observed
 }
 
 /// The pixels the normal refinement works on: every observation of every view, with no
@@ -443,7 +664,11 @@ pub fn prepare(
     let mut timings = Vec::new();
     let t = Instant::now();
     progress("loading mesh, cameras, images");
-    let mut scene = load_scene(job, settings)?;
+    // the normal refinement works on every pixel of every view: it holds the images
+    let mut scene = match settings.refine {
+        Some(_) => load_scene(job, settings)?,
+        None => load_scene_streamed(job, settings)?,
+    };
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
     progress("rasterising and observing");
@@ -452,7 +677,10 @@ pub fn prepare(
             let (o, p) = observe_scene_and_pixels(&scene, &settings.observe);
             (o, Some(p))
         }
-        None => (observe_scene(&scene, &settings.observe), None),
+        None => (
+            observe_scene_streamed(job, &scene, settings, progress)?,
+            None,
+        ),
     };
     timings.push(("observe".to_string(), t.elapsed().as_secs_f64()));
     // An image that gives no observation is worth a warning: a wrong light direction (the
@@ -627,13 +855,14 @@ fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Com
     scene
         .views
         .iter()
-        .map(|v| {
+        .zip(&observed.thumbnails)
+        .filter_map(|(v, thumb)| {
             let obs: Vec<&Observation> = observed
                 .observations
                 .iter()
                 .filter(|o| o.image == v.index)
                 .collect();
-            compare_image(v.index, &v.image, &obs, table, COMPARISON_WIDTH)
+            Some(compare_image(v.index, thumb.as_ref()?, &obs, table))
         })
         .collect()
 }

@@ -17,7 +17,7 @@ use crate::brdf::Brdf;
 use crate::geometry::bvh::{Bvh, Ray};
 use crate::geometry::camera::{Intrinsics, Pose};
 use crate::geometry::mesh::Mesh;
-use crate::geometry::raster::{Fragment, GBuffer, rasterise};
+use crate::geometry::raster::{Fragment, GBuffer, Rasteriser};
 use crate::geometry::shadow::{default_offset, light_visible};
 use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -46,7 +46,8 @@ impl ShadeOptions {
     }
 }
 
-/// Rasterises and shades in one call (see [`shade`] to reuse a G-buffer).
+/// Rasterises and shades in one call (see [`shade`] to reuse a G-buffer); row by row, so no
+/// G-buffer is held (a 24-megapixel one would take ~3 GB).
 pub fn render_mesh(
     mesh: &Mesh,
     bvh: &Bvh,
@@ -55,8 +56,25 @@ pub fn render_mesh(
     brdf: &dyn Brdf,
     opts: &ShadeOptions,
 ) -> LinearImage {
-    let g = rasterise(mesh, bvh, k, pose, None);
-    shade(mesh, bvh, &g, &pose.centre(), brdf, opts)
+    let r = Rasteriser::new(mesh, bvh, k, pose, None);
+    let centre = pose.centre();
+    let faces = r.faces();
+    shade_with(k.width, k.height, opts, |x, y| {
+        let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+        let f = match &faces {
+            Some(fb) => r.fragment_on(fb.face(x, y)?, px, py)?,
+            None => r.fragment(px, py)?,
+        };
+        Some(shade_fragment(
+            mesh,
+            bvh,
+            &f,
+            &centre,
+            brdf,
+            opts,
+            (y * k.width + x) as u64,
+        ))
+    })
 }
 
 /// Shades a G-buffer seen from `camera_centre` (world). Cheap to call repeatedly with
@@ -69,9 +87,30 @@ pub fn shade(
     brdf: &dyn Brdf,
     opts: &ShadeOptions,
 ) -> LinearImage {
-    let (w, h) = (gbuf.width(), gbuf.height());
+    let w = gbuf.width();
+    shade_with(w, gbuf.height(), opts, |x, y| {
+        let f = gbuf.get(x, y)?;
+        Some(shade_fragment(
+            mesh,
+            bvh,
+            f,
+            camera_centre,
+            brdf,
+            opts,
+            (y * w + x) as u64,
+        ))
+    })
+}
+
+/// A `w` x `h` image, rows in parallel, pixel `(x, y)` from `radiance` (`None`: background).
+fn shade_with(
+    w: usize,
+    h: usize,
+    opts: &ShadeOptions,
+    radiance: impl Fn(usize, usize) -> Option<[f64; 3]> + Sync,
+) -> LinearImage {
     let mut img = LinearImage::new(w, h);
-    if w == 0 {
+    if w == 0 || h == 0 {
         return img;
     }
     img.data_mut()
@@ -79,14 +118,7 @@ pub fn shade(
         .enumerate()
         .for_each(|(y, row)| {
             for x in 0..w {
-                let rgb = match gbuf.get(x, y) {
-                    Some(f) => {
-                        let pixel_id = (y * w + x) as u64;
-                        shade_fragment(mesh, bvh, f, camera_centre, brdf, opts, pixel_id)
-                            .map(|v| v as f32)
-                    }
-                    None => opts.background,
-                };
+                let rgb = radiance(x, y).map_or(opts.background, |v| v.map(|c| c as f32));
                 row[3 * x..3 * x + 3].copy_from_slice(&rgb);
             }
         });
