@@ -230,7 +230,10 @@ impl Profile {
             path: path.to_owned(),
             source,
         })?;
-        Profile::parse(&text, &path.display().to_string())
+        // Absolute, as the session header records it: a path relative to the caller's folder
+        // means nothing to a reader elsewhere.
+        let origin = std::path::absolute(path).unwrap_or_else(|_| path.to_owned());
+        Profile::parse(&text, &origin.display().to_string())
     }
 
     /// Parses and validates profile text; `origin` names it in errors.

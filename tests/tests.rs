@@ -19,6 +19,7 @@ mod eval;
 mod firmware;
 mod firmware_flash;
 mod firmware_qemu;
+mod formats;
 mod geometry;
 mod independent;
 mod raw_input;

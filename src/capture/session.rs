@@ -54,7 +54,7 @@ pub struct SessionHeader {
     pub tool: String,
     pub plan_name: String,
     pub planned_shots: usize,
-    /// Rig profile name or path, as given.
+    /// Rig profile: a built-in name, or the absolute path of its file.
     pub profile: String,
     /// Camera backend (e.g. `sim`, `gphoto2`).
     pub camera_backend: String,

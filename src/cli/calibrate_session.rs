@@ -74,7 +74,7 @@ pub fn run(a: SessionArgs) -> Result<()> {
         "wrote {} HDR single-light images, {} and {}",
         cal.light_images,
         dir.join("calibration.json").display(),
-        cal.job.display()
+        dir.join(&cal.job).display()
     );
     Ok(())
 }

@@ -92,6 +92,7 @@ pub struct ChannelCalibration {
 pub struct SessionCalibration {
     pub channels: Vec<ChannelCalibration>,
     pub light_images: usize,
+    /// The job written, relative to the folder of `calibration.json` (the session folder).
     pub job: PathBuf,
 }
 
@@ -475,7 +476,8 @@ pub fn calibrate_session(
         });
     }
     let n_light = light_images.len();
-    let job_path = dir.join("job.toml");
+    let job_name = Path::new("job.toml");
+    let job_path = dir.join(job_name);
     let job = Job {
         source: job_path.clone(),
         mesh,
@@ -493,7 +495,7 @@ pub fn calibrate_session(
     let out = SessionCalibration {
         channels,
         light_images: n_light,
-        job: job_path,
+        job: job_name.to_path_buf(),
     };
     let json_path = dir.join("calibration.json");
     let json = serde_json::to_string_pretty(&out).map_err(|e| SessionCalibError::File {

@@ -73,13 +73,19 @@ const IMAGE_KEYS: [&str; 5] = ["file", "camera", "light_dir_camera", "irradiance
 const UNIT_TOLERANCE: f64 = 0.05;
 
 impl Job {
-    /// Reads and parses a job file; relative paths resolve against its folder.
+    /// Reads and parses a job file; relative paths resolve against its folder, made absolute,
+    /// so every path of the job (and every path a report copies from it) means the same file
+    /// from any working folder.
     pub fn from_file(path: &Path) -> Result<Self, JobError> {
         let text = std::fs::read_to_string(path).map_err(|source| JobError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        let base = path.parent().unwrap_or(Path::new("."));
+        let absolute = std::path::absolute(path).map_err(|source| JobError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = absolute.parent().unwrap_or(Path::new("/"));
         Self::parse(&text, path, base)
     }
 
@@ -189,12 +195,16 @@ impl Job {
         })
     }
 
-    /// The job as TOML, with paths relative to `base` where possible (the inverse of
-    /// [`Job::parse`], used by the simulated capture and tests to write jobs).
+    /// The job as TOML for a job file in the folder `base` (the inverse of [`Job::parse`]):
+    /// a path inside `base` is written relative to it, any other path absolute, so the file
+    /// means the same from any working folder.
     pub fn to_toml(&self, base: &Path) -> String {
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let base = absolute(base);
         let rel = |p: &Path| {
-            p.strip_prefix(base)
-                .unwrap_or(p)
+            let p = absolute(p);
+            p.strip_prefix(&base)
+                .unwrap_or(&p)
                 .to_string_lossy()
                 .replace('\\', "/")
         };
