@@ -157,9 +157,15 @@ impl Default for SimSection {
     }
 }
 
+/// The version of the profile format this tool reads; a profile without `format_version` is
+/// version 1.
+pub const PROFILE_FORMAT_VERSION: u32 = 1;
+
 /// The sections of the file this module owns; unknown top-level sections are ignored.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 struct Sections {
+    #[serde(default = "crate::format::version_1")]
+    format_version: u32,
     serial: SerialSection,
     turntable: TurntableSection,
     light: LightSection,
@@ -250,6 +256,20 @@ impl Profile {
                 message: e.message().trim().to_owned(),
             }
         })?;
+        if s.format_version != PROFILE_FORMAT_VERSION {
+            return Err(ProfileError::Invalid {
+                file: origin.to_owned(),
+                line: text
+                    .lines()
+                    .position(|l| l.trim_start().starts_with("format_version"))
+                    .map_or(0, |i| i + 1),
+                key: "format_version".into(),
+                reason: format!(
+                    "version {}, but this brdf-rig reads profile version {PROFILE_FORMAT_VERSION}",
+                    s.format_version
+                ),
+            });
+        }
         let p = Profile {
             origin: origin.to_owned(),
             source: text.to_owned(),
@@ -493,6 +513,15 @@ fn line_of_nth(text: &str, header: &str, n: usize, key: &str) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_profile_of_another_version_is_refused_naming_file_and_line() {
+        let v2 = format!("# a comment\nformat_version = 2\n{SIMULATED}");
+        let e = Profile::parse(&v2, "rig.toml").unwrap_err().to_string();
+        assert!(e.contains("rig.toml:2") && e.contains("version 2"), "{e}");
+        let v1 = format!("format_version = 1\n{SIMULATED}");
+        assert!(Profile::parse(&v1, "rig.toml").is_ok());
+    }
 
     #[test]
     fn built_in_and_example_profiles_parse() {
