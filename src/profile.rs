@@ -231,6 +231,16 @@ impl Profile {
             })
     }
 
+    /// The top-level section `key` of the profile, parsed by the module that owns it (the rig
+    /// driver ignores it); `T::default()` when the profile has none. Other sections' keys do not
+    /// matter.
+    pub fn section<T: serde::de::DeserializeOwned + Default>(
+        &self,
+        key: &str,
+    ) -> Result<T, String> {
+        parse_section(&self.source, &self.origin, key)
+    }
+
     pub fn load(path: &Path) -> Result<Profile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
             path: path.to_owned(),
@@ -435,6 +445,23 @@ fn number(v: f64) -> String {
 }
 
 /// 1-based line of byte `offset`, and the key written on that line (`section.key`).
+/// The top-level section `key` of profile text (see [`Profile::section`]); `origin` names it in
+/// errors.
+pub fn parse_section<T: serde::de::DeserializeOwned + Default>(
+    text: &str,
+    origin: &str,
+    key: &str,
+) -> Result<T, String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+    match table.get(key) {
+        None => Ok(T::default()),
+        Some(v) => v
+            .clone()
+            .try_into()
+            .map_err(|e: toml::de::Error| format!("{origin}: [{key}]: {e}")),
+    }
+}
+
 fn locate(text: &str, offset: usize) -> (usize, String) {
     let offset = offset.min(text.len());
     let line = text[..offset].matches('\n').count() + 1;

@@ -21,6 +21,7 @@ mod firmware_flash;
 mod firmware_qemu;
 mod formats;
 mod geometry;
+mod imports;
 mod independent;
 mod raw_input;
 mod reconstruct;

@@ -281,7 +281,6 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<CapturePlan, CaptureError>
 /// The embedded default plan.
 pub fn default_plan() -> CapturePlan {
     // The embedded file is checked by a unit test; a failure here is a build defect.
-    #[allow(clippy::expect_used)]
     parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (embedded)")
         .expect("the embedded default plan is valid")
 }
