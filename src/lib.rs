@@ -10,6 +10,7 @@ pub mod capture;
 pub mod data;
 pub mod devices;
 pub mod eval;
+pub mod format;
 pub mod geometry;
 pub mod imageio;
 pub mod pipeline;

@@ -157,9 +157,15 @@ impl Default for SimSection {
     }
 }
 
+/// The version of the profile format this tool reads; a profile without `format_version` is
+/// version 1.
+pub const PROFILE_FORMAT_VERSION: u32 = 1;
+
 /// The sections of the file this module owns; unknown top-level sections are ignored.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 struct Sections {
+    #[serde(default = "crate::format::version_1")]
+    format_version: u32,
     serial: SerialSection,
     turntable: TurntableSection,
     light: LightSection,
@@ -225,12 +231,25 @@ impl Profile {
             })
     }
 
+    /// The top-level section `key` of the profile, parsed by the module that owns it (the rig
+    /// driver ignores it); `T::default()` when the profile has none. Other sections' keys do not
+    /// matter.
+    pub fn section<T: serde::de::DeserializeOwned + Default>(
+        &self,
+        key: &str,
+    ) -> Result<T, String> {
+        parse_section(&self.source, &self.origin, key)
+    }
+
     pub fn load(path: &Path) -> Result<Profile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
             path: path.to_owned(),
             source,
         })?;
-        Profile::parse(&text, &path.display().to_string())
+        // Absolute, as the session header records it: a path relative to the caller's folder
+        // means nothing to a reader elsewhere.
+        let origin = std::path::absolute(path).unwrap_or_else(|_| path.to_owned());
+        Profile::parse(&text, &origin.display().to_string())
     }
 
     /// Parses and validates profile text; `origin` names it in errors.
@@ -247,6 +266,20 @@ impl Profile {
                 message: e.message().trim().to_owned(),
             }
         })?;
+        if s.format_version != PROFILE_FORMAT_VERSION {
+            return Err(ProfileError::Invalid {
+                file: origin.to_owned(),
+                line: text
+                    .lines()
+                    .position(|l| l.trim_start().starts_with("format_version"))
+                    .map_or(0, |i| i + 1),
+                key: "format_version".into(),
+                reason: format!(
+                    "version {}, but this brdf-rig reads profile version {PROFILE_FORMAT_VERSION}",
+                    s.format_version
+                ),
+            });
+        }
         let p = Profile {
             origin: origin.to_owned(),
             source: text.to_owned(),
@@ -412,6 +445,23 @@ fn number(v: f64) -> String {
 }
 
 /// 1-based line of byte `offset`, and the key written on that line (`section.key`).
+/// The top-level section `key` of profile text (see [`Profile::section`]); `origin` names it in
+/// errors.
+pub fn parse_section<T: serde::de::DeserializeOwned + Default>(
+    text: &str,
+    origin: &str,
+    key: &str,
+) -> Result<T, String> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+    match table.get(key) {
+        None => Ok(T::default()),
+        Some(v) => v
+            .clone()
+            .try_into()
+            .map_err(|e: toml::de::Error| format!("{origin}: [{key}]: {e}")),
+    }
+}
+
 fn locate(text: &str, offset: usize) -> (usize, String) {
     let offset = offset.min(text.len());
     let line = text[..offset].matches('\n').count() + 1;
@@ -490,6 +540,15 @@ fn line_of_nth(text: &str, header: &str, n: usize, key: &str) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_profile_of_another_version_is_refused_naming_file_and_line() {
+        let v2 = format!("# a comment\nformat_version = 2\n{SIMULATED}");
+        let e = Profile::parse(&v2, "rig.toml").unwrap_err().to_string();
+        assert!(e.contains("rig.toml:2") && e.contains("version 2"), "{e}");
+        let v1 = format!("format_version = 1\n{SIMULATED}");
+        assert!(Profile::parse(&v1, "rig.toml").is_ok());
+    }
 
     #[test]
     fn built_in_and_example_profiles_parse() {

@@ -38,6 +38,25 @@ pub fn tiny_plan(dir: &Path, views: usize) -> PathBuf {
     p
 }
 
+/// The smallest plan `calibrate SESSION` accepts with margin: the tiny plan at 160x120 (64x48 is
+/// too small for the sphere) with four views, and a bracket whose shortest exposure leaves the
+/// white board below the clip level (the calibration takes the clip level from the bracket,
+/// never a guess).
+pub fn calibratable_plan(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(tiny_plan(dir, 4))
+        .unwrap()
+        .replace("width = 64", "width = 160")
+        .replace("height = 48", "height = 120")
+        .replace("every = 3", "every = 4")
+        .replace(
+            "exposures_secs = [0.004, 0.016]",
+            "exposures_secs = [0.0005, 0.004, 0.016]",
+        );
+    let p = dir.join("plan160.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
 pub fn brdf_rig(args: &[&str]) -> Command {
     let mut c = Command::new(util::bin());
     c.args(args).stdin(Stdio::null());

@@ -10,8 +10,8 @@ use brdf_rig::capture::session::{SET_ASIDE_DIR, read_journal};
 use brdf_rig::capture::verify_session;
 
 use crate::capture_util::{
-    capture_unattended, fast_profile, interrupt_after_first_shot, run, s, text, tiny_plan,
-    tiny_session,
+    calibratable_plan, capture_unattended, fast_profile, interrupt_after_first_shot, run, s, text,
+    tiny_plan, tiny_session,
 };
 
 fn stderr(o: &Output) -> String {
@@ -40,19 +40,7 @@ fn calibratable_session(into: &Path) -> PathBuf {
     let (_, master) = SESSION.get_or_init(|| {
         let tmp = tempfile::tempdir().unwrap();
         let profile = fast_profile(tmp.path());
-        let plan = tmp.path().join("plan160.toml");
-        let plan_text = std::fs::read_to_string(tiny_plan(tmp.path(), 4))
-            .unwrap()
-            .replace("width = 64", "width = 160")
-            .replace("height = 48", "height = 120")
-            .replace("every = 3", "every = 4")
-            // A bracket whose shortest exposure leaves the white board below the clip level
-            // (the calibration takes the clip level from the bracket, never a guess).
-            .replace(
-                "exposures_secs = [0.004, 0.016]",
-                "exposures_secs = [0.0005, 0.004, 0.016]",
-            );
-        std::fs::write(&plan, plan_text).unwrap();
+        let plan = calibratable_plan(tmp.path());
         let out = tmp.path().join("session");
         let o = capture_unattended(&profile, &plan, &out);
         assert!(o.status.success(), "{}", text(&o));

@@ -5,8 +5,11 @@
 use crate::util::bin;
 use brdf_rig::brdf::analytic::LambertGgx;
 use brdf_rig::brdf::merl::MerlTable;
+use brdf_rig::calib::clip::ClipLevel;
+use brdf_rig::calib::light::LightSummary;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::imageio::{ExrPrecision, write_exr, write_preview_png};
+use brdf_rig::pipeline::calibration_file::{self, ChannelCalibration, SessionCalibration};
 use brdf_rig::render::image::LinearImage;
 use brdf_rig::render::light::DirectionalLight;
 use brdf_rig::render::sphere::{Sphere, render_sphere};
@@ -70,16 +73,33 @@ fn make_session(dir: &Path) {
         serde_json::to_vec_pretty(&manifest).unwrap(),
     )
     .unwrap();
-    std::fs::create_dir_all(dir.join("calib")).unwrap();
-    std::fs::write(
-        dir.join("calib/light.json"),
-        serde_json::to_vec(&json!({
-            "light_dir_camera": [0.1, -0.2, -0.97], "uncertainty_deg": 0.4,
-            "irradiance": [3.1, 3.0, 2.9], "irradiance_std_error": [0.01, 0.01, 0.02]
-        }))
-        .unwrap(),
-    )
-    .unwrap();
+    // calibration.json as `brdf-rig calibrate SESSION` writes it (its owner's type)
+    let light = LightSummary {
+        dir_camera: [0.1, -0.2, -0.97],
+        uncertainty_deg: 0.4,
+        spread_deg: 0.1,
+        std_error_deg: 0.1,
+        fit_uncertainty_deg: 0.3,
+        images: 1,
+    };
+    let cal = SessionCalibration {
+        format_version: 1,
+        channels: vec![ChannelCalibration {
+            channel: 0,
+            light,
+            irradiance: [3.1, 3.0, 2.9],
+            irradiance_std_error: [0.01, 0.01, 0.02],
+            flat_field_spread: 0.001,
+            sphere_clip: ClipLevel::given(1.0),
+            white_clip: ClipLevel::given(1.0),
+            warnings: Vec::new(),
+            truth_dir_error_deg: None,
+            truth_irradiance_error: None,
+        }],
+        light_images: 2,
+        job: "job.toml".into(),
+    };
+    calibration_file::write(dir, &cal).unwrap();
 }
 
 /// A reconstruction output: the MERL table of an analytic BRDF, a report.json with trials, and

@@ -9,11 +9,11 @@
 //! Conventions: levels are in image units (the values the detectors see); a channel value at or
 //! above the level is clipped. Pure: no I/O.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// Why a clip level is what it is.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "source")]
 pub enum ClipSource {
     /// Given by the user (`--saturation`).
@@ -35,7 +35,7 @@ pub enum ClipSource {
 }
 
 /// A clip level (or none) and its source.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ClipLevel {
     /// Channel values at or above this are clipped; `None`: nothing is.
     pub value: Option<f32>,

@@ -1,7 +1,7 @@
-//! The rig profile's `[camera]` and `[scene]` sections, which capture owns (the rig driver
-//! ignores them): which camera backend to use and where the camera stands, and the simulated
-//! camera's virtual scene. Both are optional: without them the profile means the simulated
-//! camera at the default placement.
+//! The rig profile's `[camera]` section, which capture owns (the rig driver ignores it): which
+//! camera backend to use and where the camera stands. Optional: without it the profile means the
+//! simulated camera at the default placement. (The simulated camera's `[scene]` belongs to
+//! `sim::scene`; capture imports nothing from `sim`.)
 //!
 //! ```toml
 //! [camera]
@@ -23,7 +23,6 @@
 use serde::Deserialize;
 
 use super::plan::LabGeometry;
-use crate::sim::scene::SceneConfig;
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -61,28 +60,9 @@ impl Default for CameraSection {
     }
 }
 
-#[derive(Debug, Default, Deserialize)]
-struct Sections {
-    #[serde(default)]
-    camera: CameraSection,
-    #[serde(default)]
-    scene: SceneConfig,
-}
-
-/// Reads `[camera]` and `[scene]` from the whole profile text; `origin` names it in errors.
-pub fn parse_sections(text: &str, origin: &str) -> Result<(CameraSection, SceneConfig), String> {
-    // Only these two tables are ours: parse them alone so other sections' keys do not matter.
-    let value: toml::Table = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
-    let mut ours = toml::Table::new();
-    for key in ["camera", "scene"] {
-        if let Some(v) = value.get(key) {
-            ours.insert(key.to_string(), v.clone());
-        }
-    }
-    let s: Sections = ours
-        .try_into()
-        .map_err(|e: toml::de::Error| format!("{origin}: [camera]/[scene]: {e}"))?;
-    let c = &s.camera;
+/// Reads `[camera]` from the whole profile text; `origin` names it in errors.
+pub fn parse_camera_section(text: &str, origin: &str) -> Result<CameraSection, String> {
+    let c: CameraSection = crate::profile::parse_section(text, origin, "camera")?;
     if !["sim", "gphoto2", "webcam", "v4l2"].contains(&c.backend.as_str()) {
         return Err(format!(
             "{origin}: camera.backend = {:?}: must be one of sim, gphoto2, webcam, v4l2",
@@ -109,8 +89,7 @@ pub fn parse_sections(text: &str, origin: &str) -> Result<(CameraSection, SceneC
             ));
         }
     }
-    s.scene.validate().map_err(|e| format!("{origin}: {e}"))?;
-    Ok((s.camera, s.scene))
+    Ok(c)
 }
 
 impl CameraSection {
@@ -132,29 +111,25 @@ mod tests {
     use super::*;
 
     #[test]
-    fn sections_are_optional_and_other_sections_are_ignored() {
-        let (c, s) = parse_sections("[serial]\nport = \"sim\"\nweird = 1\n", "p.toml").unwrap();
+    fn the_section_is_optional_and_other_sections_are_ignored() {
+        let c = parse_camera_section("[serial]\nport = \"sim\"\nweird = 1\n", "p.toml").unwrap();
         assert_eq!(c, CameraSection::default());
-        assert_eq!(s, SceneConfig::default());
-        let (c, s) = parse_sections(
+        let c = parse_camera_section(
             "[camera]\nbackend = \"gphoto2\"\nextra_config = [\"imageformat=RAW\"]\n[scene]\nmaterial = \"gold-paint\"\n",
             "p.toml",
         )
         .unwrap();
         assert_eq!(c.backend, "gphoto2");
-        assert_eq!(s.material, "gold-paint");
     }
 
     #[test]
     fn mistakes_are_named() {
-        let err = parse_sections("[camera]\nbackend = \"polaroid\"\n", "p.toml").unwrap_err();
+        let err = parse_camera_section("[camera]\nbackend = \"polaroid\"\n", "p.toml").unwrap_err();
         assert!(
             err.contains("p.toml") && err.contains("camera.backend"),
             "{err}"
         );
-        let err = parse_sections("[camera]\nexposure = 3\n", "p.toml").unwrap_err();
+        let err = parse_camera_section("[camera]\nexposure = 3\n", "p.toml").unwrap_err();
         assert!(err.contains("exposure"), "{err}");
-        let err = parse_sections("[scene]\nobject_size_m = -1\n", "p.toml").unwrap_err();
-        assert!(err.contains("scene.object_size_m"), "{err}");
     }
 }

@@ -23,10 +23,17 @@ use super::error::CaptureError;
 /// The plan used when none is given: the paper's setup (55 ambient views, 11 single-light views).
 pub const DEFAULT_PLAN_TOML: &str = include_str!("../../capture-plans/default.toml");
 
-/// A capture plan as written in TOML.
+/// The version of the plan format this tool reads; a plan without `format_version` is version 1.
+pub const PLAN_FORMAT_VERSION: u32 = 1;
+
+/// A capture plan as written in TOML (this module owns the format; a session keeps its plan
+/// verbatim as `capture::session::PLAN_FILE`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CapturePlan {
+    /// Absent in plans written before versions were recorded: version 1.
+    #[serde(default = "crate::format::version_1")]
+    pub format_version: u32,
     pub name: String,
     #[serde(default)]
     pub camera: CameraPlan,
@@ -255,6 +262,15 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<CapturePlan, CaptureError>
         origin: origin.to_string(),
         reason: e.to_string(),
     })?;
+    if plan.format_version != PLAN_FORMAT_VERSION {
+        return Err(CaptureError::Plan {
+            origin: origin.to_string(),
+            reason: format!(
+                "format_version {}, but this brdf-rig reads plan version {PLAN_FORMAT_VERSION}",
+                plan.format_version
+            ),
+        });
+    }
     plan.validate().map_err(|reason| CaptureError::Plan {
         origin: origin.to_string(),
         reason,
@@ -265,7 +281,6 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<CapturePlan, CaptureError>
 /// The embedded default plan.
 pub fn default_plan() -> CapturePlan {
     // The embedded file is checked by a unit test; a failure here is a build defect.
-    #[allow(clippy::expect_used)]
     parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (embedded)")
         .expect("the embedded default plan is valid")
 }
@@ -525,6 +540,18 @@ impl CapturePlan {
 mod tests {
     use super::*;
     use std::collections::HashSet;
+
+    #[test]
+    fn a_plan_of_another_version_is_refused_by_name() {
+        let v1 = format!("format_version = 1\n{DEFAULT_PLAN_TOML}");
+        assert_eq!(parse_plan(&v1, "p.toml").unwrap(), default_plan());
+        let v2 = format!("format_version = 2\n{DEFAULT_PLAN_TOML}");
+        let e = parse_plan(&v2, "p.toml").unwrap_err().to_string();
+        assert!(
+            e.contains("p.toml") && e.contains("format_version 2"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn default_plan_is_the_papers_setup() {

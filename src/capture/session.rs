@@ -54,7 +54,7 @@ pub struct SessionHeader {
     pub tool: String,
     pub plan_name: String,
     pub planned_shots: usize,
-    /// Rig profile name or path, as given.
+    /// Rig profile: a built-in name, or the absolute path of its file.
     pub profile: String,
     /// Camera backend (e.g. `sim`, `gphoto2`).
     pub camera_backend: String,
@@ -239,6 +239,39 @@ fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, CaptureErro
         path: path.to_path_buf(),
         line: e.line(),
         reason: e.to_string(),
+    })
+}
+
+/// Reads `DIR/session.json`, refusing another format version (naming the file and both
+/// versions), so no reader misreads a session of another version.
+pub fn read_header(dir: &Path) -> Result<SessionHeader, CaptureError> {
+    let path = dir.join(SESSION_FILE);
+    let header: SessionHeader = read_json(&path)?;
+    check_version(&path, &header)?;
+    Ok(header)
+}
+
+/// Reads the snapshot `DIR/manifest.json`, refusing a header of another format version.
+pub fn read_manifest(dir: &Path) -> Result<Manifest, CaptureError> {
+    let path = dir.join(MANIFEST_FILE);
+    let manifest: Manifest = read_json(&path)?;
+    check_version(&path, &manifest.header)?;
+    Ok(manifest)
+}
+
+fn check_version(path: &Path, header: &SessionHeader) -> Result<(), CaptureError> {
+    if header.format_version == FORMAT_VERSION {
+        return Ok(());
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    Err(CaptureError::Session {
+        path: dir.to_path_buf(),
+        reason: format!(
+            "{name}: session format version {}, but this brdf-rig reads version \
+             {FORMAT_VERSION} (captured with another version of the tool)",
+            header.format_version
+        ),
     })
 }
 
@@ -459,16 +492,7 @@ impl Session {
             });
         }
         let lock = lock_folder(dir)?;
-        let header: SessionHeader = read_json(&header_path)?;
-        if header.format_version != FORMAT_VERSION {
-            return Err(CaptureError::Session {
-                path: dir.to_path_buf(),
-                reason: format!(
-                    "format version {} (this tool reads {FORMAT_VERSION})",
-                    header.format_version
-                ),
-            });
-        }
+        let header = read_header(dir)?;
         let plan_path = dir.join(PLAN_FILE);
         let plan_text = fs::read_to_string(&plan_path)
             .map_err(|e| CaptureError::io("reading", &plan_path, e))?;

@@ -14,8 +14,8 @@ use std::path::Path;
 use super::error::CaptureError;
 use super::plan::parse_plan;
 use super::session::{
-    JOURNAL_FILE, MANIFEST_FILE, Manifest, PLAN_FILE, SESSION_FILE, SessionHeader, ShotRecord,
-    current_records, read_journal, sha256_hex,
+    JOURNAL_FILE, MANIFEST_FILE, PLAN_FILE, SessionHeader, ShotRecord, current_records,
+    read_header, read_journal, read_manifest, sha256_hex,
 };
 
 /// One problem found.
@@ -169,14 +169,7 @@ impl VerifyReport {
 
 /// Verifies the session in `dir`.
 pub fn verify_session(dir: &Path) -> Result<VerifyReport, CaptureError> {
-    let header_path = dir.join(SESSION_FILE);
-    let text = fs::read_to_string(&header_path)
-        .map_err(|e| CaptureError::io("reading the session header", &header_path, e))?;
-    let header: SessionHeader = serde_json::from_str(&text).map_err(|e| CaptureError::Journal {
-        path: header_path.clone(),
-        line: e.line(),
-        reason: e.to_string(),
-    })?;
+    let header = read_header(dir)?;
     let plan_path = dir.join(PLAN_FILE);
     let plan_text = fs::read_to_string(&plan_path)
         .map_err(|e| CaptureError::io("reading the session's plan", &plan_path, e))?;
@@ -204,13 +197,8 @@ pub fn verify_session(dir: &Path) -> Result<VerifyReport, CaptureError> {
         }
     }
     // The snapshot may lag the journal (a kill between the two) but never lead it.
-    let manifest_path = dir.join(MANIFEST_FILE);
-    if let Ok(text) = fs::read_to_string(&manifest_path) {
-        let m: Manifest = serde_json::from_str(&text).map_err(|e| CaptureError::Journal {
-            path: manifest_path.clone(),
-            line: e.line(),
-            reason: e.to_string(),
-        })?;
+    if dir.join(MANIFEST_FILE).exists() {
+        let m = read_manifest(dir)?;
         for s in m.shots {
             if !seen.contains(&s.id) {
                 problems.push(Problem::SnapshotAhead { id: s.id });

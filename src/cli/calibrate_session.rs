@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result, bail};
 use brdf_rig::pipeline::session_calib::{SessionCalibOptions, calibrate_session};
+use brdf_rig::pipeline::sim_session;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -33,11 +34,13 @@ pub fn run(a: SessionArgs) -> Result<()> {
             "give a session folder (`brdf-rig calibrate SESSION`) or a subcommand (sphere, white)"
         );
     };
-    let opts = SessionCalibOptions {
+    let given = SessionCalibOptions {
         cameras: a.cameras,
         mesh: a.mesh,
         white_albedo: a.albedo,
+        truth: None,
     };
+    let opts = sim_session::calib_options(&dir, given)?;
     let cal = calibrate_session(&dir, &opts, |m| eprintln!("calibrate: {m}"))
         .with_context(|| format!("calibrating session {}", dir.display()))?;
     if a.json {
@@ -73,8 +76,9 @@ pub fn run(a: SessionArgs) -> Result<()> {
     println!(
         "wrote {} HDR single-light images, {} and {}",
         cal.light_images,
-        dir.join("calibration.json").display(),
-        cal.job.display()
+        dir.join(brdf_rig::pipeline::calibration_file::CALIBRATION_FILE)
+            .display(),
+        dir.join(&cal.job).display()
     );
     Ok(())
 }

@@ -49,15 +49,7 @@ fn os(s: impl AsRef<std::ffi::OsStr>) -> OsString {
 
 /// The simulated material (a neural MERL fit) from the session's ground truth.
 fn truth_material(session: &Path) -> Result<String> {
-    let path = session.join("sim/truth.json");
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    v["scene"]["material"]
-        .as_str()
-        .map(str::to_owned)
-        .with_context(|| format!("{}: no scene.material", path.display()))
+    Ok(brdf_rig::sim::truth::read_truth(session)?.scene.material)
 }
 
 pub fn run(a: DemoArgs) -> Result<ExitCode> {
@@ -102,7 +94,7 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
         "reconstruct",
         vec![
             os("reconstruct"),
-            os(session.join("job.toml")),
+            os(session.join(brdf_rig::reconstruct::job::JOB_FILE)),
             os("--out"),
             os(&recon),
             // the simulated material is the target: it must not be in the basis
@@ -130,7 +122,9 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
         "\ndemo finished in {:.0} s: session {}, BRDF {}, report {}",
         t0.elapsed().as_secs_f64(),
         session.display(),
-        recon.join("brdf.binary").display(),
+        recon
+            .join(brdf_rig::reconstruct::output::BRDF_FILE)
+            .display(),
         report.display()
     );
     println!("{}", report.display());

@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::capture::camera_config::{CameraSection, parse_sections};
+use crate::capture::camera_config::{CameraSection, parse_camera_section};
 use crate::capture::plan::LabGeometry;
 use crate::capture::runner::RunOptions;
 use crate::capture::session::SessionHeader;
@@ -70,8 +70,10 @@ impl CaptureRig {
     /// Reads the profile's `[camera]` and `[scene]` and loads the simulated scene when the
     /// camera is simulated.
     pub fn load(profile: Profile) -> Result<CaptureRig, StartError> {
-        let (camera, scene) =
-            parse_sections(&profile.source, &profile.origin).map_err(StartError::Profile)?;
+        let camera =
+            parse_camera_section(&profile.source, &profile.origin).map_err(StartError::Profile)?;
+        let scene = SceneConfig::from_profile_text(&profile.source, &profile.origin)
+            .map_err(StartError::Profile)?;
         let lab = camera.lab(
             profile
                 .light

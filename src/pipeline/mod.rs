@@ -4,5 +4,7 @@
 //! reads and writes session folders; the steps themselves live in their own modules and know
 //! nothing of each other.
 
+pub mod calibration_file;
 pub mod capture_start;
 pub mod session_calib;
+pub mod sim_session;

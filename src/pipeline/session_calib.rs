@@ -2,13 +2,16 @@
 //! single-light shots to linear HDR images, a light direction and an irradiance per light
 //! channel, and the reconstruction job that the `reconstruct` step reads.
 //!
-//! This is an edge: it reads the session (manifest, EXR images, the simulated ground truth when
-//! there is one) and writes `hdr/`, `calibration.json` and `job.toml` into it. Every image the
+//! This is an edge: it reads the session (manifest, EXR images) and writes `hdr/`,
+//! `calibration.json` and `job.toml` into it. It knows nothing of simulation: the photogrammetry
+//! model, the mesh and the white board's albedo come in [`SessionCalibOptions`], and so does a
+//! truth to score against (`pipeline::sim_session` fills them for a simulated session). Every image the
 //! manifest lists is checked against its size and SHA-256 first (the same check as `session
 //! verify`), and a damaged one is refused by name before anything is written. While it writes it
 //! holds `.calibrate.lock`, and it removes the temporaries a killed run left (`.NAME.tmp-*` in
 //! `hdr/` and beside `job.toml`). The measuring
-//! itself is `crate::calib` (pure); the job format is `crate::reconstruct::job`.
+//! itself is `crate::calib` (pure); the formats are owned by `capture::session` (manifest),
+//! `pipeline::calibration_file` (`calibration.json`) and `reconstruct::job` (`job.toml`).
 //!
 //! Conventions:
 //! - Radiance unit: an HDR image holds `value / (exposure_secs * gain)`, the same unit for every
@@ -27,21 +30,21 @@
 //!   camera's elevation.
 
 use nalgebra::Vector3;
-use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::calib::clip::ClipLevel;
+use super::calibration_file::{CALIBRATION_FILE, CALIBRATION_FORMAT_VERSION};
+pub use super::calibration_file::{ChannelCalibration, SessionCalibration};
 use crate::calib::hdr::{Exposure, MergeOptions, MergedHdr, merge_linear};
-use crate::calib::light::{LightSummary, OutlineInput, SphereShot, calibrate_light};
+use crate::calib::light::{OutlineInput, SphereShot, calibrate_light};
 use crate::calib::sphere::SphereOptions;
 use crate::calib::white::{BoardRegion, WhiteOptions, calibrate_irradiance};
 use crate::capture::plan::ShotKind;
-use crate::capture::session::{MANIFEST_FILE, Manifest, ShotRecord};
+use crate::capture::session::{Manifest, ShotRecord, read_manifest};
 use crate::geometry::camera::Intrinsics;
 use crate::geometry::colmap;
 use crate::imageio::{ExrPrecision, read_linear, write_exr};
-use crate::reconstruct::job::{Job, LightImageSpec};
+use crate::reconstruct::job::{JOB_FILE, Job, LightImageSpec};
 use crate::render::image::LinearImage;
 
 /// What went wrong, naming the file or shot.
@@ -55,44 +58,26 @@ pub enum SessionCalibError {
     Channel { channel: usize, reason: String },
 }
 
-/// Where to find what photogrammetry gives and the white board's albedo.
+/// What photogrammetry gives, the white board's albedo, and (simulations) the truth.
 #[derive(Clone, Debug, Default)]
 pub struct SessionCalibOptions {
-    /// COLMAP model folder; default: the simulated capture's `sim/colmap`.
+    /// COLMAP model folder (required).
     pub cameras: Option<PathBuf>,
-    /// Mesh from photogrammetry; default: the simulated capture's `sim/mesh_sfm.ply`.
+    /// Mesh from photogrammetry (required).
     pub mesh: Option<PathBuf>,
-    /// Albedo of the white reference; default: the simulated scene's, else an error.
+    /// Albedo of the white reference (required).
     pub white_albedo: Option<f64>,
+    /// The true light of each channel, when it is known: the calibration is scored against it
+    /// (`truth_dir_error_deg`, `truth_irradiance_error`).
+    pub truth: Option<LightTruth>,
 }
 
-/// One channel's calibration, as written to `calibration.json`.
-#[derive(Clone, Debug, Serialize)]
-pub struct ChannelCalibration {
-    pub channel: usize,
-    pub light: LightSummary,
-    /// Irradiance per colour channel, in the session's radiance unit.
-    pub irradiance: [f64; 3],
-    pub irradiance_std_error: [f64; 3],
-    /// Spread of the board's radiance over a 3x3 grid of cells (flat-field check).
-    pub flat_field_spread: f64,
-    /// Where the merged sphere and white images clip, and why (their brackets' shortest
-    /// exposures).
-    pub sphere_clip: ClipLevel,
-    pub white_clip: ClipLevel,
-    pub warnings: Vec<String>,
-    /// Simulated sessions only: the angle between the measured and the true light direction,
-    /// and the relative irradiance error (mean over colour channels).
-    pub truth_dir_error_deg: Option<f64>,
-    pub truth_irradiance_error: Option<f64>,
-}
-
-/// The session's calibration.
-#[derive(Clone, Debug, Serialize)]
-pub struct SessionCalibration {
-    pub channels: Vec<ChannelCalibration>,
-    pub light_images: usize,
-    pub job: PathBuf,
+/// The true light per channel, in the units the calibration measures.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LightTruth {
+    /// channel -> (unit vector towards the light in camera axes, irradiance in the session's
+    /// radiance unit)
+    pub channels: BTreeMap<usize, (Vector3<f64>, f64)>,
 }
 
 /// Groups of shots that form one bracket: (kind, view, channel) -> records.
@@ -107,15 +92,10 @@ fn kind_key(k: ShotKind) -> u8 {
     }
 }
 
-fn read_manifest(dir: &Path) -> Result<Manifest, SessionCalibError> {
-    let path = dir.join(MANIFEST_FILE);
-    let text = std::fs::read_to_string(&path).map_err(|e| SessionCalibError::File {
-        path: path.clone(),
-        reason: format!("cannot read the manifest ({e}); is this a capture session folder?"),
-    })?;
-    serde_json::from_str(&text).map_err(|e| SessionCalibError::File {
-        path,
-        reason: format!("malformed manifest: {e}"),
+fn manifest(dir: &Path) -> Result<Manifest, SessionCalibError> {
+    read_manifest(dir).map_err(|e| SessionCalibError::Session {
+        dir: dir.into(),
+        reason: format!("{e}; is this a capture session folder?"),
     })
 }
 
@@ -161,7 +141,7 @@ fn lock_and_clean(dir: &Path, hdr_dir: &Path) -> Result<std::fs::File, SessionCa
         });
     }
     crate::imageio::remove_stray_temporaries(hdr_dir, None).map_err(|e| file_err(hdr_dir, e))?;
-    crate::imageio::remove_stray_temporaries(dir, Some(&["job.toml", "calibration.json"]))
+    crate::imageio::remove_stray_temporaries(dir, Some(&[JOB_FILE, CALIBRATION_FILE]))
         .map_err(|e| file_err(dir, e))?;
     Ok(lock)
 }
@@ -200,59 +180,29 @@ fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<MergedHdr, SessionCalibErr
     Ok(merged)
 }
 
-/// The simulated ground truth, when the session has one.
-struct Truth {
-    albedo: Option<f64>,
-    /// channel -> (direction towards the light in camera axes, irradiance at level 1)
-    channels: BTreeMap<usize, (Vector3<f64>, f64)>,
-    sensitivity: f64,
-}
-
-fn read_truth(dir: &Path) -> Option<Truth> {
-    let text = std::fs::read_to_string(dir.join("sim/truth.json")).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let albedo = v["scene"]["white_albedo"].as_f64();
-    let sensitivity = v["sensitivity"].as_f64().unwrap_or(1.0);
-    let mut channels = BTreeMap::new();
-    for c in v["channels"].as_array()? {
-        let ch = c["channel"].as_u64()? as usize;
-        let d = c["light_dir_camera"].as_array()?;
-        let dir = Vector3::new(
-            d.first()?.as_f64()?,
-            d.get(1)?.as_f64()?,
-            d.get(2)?.as_f64()?,
-        );
-        channels.insert(ch, (dir, c["irradiance_w_m2"].as_f64()?));
-    }
-    Some(Truth {
-        albedo,
-        channels,
-        sensitivity,
-    })
-}
-
 /// Calibrates a session and writes `hdr/`, `calibration.json` and `job.toml` into it.
 pub fn calibrate_session(
     dir: &Path,
     opts: &SessionCalibOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<SessionCalibration, SessionCalibError> {
-    let manifest = read_manifest(dir)?;
+    let manifest = manifest(dir)?;
     if manifest.status != "complete" {
         progress(&format!(
             "warning: the session is `{}`; calibrating the shots it has (resume the capture to finish it)",
             manifest.status
         ));
     }
-    let truth = read_truth(dir);
-    let cameras = opts
-        .cameras
-        .clone()
-        .unwrap_or_else(|| dir.join("sim/colmap"));
-    let mesh = opts
-        .mesh
-        .clone()
-        .unwrap_or_else(|| dir.join("sim/mesh_sfm.ply"));
+    let missing = |what: &str| SessionCalibError::Session {
+        dir: dir.into(),
+        reason: format!("{what} (a simulated session has its own under sim/)"),
+    };
+    let cameras = opts.cameras.clone().ok_or_else(|| {
+        missing("the photogrammetry model is not given: give the COLMAP model with --cameras")
+    })?;
+    let mesh = opts.mesh.clone().ok_or_else(|| {
+        missing("the mesh is not given: give the photogrammetry mesh with --mesh")
+    })?;
     let model = colmap::read_model(&cameras).map_err(|e| SessionCalibError::File {
         path: cameras.clone(),
         reason: format!("{e} (give the photogrammetry model with --cameras)"),
@@ -268,11 +218,7 @@ pub fn calibrate_session(
         })?;
     let albedo = opts
         .white_albedo
-        .or(truth.as_ref().and_then(|t| t.albedo))
-        .ok_or_else(|| SessionCalibError::Session {
-            dir: dir.into(),
-            reason: "the white reference's albedo is unknown: give it with --albedo".into(),
-        })?;
+        .ok_or_else(|| missing("the white reference's albedo is unknown: give it with --albedo"))?;
 
     let mut brackets: Brackets = BTreeMap::new();
     for s in &manifest.shots {
@@ -387,10 +333,7 @@ pub fn calibrate_session(
             reason: format!("irradiance from the white reference: {e}"),
         })?;
         let (mut dir_err, mut irr_err) = (None, None);
-        if let Some((t_dir, t_irr)) = truth
-            .as_ref()
-            .and_then(|t| t.channels.get(&ch).map(|(d, e)| (*d, *e * t.sensitivity)))
-        {
+        if let Some(&(t_dir, t_irr)) = opts.truth.as_ref().and_then(|t| t.channels.get(&ch)) {
             dir_err = Some(l.angle(&t_dir).to_degrees());
             let mean = irr.irradiance.iter().sum::<f64>() / 3.0;
             irr_err = Some((mean - t_irr).abs() / t_irr);
@@ -475,7 +418,8 @@ pub fn calibrate_session(
         });
     }
     let n_light = light_images.len();
-    let job_path = dir.join("job.toml");
+    let job_name = Path::new(JOB_FILE);
+    let job_path = dir.join(job_name);
     let job = Job {
         source: job_path.clone(),
         mesh,
@@ -483,7 +427,10 @@ pub fn calibrate_session(
         light_images,
         warnings: Vec::new(),
     };
-    let text = job.to_toml(dir);
+    let text = job.to_toml(dir).map_err(|e| SessionCalibError::File {
+        path: job_path.clone(),
+        reason: e.to_string(),
+    })?;
     crate::imageio::write_atomic(&job_path, text.as_bytes()).map_err(|e| {
         SessionCalibError::File {
             path: job_path.clone(),
@@ -491,20 +438,14 @@ pub fn calibrate_session(
         }
     })?;
     let out = SessionCalibration {
+        format_version: CALIBRATION_FORMAT_VERSION,
         channels,
         light_images: n_light,
-        job: job_path,
+        job: job_name.to_path_buf(),
     };
-    let json_path = dir.join("calibration.json");
-    let json = serde_json::to_string_pretty(&out).map_err(|e| SessionCalibError::File {
-        path: json_path.clone(),
+    super::calibration_file::write(dir, &out).map_err(|e| SessionCalibError::File {
+        path: dir.join(CALIBRATION_FILE),
         reason: e.to_string(),
-    })?;
-    crate::imageio::write_atomic(&json_path, json.as_bytes()).map_err(|e| {
-        SessionCalibError::File {
-            path: json_path,
-            reason: e.to_string(),
-        }
     })?;
     Ok(out)
 }

@@ -3,6 +3,7 @@
 //! direction and irradiance.
 //!
 //! ```toml
+//! format_version = 1             # optional; a file without it is version 1
 //! mesh = "mesh.ply"              # PLY (ascii or binary) or OBJ, in the photogrammetry frame
 //! cameras = "sparse"             # COLMAP model folder: cameras.txt + images.txt, or .bin
 //! [[light_image]]
@@ -16,11 +17,22 @@
 //! Conventions: relative paths are relative to the folder holding the job file; the light
 //! direction points from the surface towards the light, in the camera axes of COLMAP (x right,
 //! y down, z forward). Unknown keys are tolerated (later versions add keys) and reported as
-//! warnings. This file only parses and checks the job text; loading the files it names lives in
-//! [`crate::reconstruct::load`]. Pure except [`Job::from_file`], which reads the job file.
+//! warnings. A `format_version` other than [`JOB_FORMAT_VERSION`] is an error naming the file.
+//!
+//! This module owns the format: [`JobFile`] is the file as serde reads and writes it (with the
+//! `toml` crate, so strings are escaped as TOML escapes them), [`Job`] the checked job with its
+//! paths resolved. This file only parses and checks the job text; loading the files it names
+//! lives in [`crate::reconstruct::load`]. Pure except [`Job::from_file`], which reads the job
+//! file.
 
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// The job file's name where the calibrate step writes it (in the session folder).
+pub const JOB_FILE: &str = "job.toml";
+/// The version of the job format this tool reads and writes.
+pub const JOB_FORMAT_VERSION: u32 = 1;
 
 /// Errors in the job file itself; each names the job file and the field.
 #[derive(Debug, thiserror::Error)]
@@ -38,6 +50,39 @@ pub enum JobError {
         field: String,
         message: String,
     },
+    #[error(
+        "job file {path}: format_version {found}, but this brdf-rig reads version {supported} \
+         (written by another version of the tool? rewrite it by hand or re-run `brdf-rig \
+         calibrate`)"
+    )]
+    Version {
+        path: PathBuf,
+        found: u32,
+        supported: u32,
+    },
+}
+
+/// The job file as written: what serde reads and writes. Paths are as in the file (relative to
+/// its folder, or absolute).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobFile {
+    /// Absent in files written by hand before versions were recorded: read as version 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub format_version: Option<u32>,
+    pub mesh: String,
+    pub cameras: String,
+    pub light_image: Vec<LightImageEntry>,
+}
+
+/// One `[[light_image]]` table of the job file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightImageEntry {
+    pub file: String,
+    pub camera: String,
+    pub light_dir_camera: [f64; 3],
+    pub irradiance: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
 }
 
 /// One single-light image of the job.
@@ -67,82 +112,89 @@ pub struct Job {
     pub warnings: Vec<String>,
 }
 
-const TOP_KEYS: [&str; 3] = ["mesh", "cameras", "light_image"];
+const TOP_KEYS: [&str; 4] = ["format_version", "mesh", "cameras", "light_image"];
 const IMAGE_KEYS: [&str; 5] = ["file", "camera", "light_dir_camera", "irradiance", "mask"];
 /// A light direction further than this from unit length is an error, closer is renormalised.
 const UNIT_TOLERANCE: f64 = 0.05;
 
 impl Job {
-    /// Reads and parses a job file; relative paths resolve against its folder.
+    /// Reads and parses a job file; relative paths resolve against its folder, made absolute,
+    /// so every path of the job (and every path a report copies from it) means the same file
+    /// from any working folder.
     pub fn from_file(path: &Path) -> Result<Self, JobError> {
         let text = std::fs::read_to_string(path).map_err(|source| JobError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        let base = path.parent().unwrap_or(Path::new("."));
+        let absolute = std::path::absolute(path).map_err(|source| JobError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = absolute.parent().unwrap_or(Path::new("/"));
         Self::parse(&text, path, base)
     }
 
     /// Parses job text; `source` names the file in errors, `base` resolves relative paths.
     pub fn parse(text: &str, source: &Path, base: &Path) -> Result<Self, JobError> {
-        let table: toml::Table = toml::from_str(text).map_err(|e| JobError::Toml {
+        let toml_err = |e: toml::de::Error| JobError::Toml {
             path: source.to_path_buf(),
             message: e.to_string().trim().to_string(),
-        })?;
+        };
         let field_err = |field: &str, message: String| JobError::Field {
             path: source.to_path_buf(),
             field: field.to_string(),
             message,
         };
-        let mut warnings = Vec::new();
-        for key in table.keys() {
-            if !TOP_KEYS.contains(&key.as_str()) {
-                warnings.push(format!("{}: unknown key `{key}` ignored", source.display()));
-            }
+        // Unknown keys are read from the plain table: serde would drop them silently.
+        let table: toml::Table = toml::from_str(text).map_err(toml_err)?;
+        let mut warnings = unknown_keys(&table, source);
+        if let Some(v) = table
+            .get("format_version")
+            .and_then(toml::Value::as_integer)
+            && v != i64::from(JOB_FORMAT_VERSION)
+        {
+            return Err(JobError::Version {
+                path: source.to_path_buf(),
+                found: u32::try_from(v).unwrap_or(u32::MAX),
+                supported: JOB_FORMAT_VERSION,
+            });
         }
-        let mesh = base.join(get_str(&table, "mesh", "mesh").map_err(|m| field_err("mesh", m))?);
-        let cameras =
-            base.join(get_str(&table, "cameras", "cameras").map_err(|m| field_err("cameras", m))?);
-        let entries = match table.get("light_image") {
-            None => {
-                return Err(field_err(
-                    "light_image",
-                    "missing: add at least one [[light_image]] table".into(),
-                ));
-            }
-            Some(toml::Value::Array(a)) => a,
-            Some(_) => {
-                return Err(field_err(
-                    "light_image",
-                    "must be an array of tables ([[light_image]])".into(),
-                ));
-            }
-        };
-        if entries.is_empty() {
+        let file: JobFile = toml::Deserializer::parse(text)
+            .map_err(toml_err)
+            .and_then(|de| {
+                serde_path_to_error::deserialize(de).map_err(|e| {
+                    let field = e.path().to_string();
+                    let message = e.inner().message().trim().to_string();
+                    field_err(if field == "." { "(top level)" } else { &field }, message)
+                })
+            })?;
+        if file.light_image.is_empty() {
             return Err(field_err("light_image", "no light images listed".into()));
         }
-        let mut light_images = Vec::with_capacity(entries.len());
-        for (i, entry) in entries.iter().enumerate() {
-            let prefix = format!("light_image[{i}]");
-            let t = entry
-                .as_table()
-                .ok_or_else(|| field_err(&prefix, "must be a table".into()))?;
-            for key in t.keys() {
-                if !IMAGE_KEYS.contains(&key.as_str()) {
-                    warnings.push(format!(
-                        "{}: unknown key `{prefix}.{key}` ignored",
-                        source.display()
-                    ));
-                }
+        let nonempty = |field: String, s: &str| {
+            if s.trim().is_empty() {
+                Err(field_err(&field, "must not be empty".into()))
+            } else {
+                Ok(base.join(s))
             }
-            let f = |k: &str| format!("{prefix}.{k}");
-            let file =
-                base.join(get_str(t, "file", &prefix).map_err(|m| field_err(&f("file"), m))?);
-            let camera = get_str(t, "camera", &prefix)
-                .map_err(|m| field_err(&f("camera"), m))?
-                .to_string();
-            let dir = get_vec3(t, "light_dir_camera")
-                .map_err(|m| field_err(&f("light_dir_camera"), m))?;
+        };
+        let mesh = nonempty("mesh".into(), &file.mesh)?;
+        let cameras = nonempty("cameras".into(), &file.cameras)?;
+        let mut light_images = Vec::with_capacity(file.light_image.len());
+        for (i, e) in file.light_image.iter().enumerate() {
+            let f = |k: &str| format!("light_image[{i}].{k}");
+            let path = nonempty(f("file"), &e.file)?;
+            if e.camera.trim().is_empty() {
+                return Err(field_err(&f("camera"), "must not be empty".into()));
+            }
+            let finite = |k: &str, v: &[f64; 3]| {
+                if v.iter().all(|x| x.is_finite()) {
+                    Ok(Vector3::from(*v))
+                } else {
+                    Err(field_err(&f(k), "must hold finite numbers".into()))
+                }
+            };
+            let dir = finite("light_dir_camera", &e.light_dir_camera)?;
             let norm = dir.norm();
             if (norm - 1.0).abs() > UNIT_TOLERANCE {
                 return Err(field_err(
@@ -157,7 +209,7 @@ impl Job {
                     f("light_dir_camera")
                 ));
             }
-            let irr = get_vec3(t, "irradiance").map_err(|m| field_err(&f("irradiance"), m))?;
+            let irr = finite("irradiance", &e.irradiance)?;
             if irr.iter().any(|&e| e <= 0.0) {
                 return Err(field_err(
                     &f("irradiance"),
@@ -167,17 +219,12 @@ impl Job {
                     ),
                 ));
             }
-            let mask = match t.get("mask") {
-                None => None,
-                Some(toml::Value::String(s)) => Some(base.join(s)),
-                Some(_) => return Err(field_err(&f("mask"), "must be a path string".into())),
-            };
             light_images.push(LightImageSpec {
-                file,
-                camera,
+                file: path,
+                camera: e.camera.clone(),
                 light_dir_camera: dir / norm,
-                irradiance: [irr.x, irr.y, irr.z],
-                mask,
+                irradiance: e.irradiance,
+                mask: e.mask.as_ref().map(|m| base.join(m)),
             });
         }
         Ok(Self {
@@ -189,75 +236,66 @@ impl Job {
         })
     }
 
-    /// The job as TOML, with paths relative to `base` where possible (the inverse of
-    /// [`Job::parse`], used by the simulated capture and tests to write jobs).
-    pub fn to_toml(&self, base: &Path) -> String {
+    /// The job in its file form for a job file in the folder `base` (the inverse of
+    /// [`Job::parse`]): a path inside `base` is written relative to it, any other path
+    /// absolute, so the file means the same from any working folder.
+    pub fn to_file(&self, base: &Path) -> JobFile {
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let base = absolute(base);
         let rel = |p: &Path| {
-            p.strip_prefix(base)
-                .unwrap_or(p)
-                .to_string_lossy()
-                .replace('\\', "/")
+            let p = absolute(p);
+            let s = p.strip_prefix(&base).unwrap_or(&p).to_string_lossy();
+            // '/' works on every platform; on Unix a backslash is part of a name, not a separator
+            if cfg!(windows) {
+                s.replace('\\', "/")
+            } else {
+                s.into_owned()
+            }
         };
-        let mut s = format!(
-            "mesh = {:?}\ncameras = {:?}\n",
-            rel(&self.mesh),
-            rel(&self.cameras)
-        );
-        for li in &self.light_images {
-            s += &format!(
-                "\n[[light_image]]\nfile = {:?}\ncamera = {:?}\nlight_dir_camera = [{:?}, {:?}, {:?}]\nirradiance = [{:?}, {:?}, {:?}]\n",
-                rel(&li.file),
-                li.camera,
-                li.light_dir_camera.x,
-                li.light_dir_camera.y,
-                li.light_dir_camera.z,
-                li.irradiance[0],
-                li.irradiance[1],
-                li.irradiance[2]
-            );
-            if let Some(m) = &li.mask {
-                s += &format!("mask = {:?}\n", rel(m));
+        JobFile {
+            format_version: Some(JOB_FORMAT_VERSION),
+            mesh: rel(&self.mesh),
+            cameras: rel(&self.cameras),
+            light_image: self
+                .light_images
+                .iter()
+                .map(|li| LightImageEntry {
+                    file: rel(&li.file),
+                    camera: li.camera.clone(),
+                    light_dir_camera: li.light_dir_camera.into(),
+                    irradiance: li.irradiance,
+                    mask: li.mask.as_deref().map(&rel),
+                })
+                .collect(),
+        }
+    }
+
+    /// The job as TOML text for a job file in the folder `base` ([`Job::to_file`]).
+    pub fn to_toml(&self, base: &Path) -> Result<String, toml::ser::Error> {
+        toml::to_string(&self.to_file(base))
+    }
+}
+
+/// Warnings for the keys of `table` that the format does not know (later versions add keys).
+fn unknown_keys(table: &toml::Table, source: &Path) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for key in table.keys() {
+        if !TOP_KEYS.contains(&key.as_str()) {
+            warnings.push(format!("{}: unknown key `{key}` ignored", source.display()));
+        }
+    }
+    let images = table.get("light_image").and_then(toml::Value::as_array);
+    for (i, entry) in images.into_iter().flatten().enumerate() {
+        for key in entry.as_table().into_iter().flat_map(|t| t.keys()) {
+            if !IMAGE_KEYS.contains(&key.as_str()) {
+                warnings.push(format!(
+                    "{}: unknown key `light_image[{i}].{key}` ignored",
+                    source.display()
+                ));
             }
         }
-        s
     }
-}
-
-fn get_str<'a>(t: &'a toml::Table, key: &str, within: &str) -> Result<&'a str, String> {
-    match t.get(key) {
-        None => Err(format!("missing (required in {within})")),
-        Some(toml::Value::String(s)) if !s.trim().is_empty() => Ok(s),
-        Some(toml::Value::String(_)) => Err("must not be empty".into()),
-        Some(v) => Err(format!("must be a string, got {}", v.type_str())),
-    }
-}
-
-fn get_vec3(t: &toml::Table, key: &str) -> Result<Vector3<f64>, String> {
-    let arr = match t.get(key) {
-        None => return Err("missing".into()),
-        Some(toml::Value::Array(a)) => a,
-        Some(v) => {
-            return Err(format!(
-                "must be an array of 3 numbers, got {}",
-                v.type_str()
-            ));
-        }
-    };
-    if arr.len() != 3 {
-        return Err(format!("must have 3 numbers, has {}", arr.len()));
-    }
-    let mut out = [0.0; 3];
-    for (o, v) in out.iter_mut().zip(arr) {
-        *o = match v {
-            toml::Value::Float(x) => *x,
-            toml::Value::Integer(i) => *i as f64,
-            other => return Err(format!("must hold numbers, found {}", other.type_str())),
-        };
-        if !o.is_finite() {
-            return Err("must hold finite numbers".into());
-        }
-    }
-    Ok(Vector3::from(out))
+    warnings
 }
 
 #[cfg(test)]
@@ -298,7 +336,7 @@ irradiance = [1.0, 1.0, 1.0]
         assert!(job.warnings[1].contains("renormalised"));
         // round trip through to_toml
         let again = Job::parse(
-            &job.to_toml(Path::new("/data")),
+            &job.to_toml(Path::new("/data")).unwrap(),
             Path::new("/data/job.toml"),
             Path::new("/data"),
         )
@@ -333,11 +371,44 @@ irradiance = [1.0, 1.0, 1.0]
         let bad_irr = GOOD.replace("[1.0, 2, 3.0]", "[1.0, 0.0, 3.0]");
         assert!(err_of(&bad_irr).contains("light_image[0].irradiance"));
         let short = GOOD.replace("[1.0, 2, 3.0]", "[1.0, 2.0]");
-        assert!(err_of(&short).contains("3 numbers"));
+        let e = err_of(&short);
+        assert!(
+            e.contains("light_image[0].irradiance") && e.contains("length 3"),
+            "{e}"
+        );
         let no_images = "mesh = \"m.ply\"\ncameras = \"s\"\n";
         assert!(err_of(no_images).contains("light_image"));
         let wrong_type = GOOD.replace("camera = \"view_00.exr\"", "camera = 7");
         assert!(err_of(&wrong_type).contains("light_image[0].camera"));
+    }
+
+    #[test]
+    fn another_format_version_is_refused_naming_the_file() {
+        let e = err_of(&format!("format_version = 2\n{GOOD}"));
+        assert!(
+            e.contains("job.toml") && e.contains("format_version 2") && e.contains("version 1"),
+            "{e}"
+        );
+        let v1 = format!("format_version = 1\n{GOOD}");
+        assert!(Job::parse(&v1, Path::new("job.toml"), Path::new("/d")).is_ok());
+    }
+
+    /// Strings TOML must escape (quotes, backslashes, control characters) survive a write and a
+    /// read: the writer is the `toml` crate, not Rust's `{:?}` (which writes `\u{1}`, not TOML).
+    #[test]
+    fn names_toml_must_escape_round_trip() {
+        let mut job = Job::parse(GOOD, Path::new("/data/job.toml"), Path::new("/data")).unwrap();
+        let odd = "view \"1\"\\back\u{1}\u{7f}\u{e9}.exr";
+        job.light_images[0].camera = odd.to_string();
+        job.light_images[0].file = PathBuf::from(format!("/data/light/{odd}"));
+        job.mesh = PathBuf::from("/elsewhere/mesh.ply");
+        let text = job.to_toml(Path::new("/data")).unwrap();
+        let again = Job::parse(&text, Path::new("/data/job.toml"), Path::new("/data")).unwrap();
+        assert_eq!(again.light_images[0].camera, odd);
+        assert_eq!(again.light_images[0].file, job.light_images[0].file);
+        assert_eq!(again.mesh, PathBuf::from("/elsewhere/mesh.ply"));
+        assert!(text.contains("file = \"light/"), "{text}");
+        assert!(text.contains("format_version = 1"), "{text}");
     }
 
     #[test]

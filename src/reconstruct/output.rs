@@ -24,6 +24,13 @@ use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
+/// The reconstruction's MERL table, in the output folder.
+pub const BRDF_FILE: &str = "brdf.binary";
+/// The reconstruction's report, in the output folder (the type is [`Report`]).
+pub const REPORT_FILE: &str = "report.json";
+/// The version of `report.json` written.
+pub const REPORT_FORMAT_VERSION: u32 = 1;
+
 /// Said wherever a result made from the neural fits is reported.
 pub const PROVENANCE: &str = "basis built from neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, not measured MERL data";
 
@@ -76,6 +83,8 @@ pub struct SettingsReport {
 
 #[derive(Serialize)]
 pub struct Report {
+    /// [`REPORT_FORMAT_VERSION`].
+    pub format_version: u32,
     /// The job file, absolute.
     pub job: PathBuf,
     pub settings: SettingsReport,
@@ -129,6 +138,7 @@ impl Report {
             warnings.push(format!("components: {note}"));
         }
         Self {
+            format_version: REPORT_FORMAT_VERSION,
             // Absolute, so the report finds the job (and its session) from any folder: a path
             // relative to the caller's folder means nothing beside report.json.
             job: std::path::absolute(&job.source).unwrap_or_else(|_| job.source.clone()),
@@ -241,12 +251,12 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
         path: dir.to_path_buf(),
         source,
     })?;
-    output.table.write(&dir.join("brdf.binary"))?;
+    output.table.write(&dir.join(BRDF_FILE))?;
     let json = serde_json::to_vec_pretty(&output.report).map_err(|e| OutputError::Io {
-        path: dir.join("report.json"),
+        path: dir.join(REPORT_FILE),
         source: std::io::Error::other(e),
     })?;
-    let path = dir.join("report.json");
+    let path = dir.join(REPORT_FILE);
     imageio::write_atomic(&path, &json).map_err(|source| OutputError::Io { path, source })?;
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;

@@ -168,12 +168,13 @@ pub fn write_scene(
     )
     .map_err(|e| io(&e))?;
     let job = Job {
-        source: dir.join("job.toml"),
+        source: dir.join(super::job::JOB_FILE),
         mesh: dir.join("mesh.ply"),
         cameras: dir.join("sparse"),
         light_images,
         warnings: Vec::new(),
     };
-    std::fs::write(&job.source, job.to_toml(dir))?;
+    let text = job.to_toml(dir).map_err(std::io::Error::other)?;
+    std::fs::write(&job.source, text)?;
     Ok(job)
 }

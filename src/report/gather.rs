@@ -7,11 +7,11 @@
 //!
 //! What is read (all optional except that the folder must be one of the two kinds):
 //! - session folder: `manifest.json` (else `journal.jsonl`), `session.json`, the images it lists
-//!   (checksums, a few single-light thumbnails), calibration JSON (`calibration.json`,
-//!   `calib/*.json`).
+//!   (checksums, a few single-light thumbnails), through their owner `capture::session`
+//!   ([`super::session`]); `calibration.json` through its owner `pipeline::calibration_file`.
 //! - reconstruction output: `brdf.binary` (MERL table) and `report.json`, read as untyped JSON so
 //!   any producer's fields show; the keys interpreted are listed in `docs/report.md`
-//!   (`trials`, `chosen_trial`, `components`, `timings`, `warnings`, `calibration`, `truth`,
+//!   (`trials`, `chosen_trial`, `components`, `timings`, `warnings`, `truth`,
 //!   `baselines`, `session`), plus any `*.png` renders beside them.
 
 use super::charts::{ChartSpec, Goal, ScatterPoint, Series, line_chart, scatter_pareto};
@@ -21,20 +21,14 @@ use super::session::{CaptureSummary, summarise_session};
 use crate::brdf::Brdf;
 use crate::brdf::merl::MerlTable;
 use crate::brdf::nbrdf::Nbrdf;
+use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
+use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// The reconstruction's MERL table, as the reconstruction step names it.
-pub const BRDF_FILE: &str = "brdf.binary";
-/// The reconstruction's JSON report.
-pub const REPORT_JSON: &str = "report.json";
-/// The session snapshot written by the capture step.
-pub const MANIFEST_FILE: &str = "manifest.json";
-/// The session journal (one shot record per line), used when there is no snapshot.
-pub const JOURNAL_FILE: &str = "journal.jsonl";
-/// What the session is (header), written once by the capture step.
-pub const SESSION_FILE: &str = "session.json";
+use crate::reconstruct::output::REPORT_FORMAT_VERSION;
+pub use crate::reconstruct::output::{BRDF_FILE, REPORT_FILE as REPORT_JSON};
 
 /// A piece of the report, or why it is missing.
 #[derive(Clone, Debug, PartialEq)]
@@ -267,7 +261,21 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             } else {
                 format!("reconstruction output in {}", r.display())
             });
-            read_json(&r.join(REPORT_JSON))
+            match read_json(&r.join(REPORT_JSON)) {
+                // a file of another version is not misread (a file without one is version 1)
+                Avail::Yes(v)
+                    if v.get("format_version")
+                        .is_some_and(|f| f.as_u64() != Some(u64::from(REPORT_FORMAT_VERSION))) =>
+                {
+                    Avail::No(format!(
+                        "{}: format_version {}, but this brdf-rig reads version \
+                         {REPORT_FORMAT_VERSION}",
+                        r.join(REPORT_JSON).display(),
+                        v["format_version"]
+                    ))
+                }
+                other => other,
+            }
         }
     };
     if let Avail::No(why) = &report {
@@ -310,7 +318,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         ),
     };
 
-    let calibration = gather_calibration(session_dir.as_deref(), rj);
+    let calibration = gather_calibration(session_dir.as_deref());
 
     // The result BRDF, the in-plane plot and the spheres.
     let brdf_path = recon_dir.as_ref().map(|r| r.join(BRDF_FILE));
@@ -592,26 +600,6 @@ pub(super) fn read_json(path: &Path) -> Avail<Value> {
     }
 }
 
-pub(super) fn as_f64_array<const N: usize>(v: Option<&Value>) -> Option<[f64; N]> {
-    let a = v?.as_array()?;
-    if a.len() != N {
-        return None;
-    }
-    let mut out = [0.0; N];
-    for (o, x) in out.iter_mut().zip(a) {
-        *o = x.as_f64()?;
-    }
-    Some(out)
-}
-
-fn as_f64_vec(v: Option<&Value>) -> Option<Vec<f64>> {
-    match v? {
-        Value::Number(n) => n.as_f64().map(|x| vec![x]),
-        Value::Array(a) => a.iter().map(Value::as_f64).collect(),
-        _ => None,
-    }
-}
-
 /// A JSON value as short text (strings without quotes).
 pub(super) fn value_text(v: &Value) -> String {
     match v {
@@ -657,42 +645,33 @@ fn strings_at(v: &Value, key: &str) -> Vec<String> {
 // ---------------------------------------------------------------------------------------------
 // Calibration
 
-fn calibration_entry(source: String, v: &Value) -> CalibrationEntry {
-    let light_dir = [
-        "light_dir_camera",
-        "light_dir",
-        "direction",
-        "light_dir_lab",
-    ]
-    .iter()
-    .find_map(|k| as_f64_array::<3>(v.get(*k)));
-    let uncertainty_deg = v.get("uncertainty_deg").and_then(Value::as_f64);
-    let irradiance = as_f64_vec(v.get("irradiance"));
-    let irradiance_std_error = as_f64_vec(v.get("irradiance_std_error"));
-    let shown = [
-        "light_dir_camera",
-        "light_dir",
-        "direction",
-        "light_dir_lab",
-        "uncertainty_deg",
-        "irradiance",
-        "irradiance_std_error",
+/// One row of the page per light channel of `calibration.json`.
+fn calibration_entry(source: String, c: &ChannelCalibration) -> CalibrationEntry {
+    let l = &c.light;
+    let mut other = vec![
+        ("spread_deg".into(), fmt_num(l.spread_deg)),
+        ("std_error_deg".into(), fmt_num(l.std_error_deg)),
+        ("fit_uncertainty_deg".into(), fmt_num(l.fit_uncertainty_deg)),
+        ("images".into(), l.images.to_string()),
+        ("flat_field_spread".into(), fmt_num(c.flat_field_spread)),
+        ("sphere_clip".into(), c.sphere_clip.to_string()),
+        ("white_clip".into(), c.white_clip.to_string()),
     ];
-    let other = v
-        .as_object()
-        .map(|o| {
-            o.iter()
-                .filter(|(k, _)| !shown.contains(&k.as_str()))
-                .map(|(k, v)| (k.clone(), short_json(v)))
-                .collect()
-        })
-        .unwrap_or_default();
+    if let Some(e) = c.truth_dir_error_deg {
+        other.push(("truth_dir_error_deg".into(), fmt_num(e)));
+    }
+    if let Some(e) = c.truth_irradiance_error {
+        other.push(("truth_irradiance_error".into(), fmt_num(e)));
+    }
+    if !c.warnings.is_empty() {
+        other.push(("warnings".into(), c.warnings.join("; ")));
+    }
     CalibrationEntry {
         source,
-        light_dir,
-        uncertainty_deg,
-        irradiance,
-        irradiance_std_error,
+        light_dir: Some(l.dir_camera),
+        uncertainty_deg: Some(l.uncertainty_deg),
+        irradiance: Some(c.irradiance.to_vec()),
+        irradiance_std_error: Some(c.irradiance_std_error.to_vec()),
         other,
     }
 }
@@ -708,95 +687,29 @@ pub(super) fn short_json(v: &Value) -> String {
     }
 }
 
-/// A `calibration.json` channel record with its `light` object's fields lifted to the top
-/// (`light.dir_camera` becomes `light_dir_camera`), so [`calibration_entry`] finds them.
-fn flatten_channel(ch: &Value) -> Value {
-    let mut flat = serde_json::Map::new();
-    if let Some(o) = ch.as_object() {
-        for (k, v) in o {
-            match (k.as_str(), v) {
-                ("light", Value::Object(l)) => {
-                    for (lk, lv) in l {
-                        let key = if lk == "dir_camera" {
-                            "light_dir_camera".to_string()
-                        } else {
-                            lk.clone()
-                        };
-                        flat.insert(key, lv.clone());
-                    }
-                }
-                ("channel", _) => {}
-                _ => {
-                    flat.insert(k.clone(), v.clone());
-                }
-            }
+/// The session's `calibration.json` (written by `brdf-rig calibrate SESSION`), one entry per
+/// light channel.
+fn gather_calibration(session: Option<&Path>) -> Avail<Vec<CalibrationEntry>> {
+    let Some(dir) = session else {
+        return Avail::No("no session folder, so no calibration.json".into());
+    };
+    let path = dir.join(CALIBRATION_FILE);
+    match calibration_file::read(dir) {
+        Ok(cal) if cal.channels.is_empty() => {
+            Avail::No(format!("{}: no light channel", path.display()))
         }
-    }
-    Value::Object(flat)
-}
-
-fn gather_calibration(session: Option<&Path>, rj: Option<&Value>) -> Avail<Vec<CalibrationEntry>> {
-    let mut out = Vec::new();
-    let mut notes = Vec::new();
-    if let Some(c) = rj.and_then(|v| v.get("calibration")) {
-        match c {
-            Value::Array(a) => {
-                for (i, x) in a.iter().enumerate() {
-                    out.push(calibration_entry(
-                        format!("report.json calibration[{i}]"),
-                        x,
-                    ));
-                }
-            }
-            other => out.push(calibration_entry("report.json calibration".into(), other)),
-        }
-    }
-    if let Some(dir) = session {
-        let mut files = vec![dir.join("calibration.json")];
-        if let Ok(rd) = std::fs::read_dir(dir.join("calib")) {
-            let mut js: Vec<PathBuf> = rd
-                .filter_map(Result::ok)
-                .map(|e| e.path())
-                .filter(|p| p.extension().is_some_and(|e| e == "json"))
-                .collect();
-            js.sort();
-            files.extend(js);
-        }
-        for f in files.iter().filter(|f| f.is_file()) {
-            match read_json(f) {
-                Avail::Yes(Value::Array(a)) => {
-                    for (i, x) in a.iter().enumerate() {
-                        out.push(calibration_entry(format!("{}[{i}]", f.display()), x));
-                    }
-                }
-                // `brdf-rig calibrate SESSION`: one record per light channel
-                Avail::Yes(v) if v.get("channels").is_some_and(Value::is_array) => {
-                    for (i, ch) in v["channels"].as_array().into_iter().flatten().enumerate() {
-                        let n = ch
-                            .get("channel")
-                            .and_then(Value::as_i64)
-                            .unwrap_or(i as i64);
-                        out.push(calibration_entry(
-                            format!("{} channel {n}", f.display()),
-                            &flatten_channel(ch),
-                        ));
-                    }
-                }
-                Avail::Yes(v) => out.push(calibration_entry(f.display().to_string(), &v)),
-                Avail::No(why) => notes.push(why),
-            }
-        }
-    }
-    if out.is_empty() {
-        let mut why = "no calibration found (looked for report.json \"calibration\", \
-                       calibration.json and calib/*.json in the session)"
-            .to_string();
-        if !notes.is_empty() {
-            let _ = write!(why, "; {}", notes.join("; "));
-        }
-        Avail::No(why)
-    } else {
-        Avail::Yes(out)
+        Ok(cal) => Avail::Yes(
+            cal.channels
+                .iter()
+                .map(|c| calibration_entry(format!("{} channel {}", path.display(), c.channel), c))
+                .collect(),
+        ),
+        Err(e) if e.is_not_found() => Avail::No(format!(
+            "{} does not exist: run `brdf-rig calibrate {}`",
+            path.display(),
+            dir.display()
+        )),
+        Err(e) => Avail::No(error_chain(&e)),
     }
 }
 
@@ -1127,7 +1040,8 @@ fn confidence(v: &Value) -> Option<(String, Vec<String>)> {
     Some((level, strings_at(c, "reasons")))
 }
 
-const INTERPRETED: [&str; 24] = [
+const INTERPRETED: [&str; 25] = [
+    "format_version",
     "model",
     "normals",
     "ladder",
@@ -1243,19 +1157,40 @@ mod tests {
 
     #[test]
     fn session_calibration_is_one_entry_per_channel() {
+        use crate::calib::clip::ClipLevel;
+        use crate::calib::light::LightSummary;
+        use crate::pipeline::calibration_file::SessionCalibration;
         let dir = tempfile::tempdir().unwrap();
-        let cal = json!({
-            "channels": [
-                {"channel": 0, "light": {"dir_camera": [0.3, 0.0, -0.95], "uncertainty_deg": 0.6,
-                 "images": 1}, "irradiance": [1200.0, 1200.0, 1200.0],
-                 "irradiance_std_error": [0.07, 0.07, 0.07], "flat_field_spread": 0.0003},
-                {"channel": 2, "light": {"dir_camera": [0.96, 0.0, 0.27], "uncertainty_deg": 0.7},
-                 "irradiance": [1100.0, 1100.0, 1100.0]}
+        let channel = |channel, dir_camera: [f64; 3], uncertainty_deg, irr| ChannelCalibration {
+            channel,
+            light: LightSummary {
+                dir_camera,
+                uncertainty_deg,
+                spread_deg: 0.0,
+                std_error_deg: 0.0,
+                fit_uncertainty_deg: uncertainty_deg,
+                images: 1,
+            },
+            irradiance: [irr; 3],
+            irradiance_std_error: [0.07; 3],
+            flat_field_spread: 0.0003,
+            sphere_clip: ClipLevel::given(1.0),
+            white_clip: ClipLevel::given(1.0),
+            warnings: Vec::new(),
+            truth_dir_error_deg: None,
+            truth_irradiance_error: None,
+        };
+        let cal = SessionCalibration {
+            format_version: 1,
+            channels: vec![
+                channel(0, [0.3, 0.0, -0.95], 0.6, 1200.0),
+                channel(2, [0.96, 0.0, 0.27], 0.7, 1100.0),
             ],
-            "light_images": 9
-        });
-        std::fs::write(dir.path().join("calibration.json"), cal.to_string()).unwrap();
-        let Avail::Yes(es) = gather_calibration(Some(dir.path()), None) else {
+            light_images: 9,
+            job: "job.toml".into(),
+        };
+        calibration_file::write(dir.path(), &cal).unwrap();
+        let Avail::Yes(es) = gather_calibration(Some(dir.path())) else {
             panic!()
         };
         assert_eq!(es.len(), 2);
@@ -1264,7 +1199,16 @@ mod tests {
         assert_eq!(es[1].uncertainty_deg, Some(0.7));
         assert_eq!(es[0].irradiance, Some(vec![1200.0; 3]));
         assert!(es[0].other.iter().any(|(k, _)| k == "flat_field_spread"));
-        assert!(!es[0].other.iter().any(|(k, _)| k == "light"));
+        // a calibration.json of another version is refused with the reason, not misread
+        std::fs::write(
+            dir.path().join(CALIBRATION_FILE),
+            br#"{"format_version": 7, "channels": []}"#,
+        )
+        .unwrap();
+        let Avail::No(why) = gather_calibration(Some(dir.path())) else {
+            panic!()
+        };
+        assert!(why.contains("format_version 7"), "{why}");
     }
 
     #[test]

@@ -1,16 +1,21 @@
 //! The capture part of a report: what a session folder's manifest (or journal) says was shot,
-//! whether every image still matches its recorded SHA-256, and a few single-light previews.
+//! whether every image still matches its recorded size and SHA-256, and a few single-light
+//! previews.
 //!
-//! Read tolerantly (records are untyped JSON, so an older or newer manifest still reports what
-//! it can); problems become notes or `Avail::No` with the reason, never errors.
+//! The files are read through their owner, `capture::session` (typed records, its file names,
+//! its format version), and each image is checked by `capture::verify::check_record`, the one
+//! check `session verify`, a resume and `calibrate` use. Unlike `session verify`, a report says
+//! what it can of a partial folder: problems (a manifest of another version, a torn journal)
+//! become notes or `Avail::No` with the reason, never errors.
 
-use super::gather::{
-    Avail, JOURNAL_FILE, MANIFEST_FILE, ReportOptions, SESSION_FILE, as_f64_array, error_chain,
-    read_json, value_text,
-};
+use super::gather::{Avail, ReportOptions, error_chain};
 use super::images::{EmbeddedImage, auto_exposure, downscale, encode_png};
-use serde_json::Value;
-use sha2::{Digest, Sha256};
+use crate::capture::plan::ShotKind;
+use crate::capture::session::{
+    JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE, SessionHeader, ShotRecord, current_records,
+    read_header, read_journal, read_manifest,
+};
+use crate::capture::verify::check_record;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -34,7 +39,7 @@ pub struct CaptureSummary {
     pub exposure_secs: Option<(f64, f64)>,
     pub checksums: Avail<ChecksumStatus>,
     pub thumbnails: Avail<Vec<EmbeddedImage>>,
-    /// Problems met while reading (a torn journal line, a record without a field).
+    /// Problems met while reading (a torn journal line, a manifest that could not be read).
     pub notes: Vec<String>,
 }
 
@@ -47,6 +52,29 @@ pub struct ChecksumStatus {
     pub problems: Vec<String>,
 }
 
+/// A shot kind as the session files name it (`single_light`).
+fn kind_name(k: ShotKind) -> &'static str {
+    match k {
+        ShotKind::Ambient => "ambient",
+        ShotKind::SingleLight => "single_light",
+        ShotKind::Sphere => "sphere",
+        ShotKind::White => "white",
+    }
+}
+
+fn header_facts(h: &SessionHeader) -> Vec<(String, String)> {
+    vec![
+        ("format_version".into(), h.format_version.to_string()),
+        ("tool".into(), h.tool.clone()),
+        ("plan_name".into(), h.plan_name.clone()),
+        ("planned_shots".into(), h.planned_shots.to_string()),
+        ("profile".into(), h.profile.clone()),
+        ("camera_backend".into(), h.camera_backend.clone()),
+        ("created_utc".into(), h.created_utc.clone()),
+        ("simulated".into(), h.simulated.to_string()),
+    ]
+}
+
 /// Summarises a session folder; never fails (problems go into `notes` and `Avail::No`).
 pub fn summarise_session(dir: &Path, opts: &ReportOptions) -> CaptureSummary {
     let mut s = CaptureSummary {
@@ -54,10 +82,8 @@ pub fn summarise_session(dir: &Path, opts: &ReportOptions) -> CaptureSummary {
         ..Default::default()
     };
     let (header, status, shots) = read_shots(dir, &mut s.notes);
-    if let Some(h) = header.as_ref().and_then(Value::as_object) {
-        for (k, v) in h {
-            s.facts.push((k.clone(), value_text(v)));
-        }
+    if let Some(h) = &header {
+        s.facts = header_facts(h);
     }
     if let Some(st) = status {
         s.facts.push(("status".into(), st));
@@ -67,37 +93,25 @@ pub fn summarise_session(dir: &Path, opts: &ReportOptions) -> CaptureSummary {
     let mut times: Vec<(f64, String)> = Vec::new();
     let mut exposure: Option<(f64, f64)> = None;
     for r in &shots {
-        let kind = r.get("kind").map(value_text).unwrap_or_else(|| "?".into());
-        *s.by_kind.entry(kind).or_default() += 1;
-        if let Some(a) = r.get("angle_deg").and_then(Value::as_f64) {
-            if !angles.iter().any(|x| (x - a).abs() < 1e-9) {
-                angles.push(a);
-            }
-            if let Some(m) = r.get("measured_angle_deg").and_then(Value::as_f64) {
-                // turntable angles are equal modulo a turn (a sweep may end at 360 for 0)
-                let e = (m - a).rem_euclid(360.0);
-                let e = e.min(360.0 - e);
-                s.max_angle_error_deg = Some(s.max_angle_error_deg.map_or(e, |x: f64| x.max(e)));
-            }
+        *s.by_kind.entry(kind_name(r.kind).to_string()).or_default() += 1;
+        let a = r.angle_deg;
+        if !angles.iter().any(|x| (x - a).abs() < 1e-9) {
+            angles.push(a);
         }
-        if let Some(ch) = r.get("channel").and_then(Value::as_i64) {
-            let entry = s.channels.entry(ch).or_insert((0, None));
+        // turntable angles are equal modulo a turn (a sweep may end at 360 for 0)
+        let e = (r.measured_angle_deg - a).rem_euclid(360.0);
+        let e = e.min(360.0 - e);
+        s.max_angle_error_deg = Some(s.max_angle_error_deg.map_or(e, |x: f64| x.max(e)));
+        if let Some(ch) = r.channel {
+            let entry = s.channels.entry(ch as i64).or_insert((0, None));
             entry.0 += 1;
             if entry.1.is_none() {
-                entry.1 = as_f64_array::<3>(r.get("light_dir_lab"));
+                entry.1 = r.light_dir_lab;
             }
         }
-        if let Some(t) = r.get("time_unix").and_then(Value::as_f64) {
-            let utc = r
-                .get("time_utc")
-                .and_then(Value::as_str)
-                .unwrap_or_default()
-                .to_string();
-            times.push((t, utc));
-        }
-        if let Some(e) = r.get("exposure_secs").and_then(Value::as_f64) {
-            exposure = Some(exposure.map_or((e, e), |(lo, hi)| (lo.min(e), hi.max(e))));
-        }
+        times.push((r.time_unix, r.time_utc.clone()));
+        let e = r.exposure_secs;
+        exposure = Some(exposure.map_or((e, e), |(lo, hi)| (lo.min(e), hi.max(e))));
     }
     angles.sort_by(f64::total_cmp);
     s.angles_deg = angles;
@@ -119,105 +133,52 @@ pub fn summarise_session(dir: &Path, opts: &ReportOptions) -> CaptureSummary {
     s
 }
 
-/// Header, status and shot records: from `manifest.json`, else `session.json` +
-/// `journal.jsonl` (a torn last line is skipped with a note).
-fn read_shots(dir: &Path, notes: &mut Vec<String>) -> (Option<Value>, Option<String>, Vec<Value>) {
-    match read_json(&dir.join(MANIFEST_FILE)) {
-        Avail::Yes(m) => {
-            let shots = m
-                .get("shots")
-                .and_then(Value::as_array)
-                .cloned()
-                .unwrap_or_default();
-            let status = m.get("status").map(value_text);
-            return (m.get("header").cloned(), status, shots);
-        }
-        Avail::No(why) => {
+/// Header, status and the shot records that count: from `manifest.json`, else `session.json` +
+/// `journal.jsonl` (a torn last line is left out, a re-taken shot counts once).
+fn read_shots(
+    dir: &Path,
+    notes: &mut Vec<String>,
+) -> (Option<SessionHeader>, Option<String>, Vec<ShotRecord>) {
+    match read_manifest(dir) {
+        Ok(m) => return (Some(m.header), Some(m.status), m.shots),
+        Err(e) => {
             if dir.join(MANIFEST_FILE).exists() {
-                notes.push(why);
+                notes.push(error_chain(&e));
             }
         }
     }
-    let header = match read_json(&dir.join(SESSION_FILE)) {
-        Avail::Yes(h) => Some(h),
-        Avail::No(why) => {
-            notes.push(why);
+    let header = match read_header(dir) {
+        Ok(h) => Some(h),
+        // A header that exists but is of another version (or unreadable): its journal's records
+        // are not guessed at.
+        Err(e) if dir.join(SESSION_FILE).exists() => {
+            notes.push(error_chain(&e));
+            return (None, None, Vec::new());
+        }
+        Err(e) => {
+            notes.push(error_chain(&e));
             None
         }
     };
-    let path = dir.join(JOURNAL_FILE);
-    let mut shots = Vec::new();
-    match std::fs::read(&path) {
-        Ok(bytes) => {
-            for (n, line) in bytes.split(|b| *b == b'\n').enumerate() {
-                if line.iter().all(u8::is_ascii_whitespace) {
-                    continue;
-                }
-                match serde_json::from_slice::<Value>(line) {
-                    Ok(v) => shots.push(v),
-                    Err(e) => notes.push(format!(
-                        "{}: line {} skipped (torn or not JSON: {e})",
-                        path.display(),
-                        n + 1
-                    )),
-                }
-            }
+    let shots = match read_journal(&dir.join(JOURNAL_FILE)) {
+        Ok((records, _)) => current_records(records).0,
+        Err(e) => {
+            notes.push(error_chain(&e));
+            Vec::new()
         }
-        Err(e) => notes.push(format!("{}: cannot read: {e}", path.display())),
-    }
+    };
     let status = Some("no manifest snapshot: read from the journal".to_string());
     (header, status, shots)
 }
 
-/// Re-reads each listed file and compares its size and SHA-256 with the record. Deliberately not
-/// `capture::verify::verify_session`: that one is the strict check (`brdf-rig session verify`:
-/// plan, header and journal must all parse, duplicates and unplanned shots are errors), while a
-/// report must still say what it can of a partial or hand-copied folder (a manifest alone, a torn
-/// journal), so it checks whatever records it found.
-fn verify_checksums(dir: &Path, shots: &[Value]) -> ChecksumStatus {
+/// Checks each listed image against its record's size and SHA-256 (`check_record`).
+fn verify_checksums(dir: &Path, shots: &[ShotRecord]) -> ChecksumStatus {
     let mut st = ChecksumStatus::default();
     for r in shots {
-        let id = r.get("id").map(value_text).unwrap_or_else(|| "?".into());
-        let Some(file) = r.get("file").and_then(Value::as_str) else {
-            st.problems
-                .push(format!("shot {id}: no file in its record"));
-            continue;
-        };
         st.checked += 1;
-        let path = dir.join(file);
-        let bytes = match std::fs::read(&path) {
-            Ok(b) => b,
-            Err(e) => {
-                st.problems
-                    .push(format!("{}: cannot read: {e}", path.display()));
-                continue;
-            }
-        };
-        if let Some(n) = r.get("bytes").and_then(Value::as_u64) {
-            if n != bytes.len() as u64 {
-                st.problems.push(format!(
-                    "{}: {} bytes, the record says {n}",
-                    path.display(),
-                    bytes.len()
-                ));
-                continue;
-            }
-        }
-        match r.get("sha256").and_then(Value::as_str) {
-            Some(want) => {
-                let got = hex::encode(Sha256::digest(&bytes));
-                if got.eq_ignore_ascii_case(want) {
-                    st.ok += 1;
-                } else {
-                    st.problems.push(format!(
-                        "{}: SHA-256 {got}, the record says {want}",
-                        path.display()
-                    ));
-                }
-            }
-            None => st
-                .problems
-                .push(format!("shot {id}: no sha256 in its record")),
+        match check_record(dir, r).1 {
+            None => st.ok += 1,
+            Some(problem) => st.problems.push(problem.to_string()),
         }
     }
     st
@@ -225,10 +186,10 @@ fn verify_checksums(dir: &Path, shots: &[Value]) -> ChecksumStatus {
 
 /// Previews of the first few single-light images (auto exposure: the 99th percentile of each
 /// image maps to 0.9).
-fn thumbnails(dir: &Path, shots: &[Value], max: usize) -> Avail<Vec<EmbeddedImage>> {
-    let light: Vec<&Value> = shots
+fn thumbnails(dir: &Path, shots: &[ShotRecord], max: usize) -> Avail<Vec<EmbeddedImage>> {
+    let light: Vec<&ShotRecord> = shots
         .iter()
-        .filter(|r| r.get("kind").and_then(Value::as_str) == Some("single_light"))
+        .filter(|r| r.kind == ShotKind::SingleLight)
         .collect();
     if light.is_empty() {
         return Avail::No("the session has no single-light shots".into());
@@ -238,9 +199,7 @@ fn thumbnails(dir: &Path, shots: &[Value], max: usize) -> Avail<Vec<EmbeddedImag
     // Spread the chosen shots over the session.
     let step = light.len().div_ceil(max.max(1)).max(1);
     for r in light.iter().step_by(step).take(max) {
-        let Some(file) = r.get("file").and_then(Value::as_str) else {
-            continue;
-        };
+        let file = &r.file;
         let path = dir.join(file);
         let img = if file.to_ascii_lowercase().ends_with(".exr") {
             crate::imageio::read_exr(&path)
@@ -255,8 +214,8 @@ fn thumbnails(dir: &Path, shots: &[Value], max: usize) -> Avail<Vec<EmbeddedImag
                     Some(e) => out.push(EmbeddedImage {
                         caption: format!(
                             "{file}: turntable {} deg, channel {}",
-                            r.get("angle_deg").map(value_text).unwrap_or_default(),
-                            r.get("channel").map(value_text).unwrap_or_default()
+                            super::gather::fmt_num(r.angle_deg),
+                            r.channel.map(|c| c.to_string()).unwrap_or_default()
                         ),
                         ..e
                     }),
@@ -283,15 +242,44 @@ fn thumbnails(dir: &Path, shots: &[Value], max: usize) -> Avail<Vec<EmbeddedImag
 mod tests {
     use super::*;
 
+    fn record(id: &str, angle_deg: f64, measured_angle_deg: f64) -> ShotRecord {
+        ShotRecord {
+            id: id.into(),
+            index: 0,
+            kind: ShotKind::Ambient,
+            view: Some(0),
+            angle_deg,
+            measured_angle_deg,
+            channel: None,
+            level: 0.0,
+            light_dir_lab: None,
+            exposure_secs: 0.01,
+            gain: 1.0,
+            saturation: 1.0,
+            device: "sim".into(),
+            file: format!("ambient/{id}.exr"),
+            width: 4,
+            height: 4,
+            bytes: 0,
+            sha256: String::new(),
+            time_unix: 0.0,
+            time_utc: String::new(),
+            retake: None,
+        }
+    }
+
     #[test]
     fn a_sweep_ending_at_360_is_not_an_angle_error() {
         let dir = tempfile::tempdir().unwrap();
-        let lines = [
-            r#"{"id":"a","kind":"ambient","angle_deg":0.0,"measured_angle_deg":360.0}"#,
-            r#"{"id":"b","kind":"ambient","angle_deg":10.0,"measured_angle_deg":10.25}"#,
-            r#"{"id":"c","kind":"ambient","angle_deg":350.0,"measured_angle_deg":-10.0}"#,
-        ];
-        std::fs::write(dir.path().join(JOURNAL_FILE), lines.join("\n")).unwrap();
+        let lines: Vec<String> = [
+            record("a", 0.0, 360.0),
+            record("b", 10.0, 10.25),
+            record("c", 350.0, -10.0),
+        ]
+        .iter()
+        .map(|r| serde_json::to_string(r).unwrap() + "\n")
+        .collect();
+        std::fs::write(dir.path().join(JOURNAL_FILE), lines.concat()).unwrap();
         let opts = ReportOptions {
             verify_checksums: false,
             ..ReportOptions::default()

@@ -84,6 +84,14 @@ impl Default for SceneConfig {
 }
 
 impl SceneConfig {
+    /// Reads and checks the `[scene]` section of the whole profile text (the default scene when
+    /// it has none); `origin` names it in errors.
+    pub fn from_profile_text(text: &str, origin: &str) -> Result<Self, String> {
+        let scene: SceneConfig = crate::profile::parse_section(text, origin, "scene")?;
+        scene.validate().map_err(|e| format!("{origin}: {e}"))?;
+        Ok(scene)
+    }
+
     /// The mesh path, resolved against `data/meshes` when relative.
     pub fn mesh_path(&self) -> PathBuf {
         let p = PathBuf::from(&self.mesh);
@@ -230,6 +238,18 @@ pub fn y_up_to_z_up() -> Rotation3<f64> {
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_scene_section_is_optional_and_its_mistakes_are_named() {
+        let s = SceneConfig::from_profile_text("[camera]\nbackend = \"sim\"\n", "p.toml").unwrap();
+        assert_eq!(s, SceneConfig::default());
+        let s = SceneConfig::from_profile_text("[scene]\nmaterial = \"gold-paint\"\n", "p.toml")
+            .unwrap();
+        assert_eq!(s.material, "gold-paint");
+        let err =
+            SceneConfig::from_profile_text("[scene]\nobject_size_m = -1\n", "p.toml").unwrap_err();
+        assert!(err.contains("scene.object_size_m"), "{err}");
+    }
 
     fn lab() -> LabGeometry {
         LabGeometry {

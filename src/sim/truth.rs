@@ -14,48 +14,80 @@
 //! sim/mesh_sfm.ply      what SfM/MVS would give: the true mesh smoothed and noised
 //!                       (`geometry::sfm_like`, default parameters, seeded by the scene seed)
 //! ```
+//!
+//! This module owns `sim/truth.json`: [`Truth`] is its serde type (version
+//! [`TRUTH_FORMAT_VERSION`]), written here and read through [`read_truth`], never as untyped
+//! JSON. The paths above are relative to the session folder ([`TRUTH_FILE`], [`COLMAP_DIR`],
+//! [`MESH_SFM_FILE`]).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use super::render::ObjectScene;
 use super::scene::{SceneConfig, SimCameraRig};
 use crate::capture::plan::{CapturePlan, LabGeometry, ShotKind};
-use crate::capture::session::write_atomic;
+use crate::format::{FormatError, Versioned, version_1};
 use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, write_text};
 use crate::geometry::mesh_io::{PlyEncoding, write_ply};
 use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
 
-#[derive(Serialize)]
-struct ChannelTruth {
-    channel: usize,
-    azimuth_deg: f64,
-    elevation_deg: f64,
-    light_dir_lab: [f64; 3],
-    light_dir_camera: [f64; 3],
-    irradiance_w_m2: f64,
-    theta_d_deg: f64,
+/// `sim/truth.json`, relative to the session folder.
+pub const TRUTH_FILE: &str = "sim/truth.json";
+/// What photogrammetry would give: the COLMAP model, relative to the session folder.
+pub const COLMAP_DIR: &str = "sim/colmap";
+/// What SfM/MVS would give: the smoothed, noised mesh, relative to the session folder.
+pub const MESH_SFM_FILE: &str = "sim/mesh_sfm.ply";
+/// The version of `sim/truth.json` written, and the only one read.
+pub const TRUTH_FORMAT_VERSION: u32 = 1;
+
+const FORMAT: Versioned = Versioned {
+    what: "simulated ground truth",
+    version: TRUTH_FORMAT_VERSION,
+    remedy: "capture the simulated session again with this brdf-rig",
+};
+
+/// One light channel as simulated.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChannelTruth {
+    pub channel: usize,
+    pub azimuth_deg: f64,
+    pub elevation_deg: f64,
+    pub light_dir_lab: [f64; 3],
+    /// Unit vector towards the light, camera axes.
+    pub light_dir_camera: [f64; 3],
+    /// At light level 1.
+    pub irradiance_w_m2: f64,
+    /// `None` when the channel's geometry gives none.
+    pub theta_d_deg: Option<f64>,
 }
 
-#[derive(Serialize)]
-struct Truth<'a> {
-    note: &'static str,
-    scene: &'a SceneConfig,
-    width: usize,
-    height: usize,
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
+/// `sim/truth.json`: what the simulator knew.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    #[serde(default = "version_1")]
+    pub format_version: u32,
+    pub note: String,
+    pub scene: SceneConfig,
+    pub width: usize,
+    pub height: usize,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
     /// camera_from_lab as COLMAP: quaternion (w, x, y, z) and translation.
-    camera_from_lab_qvec: [f64; 4],
-    camera_from_lab_tvec: [f64; 3],
-    channels: Vec<ChannelTruth>,
+    pub camera_from_lab_qvec: [f64; 4],
+    pub camera_from_lab_tvec: [f64; 3],
+    pub channels: Vec<ChannelTruth>,
     /// Sensor value = radiance * exposure_secs * gain * sensitivity (below saturation at 1.0).
-    sensitivity: f64,
+    pub sensitivity: f64,
     /// Ambient view -> turntable angle, degrees.
-    view_angles_deg: BTreeMap<usize, f64>,
+    pub view_angles_deg: BTreeMap<usize, f64>,
+}
+
+/// Reads `SESSION/sim/truth.json`.
+pub fn read_truth(session_dir: &Path) -> Result<Truth, FormatError> {
+    FORMAT.read(&session_dir.join(TRUTH_FILE))
 }
 
 /// Writes `DIR/sim/` (see the module header).
@@ -86,7 +118,7 @@ pub fn write_ground_truth(
                 light_dir_lab: [l.x, l.y, l.z],
                 light_dir_camera: [lc.x, lc.y, lc.z],
                 irradiance_w_m2: config.light_irradiance,
-                theta_d_deg: lab.theta_d_deg(ch).unwrap_or(f64::NAN),
+                theta_d_deg: lab.theta_d_deg(ch),
             })
         })
         .collect();
@@ -107,8 +139,9 @@ pub fn write_ground_truth(
         });
     }
     let truth = Truth {
-        note: "simulated capture: the material is a neural fit of a MERL BRDF (Sztrajman et al. 2021), a smooth approximation, not measured MERL data",
-        scene: config,
+        format_version: TRUTH_FORMAT_VERSION,
+        note: "simulated capture: the material is a neural fit of a MERL BRDF (Sztrajman et al. 2021), a smooth approximation, not measured MERL data".into(),
+        scene: config.clone(),
         width: k.width,
         height: k.height,
         fx: k.fx,
@@ -121,8 +154,9 @@ pub fn write_ground_truth(
         sensitivity: config.sensitivity,
         view_angles_deg: view_angles,
     };
-    let json = serde_json::to_vec_pretty(&truth).map_err(|e| e.to_string())?;
-    write_atomic(&sim.join("truth.json"), &json).map_err(|e| e.to_string())?;
+    FORMAT
+        .write(&dir.join(TRUTH_FILE), &truth)
+        .map_err(|e| e.to_string())?;
     let mut cameras = BTreeMap::new();
     cameras.insert(
         1,
@@ -133,7 +167,7 @@ pub fn write_ground_truth(
         },
     );
     let model = ColmapModel { cameras, images };
-    let colmap_dir = sim.join("colmap");
+    let colmap_dir = dir.join(COLMAP_DIR);
     std::fs::create_dir_all(&colmap_dir)
         .map_err(|e| format!("creating {}: {e}", colmap_dir.display()))?;
     write_text(&colmap_dir, &model).map_err(|e| e.to_string())?;
@@ -151,7 +185,7 @@ pub fn write_ground_truth(
         },
     );
     write_ply(
-        &sim.join("mesh_sfm.ply"),
+        &dir.join(MESH_SFM_FILE),
         &sfm,
         PlyEncoding::BinaryLittleEndian,
     )
