@@ -7,9 +7,16 @@
 //! A file without `format_version` was written before versions were recorded: it is read as
 //! version 1. A file of another version is refused with both versions named, before its fields
 //! are looked at, so a reader never misreads a newer file.
+//!
+//! JSON has no NaN or infinity, and serde_json writes a non-finite number as `null` (an
+//! undefined error, a setting without a cap); reading it back into a number would fail, so the
+//! reader takes `null` where a number is expected as NaN ([`NullAsNan`]). An `Option` field
+//! still reads `null` as `None`.
 
 use serde::Serialize;
-use serde::de::DeserializeOwned;
+use serde::de::value::{MapAccessDeserializer, MapDeserializer, SeqDeserializer};
+use serde::de::{DeserializeOwned, Deserializer, IntoDeserializer, Visitor};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 /// Why a versioned file could not be read or written.
@@ -84,13 +91,9 @@ impl Versioned {
             what: self.what,
             message,
         };
-        #[derive(serde::Deserialize)]
-        struct Version {
-            #[serde(default)]
-            format_version: Option<serde_json::Value>,
-        }
-        let v: Version = serde_json::from_slice(bytes).map_err(|e| parse_err(e.to_string()))?;
-        let found = match v.format_version {
+        let value: serde_json::Value =
+            serde_json::from_slice(bytes).map_err(|e| parse_err(e.to_string()))?;
+        let found = match value.get("format_version") {
             None => u64::from(version_1()),
             Some(x) => x
                 .as_u64()
@@ -105,8 +108,7 @@ impl Versioned {
                 remedy: self.remedy,
             });
         }
-        let mut de = serde_json::Deserializer::from_slice(bytes);
-        serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        serde_path_to_error::deserialize(NullAsNan(&value)).map_err(|e| {
             let field = e.path().to_string();
             parse_err(if field == "." {
                 e.inner().to_string()
@@ -124,6 +126,182 @@ impl Versioned {
         };
         let json = serde_json::to_vec_pretty(value).map_err(|e| write_err(e.into()))?;
         crate::imageio::write_atomic(path, &json).map_err(write_err)
+    }
+}
+
+/// A parsed JSON value read into a typed record as `serde_json` would, except that `null` where
+/// a number is expected reads as NaN (see the module header).
+struct NullAsNan<'a>(&'a Value);
+
+impl<'de> IntoDeserializer<'de, serde_json::Error> for NullAsNan<'de> {
+    type Deserializer = Self;
+    fn into_deserializer(self) -> Self {
+        self
+    }
+}
+
+impl<'de> Deserializer<'de> for NullAsNan<'de> {
+    type Error = serde_json::Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        match self.0 {
+            Value::Null => visitor.visit_unit(),
+            Value::Bool(b) => visitor.visit_bool(*b),
+            Value::Number(n) => {
+                if let Some(u) = n.as_u64() {
+                    visitor.visit_u64(u)
+                } else if let Some(i) = n.as_i64() {
+                    visitor.visit_i64(i)
+                } else {
+                    visitor.visit_f64(n.as_f64().unwrap_or(f64::NAN))
+                }
+            }
+            Value::String(s) => visitor.visit_borrowed_str(s),
+            Value::Array(a) => {
+                let mut seq = SeqDeserializer::new(a.iter().map(NullAsNan));
+                let v = visitor.visit_seq(&mut seq)?;
+                seq.end()?;
+                Ok(v)
+            }
+            Value::Object(o) => {
+                let mut map = MapDeserializer::new(o.iter().map(|(k, v)| (Key(k), NullAsNan(v))));
+                let v = visitor.visit_map(&mut map)?;
+                map.end()?;
+                Ok(v)
+            }
+        }
+    }
+
+    fn deserialize_f64<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        match self.0 {
+            Value::Null => visitor.visit_f64(f64::NAN),
+            _ => self.deserialize_any(visitor),
+        }
+    }
+
+    fn deserialize_f32<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        self.deserialize_f64(visitor)
+    }
+
+    fn deserialize_option<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        match self.0 {
+            Value::Null => visitor.visit_none(),
+            _ => visitor.visit_some(self),
+        }
+    }
+
+    fn deserialize_newtype_struct<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        visitor: V,
+    ) -> Result<V::Value, Self::Error> {
+        visitor.visit_newtype_struct(self)
+    }
+
+    fn deserialize_enum<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        _variants: &'static [&'static str],
+        visitor: V,
+    ) -> Result<V::Value, Self::Error> {
+        match self.0 {
+            // a unit variant
+            Value::String(s) => visitor.visit_enum(s.as_str().into_deserializer()),
+            // {"variant": content}
+            Value::Object(o) => visitor.visit_enum(MapAccessDeserializer::new(
+                MapDeserializer::new(o.iter().map(|(k, v)| (Key(k), NullAsNan(v)))),
+            )),
+            other => Err(serde::de::Error::invalid_type(
+                serde::de::Unexpected::Other(match other {
+                    Value::Null => "null",
+                    Value::Bool(_) => "a boolean",
+                    Value::Number(_) => "a number",
+                    _ => "an array",
+                }),
+                &"an enum variant",
+            )),
+        }
+    }
+
+    serde::forward_to_deserialize_any! {
+        bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 char str string bytes byte_buf unit
+        unit_struct seq tuple tuple_struct map struct identifier ignored_any
+    }
+}
+
+/// A JSON object's key: a string that a map with number (or boolean) keys reads as one, as
+/// `serde_json` itself does.
+struct Key<'a>(&'a str);
+
+impl<'de> IntoDeserializer<'de, serde_json::Error> for Key<'de> {
+    type Deserializer = Self;
+    fn into_deserializer(self) -> Self {
+        self
+    }
+}
+
+/// `deserialize_$t` that parses the key as a `$t`.
+macro_rules! parsed_key {
+    ($($method:ident => $t:ty, $visit:ident;)*) => {$(
+        fn $method<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+            match self.0.parse::<$t>() {
+                Ok(x) => visitor.$visit(x),
+                Err(_) => Err(serde::de::Error::invalid_value(
+                    serde::de::Unexpected::Str(self.0),
+                    &stringify!($t),
+                )),
+            }
+        }
+    )*};
+}
+
+impl<'de> Deserializer<'de> for Key<'de> {
+    type Error = serde_json::Error;
+
+    fn deserialize_any<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        visitor.visit_borrowed_str(self.0)
+    }
+
+    parsed_key! {
+        deserialize_bool => bool, visit_bool;
+        deserialize_i8 => i8, visit_i8;
+        deserialize_i16 => i16, visit_i16;
+        deserialize_i32 => i32, visit_i32;
+        deserialize_i64 => i64, visit_i64;
+        deserialize_i128 => i128, visit_i128;
+        deserialize_u8 => u8, visit_u8;
+        deserialize_u16 => u16, visit_u16;
+        deserialize_u32 => u32, visit_u32;
+        deserialize_u64 => u64, visit_u64;
+        deserialize_u128 => u128, visit_u128;
+        deserialize_f32 => f32, visit_f32;
+        deserialize_f64 => f64, visit_f64;
+    }
+
+    fn deserialize_option<V: Visitor<'de>>(self, visitor: V) -> Result<V::Value, Self::Error> {
+        visitor.visit_some(self)
+    }
+
+    fn deserialize_newtype_struct<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        visitor: V,
+    ) -> Result<V::Value, Self::Error> {
+        visitor.visit_newtype_struct(self)
+    }
+
+    fn deserialize_enum<V: Visitor<'de>>(
+        self,
+        _name: &'static str,
+        _variants: &'static [&'static str],
+        visitor: V,
+    ) -> Result<V::Value, Self::Error> {
+        visitor.visit_enum(self.0.into_deserializer())
+    }
+
+    serde::forward_to_deserialize_any! {
+        char str string bytes byte_buf unit unit_struct seq tuple tuple_struct map struct
+        identifier ignored_any
     }
 }
 
@@ -165,6 +343,67 @@ mod tests {
         assert!(e.contains("/x/t.json") && e.contains("`items[1]`"), "{e}");
         let e = FMT.parse::<Rec>(b"{ not json", p).unwrap_err().to_string();
         assert!(e.contains("not a valid test file"), "{e}");
+    }
+
+    #[test]
+    fn non_finite_numbers_read_back_as_nan_and_options_as_none() {
+        #[derive(Debug, serde::Serialize, serde::Deserialize)]
+        struct Nums {
+            x: f64,
+            xs: [f32; 2],
+            maybe: Option<f64>,
+            kind: Kind,
+            by_view: std::collections::BTreeMap<u32, f64>,
+        }
+        #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "kebab-case")]
+        enum Kind {
+            Plain,
+            Scaled(f64),
+            Spread { by: f64 },
+        }
+        let p = Path::new("/x/n.json");
+        for kind in [
+            Kind::Plain,
+            Kind::Scaled(f64::NAN),
+            Kind::Spread { by: 2.0 },
+        ] {
+            let json = serde_json::to_vec(&Nums {
+                x: f64::NAN,
+                xs: [f32::INFINITY, 1.5],
+                maybe: None,
+                kind,
+                by_view: [(3, 1.0), (12, f64::NAN)].into(),
+            })
+            .unwrap();
+            // what serde_json makes of them: null
+            assert!(String::from_utf8_lossy(&json).contains("\"x\":null"));
+            let n: Nums = FMT.parse(&json, p).unwrap();
+            assert!(n.x.is_nan() && n.xs[0].is_nan() && n.xs[1] == 1.5);
+            assert_eq!(n.maybe, None);
+            assert_eq!(n.by_view[&3], 1.0);
+            assert!(n.by_view[&12].is_nan());
+            match n.kind {
+                Kind::Scaled(s) => assert!(s.is_nan()),
+                k => assert!(matches!(k, Kind::Plain | Kind::Spread { by: 2.0 }), "{k:?}"),
+            }
+        }
+        let e = FMT
+            .parse::<Nums>(
+                br#"{"x": 1, "xs": [1, 2], "maybe": 3, "kind": 7, "by_view": {}}"#,
+                p,
+            )
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`kind`"), "{e}");
+        let e = FMT
+            .parse::<Nums>(
+                br#"{"x": 1, "xs": [1, 2], "maybe": 3, "kind": "plain", "by_view": {"a": 1}}"#,
+                p,
+            )
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("by_view") && e.contains("\"a\""), "{e}");
     }
 
     #[test]

@@ -202,8 +202,10 @@ fn reconstruct_cli_exits_3_below_the_required_confidence() {
     assert_eq!(run.status.code(), Some(3), "{stderr}");
     assert!(stderr.contains("confidence: low"), "{stderr}");
     assert!(stderr.contains("theta_d"), "{stderr}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["confidence"]["level"], "low");
+    let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
+    assert_eq!(
+        report.confidence.level,
+        brdf_rig::reconstruct::confidence::Level::Low
+    );
     assert!(out.join("brdf.binary").is_file());
 }

@@ -5,6 +5,9 @@
 use std::path::Path;
 use std::process::Output;
 
+use brdf_rig::pipeline::calibration_file;
+use brdf_rig::reconstruct::report_file;
+
 use crate::capture_util::{brdf_rig, calibratable_plan, fast_profile, text, tiny_session};
 
 /// `brdf-rig ARGS` run in the folder `cwd`, with the fast simulated profile.
@@ -34,31 +37,29 @@ fn the_demo_with_a_relative_out_reports_its_capture_and_calibration() {
     let out = tmp.path().join("demo-out");
 
     // Paths inside the files: absolute, or relative to the file's own folder.
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("reconstruction/report.json")).unwrap())
-            .unwrap();
-    let job = report["job"].as_str().unwrap();
-    assert!(Path::new(job).is_absolute(), "report.json job: {job}");
-    assert!(Path::new(job).is_file(), "report.json job: {job}");
-    for c in report["comparisons"].as_array().unwrap() {
-        let photo = Path::new(c["photo"].as_str().unwrap());
+    let report = report_file::read(&out.join("reconstruction")).unwrap();
+    let job = &report.job;
+    assert!(job.is_absolute(), "report.json job: {}", job.display());
+    assert!(job.is_file(), "report.json job: {}", job.display());
+    for c in &report.comparisons {
         assert!(
-            photo.is_absolute() && photo.is_file(),
+            c.photo.is_absolute() && c.photo.is_file(),
             "{}",
-            photo.display()
+            c.photo.display()
         );
     }
-    for i in report["images"].as_array().unwrap() {
-        let file = Path::new(i["file"].as_str().unwrap());
-        assert!(file.is_absolute() && file.is_file(), "{}", file.display());
+    for i in &report.images {
+        assert!(
+            i.file.is_absolute() && i.file.is_file(),
+            "{}",
+            i.file.display()
+        );
     }
-    let cal: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("session/calibration.json")).unwrap())
-            .unwrap();
-    let job = cal["job"].as_str().unwrap();
+    let cal = calibration_file::read(&out.join("session")).unwrap();
     assert!(
-        out.join("session").join(job).is_file(),
-        "calibration.json job: {job}"
+        out.join("session").join(&cal.job).is_file(),
+        "calibration.json job: {}",
+        cal.job.display()
     );
 
     // The page shows both sections (a section that is missing says "not available").

@@ -11,6 +11,7 @@ use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::reconstruct::reliable::ReliableSettings;
+use brdf_rig::reconstruct::report_file;
 use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
 use brdf_rig::reconstruct::{Job, Settings, reconstruct_with_basis};
 use nalgebra::{Point3, Vector3};
@@ -287,18 +288,13 @@ fn cli_writes_merl_table_report_and_sphere() {
     let table = MerlTable::read(&out.join("brdf.binary")).unwrap();
     // Some bin near the specular direction has a positive value.
     assert!(table.get(10).is_some_and(|v| v[0] > 0.0));
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["trials"].as_array().unwrap().len(), 3);
-    assert_eq!(report["basis"]["excluded"][0], "blue-acrylic");
-    assert!(
-        report["basis"]["note"]
-            .as_str()
-            .unwrap()
-            .contains("not measured")
-    );
-    assert!(report["timings"].as_array().unwrap().len() >= 6);
-    assert!(report["peak_memory_bytes"].as_u64().unwrap() > 0);
+    // read back through the format's owner: what the writer wrote, the reader reads
+    let report = report_file::read(&out).unwrap();
+    assert_eq!(report.trials.len(), 3);
+    assert_eq!(report.basis.excluded, ["blue-acrylic"]);
+    assert!(report.basis.note.contains("not measured"));
+    assert!(report.timings.len() >= 6);
+    assert!(report.peak_memory_bytes.unwrap() > 0);
     let sphere = brdf_rig::imageio::read_exr(&out.join("sphere.exr")).unwrap();
     assert_eq!((sphere.width(), sphere.height()), (256, 256));
     assert!(sphere.luminance(128, 128) > 0.0);
@@ -407,15 +403,9 @@ fn cli_refine_normals_reports_what_it_did() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("normals: kept"), "{err}");
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["normals"]["accepted"], false);
-    assert!(
-        report["normals"]["reason"]
-            .as_str()
-            .unwrap()
-            .contains("at least 3")
-    );
+    let normals = report_file::read(&out).unwrap().normals.unwrap();
+    assert!(!normals.accepted);
+    assert!(normals.reason.contains("at least 3"), "{}", normals.reason);
     assert!(!out.join("mesh_refined.ply").exists());
     // The HTML report says what the refinement did.
     let o = Command::new(util::bin())

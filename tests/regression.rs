@@ -357,13 +357,11 @@ fn finding_4_useless_input_is_refused_or_warned_about() {
         "{}",
         text(&o)
     );
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    let warnings = report["warnings"].as_array().unwrap();
+    let warnings = brdf_rig::reconstruct::report_file::read(&out)
+        .unwrap()
+        .warnings;
     assert!(
-        warnings
-            .iter()
-            .any(|w| w.as_str().unwrap().contains("contributes nothing")),
+        warnings.iter().any(|w| w.contains("contributes nothing")),
         "{warnings:?}"
     );
     // Nothing usable at all is an error.

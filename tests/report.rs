@@ -10,6 +10,18 @@ use brdf_rig::calib::light::LightSummary;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::imageio::{ExrPrecision, write_exr, write_preview_png};
 use brdf_rig::pipeline::calibration_file::{self, ChannelCalibration, SessionCalibration};
+use brdf_rig::reconstruct::components::{ComponentChoice, ValidationPoint};
+use brdf_rig::reconstruct::confidence::{Confidence, Level};
+use brdf_rig::reconstruct::core::{CoreSettings, ModelReport};
+use brdf_rig::reconstruct::ladder::{Family, FoldScheme, Ladder, Rung};
+use brdf_rig::reconstruct::nielsen::NielsenSettings;
+use brdf_rig::reconstruct::observe::{DropCounts, ImageCounts, ObserveSettings};
+use brdf_rig::reconstruct::plausible::Plausibility;
+use brdf_rig::reconstruct::refine::{IterationReport, RefineReport, RefineSettings};
+use brdf_rig::reconstruct::report_file::{
+    self, BasisReport, REPORT_FORMAT_VERSION, Report, SettingsReport, StageTiming,
+};
+use brdf_rig::reconstruct::trials::{SamplePixel, Trial};
 use brdf_rig::render::image::LinearImage;
 use brdf_rig::render::light::DirectionalLight;
 use brdf_rig::render::sphere::{Sphere, render_sphere};
@@ -118,42 +130,170 @@ fn make_recon(dir: &Path, session: &Path) {
     let light = DirectionalLight::new(Vector3::new(0.3, 0.3, 1.0), [3.0; 3]).unwrap();
     let img = render_sphere(&sphere, &MATERIAL, &light, &k, &pose, [0.0; 3]);
     write_preview_png(&dir.join("sphere_chosen.png"), &img, 0.0).unwrap();
-    // The shape `reconstruct::output::Report` serialises to, plus per-trial errors against the
-    // truth as a simulation's evaluation adds them.
     std::fs::write(
         session.join("job.toml"),
         "# the job the capture step wrote\n",
     )
     .unwrap();
-    let report = json!({
-        "job": session.join("job.toml").display().to_string(),
-        "basis": {"materials": 99, "note": "basis built from neural fits <not measured>"},
-        "trials": [
-            {"index": 0, "similarity": 0.962, "rejected_by_monotonicity": 4, "error": 0.31,
-             "samples": [{"image": 0, "x": 3, "y": 4}]},
-            {"index": 1, "similarity": 0.981, "rejected_by_monotonicity": 2, "error": 0.12,
-             "samples": []},
-            {"index": 2, "similarity": 0.955, "rejected_by_monotonicity": 7, "error": 0.40,
-             "samples": []},
-            {"index": 3, "similarity": 0.974, "rejected_by_monotonicity": 1, "error": 0.18,
-             "samples": []}
+    report_file::write(dir, &example_report(session.join("job.toml"))).unwrap();
+}
+
+/// A reconstruction's report, every section filled, built from the typed record the
+/// reconstruction writes (so a format change is a compile error here too).
+fn example_report(job: PathBuf) -> Report {
+    let trial = |index, similarity, rejected_by_monotonicity| Trial {
+        index,
+        similarity,
+        rejected_by_monotonicity,
+        samples: vec![SamplePixel {
+            image: 0,
+            x: 3,
+            y: 4,
+            bin: 1000,
+            reflectance: [0.1, 0.2, 0.3],
+        }],
+        candidate: None,
+    };
+    let rung = |family, k: Option<usize>, error| Rung {
+        family,
+        k,
+        eta: k.map(|_| 40.0),
+        parameters: k.map_or(8, |k| 3 * k),
+        fold_errors: vec![Some(error)],
+        error: Some(error),
+        standard_error: Some(0.01),
+        fold_errors_log: vec![Some(error)],
+        error_log: Some(error),
+        standard_error_log: Some(0.01),
+        image_errors: vec![Some(error), None],
+    };
+    let core = CoreSettings::default();
+    Report {
+        format_version: REPORT_FORMAT_VERSION,
+        job,
+        settings: SettingsReport {
+            observe: ObserveSettings::default(),
+            core: core.clone(),
+            nielsen: NielsenSettings::default(),
+            png_scale: 1.0,
+            saturation: None,
+        },
+        basis: BasisReport {
+            materials: 99,
+            excluded: vec!["alum-bronze".into()],
+            stride: [1, 2, 2],
+            rows: 100,
+            components: 80,
+            cache: None,
+            note: "basis built from neural fits <not measured>".into(),
+        },
+        mesh_vertices: 3,
+        mesh_faces: 1,
+        images: vec![ImageCounts {
+            file: PathBuf::from("/data/light/v000.exr"),
+            covered: 5000,
+            observed: 4321,
+            dropped: DropCounts::default(),
+        }],
+        dropped: DropCounts::default(),
+        observed_pixels: 4321,
+        reliable_pixels: 4321,
+        dropped_by_curvature: 0,
+        // not defined: written as null, read back as NaN
+        curvature_threshold: Some(f64::NAN),
+        components: ComponentChoice {
+            k: 6,
+            eta: 40.0,
+            curve: [(2, Some(0.4)), (4, Some(0.25)), (6, Some(0.2)), (8, None)]
+                .into_iter()
+                .map(|(k, error)| ValidationPoint {
+                    k,
+                    eta: 40.0,
+                    error,
+                })
+                .collect(),
+            held_out_pixels: 50,
+            samples: 80,
+            note: None,
+        },
+        trials: vec![
+            trial(0, 0.962, 4),
+            trial(1, 0.981, 2),
+            trial(2, 0.955, 7),
+            trial(3, 0.974, 1),
         ],
-        "chosen_trial": 1,
-        "components": {"k": 6, "curve": [{"k": 2, "error": 0.4}, {"k": 4, "error": 0.25},
-                                          {"k": 6, "error": 0.2}, {"k": 8, "error": null}],
-                       "held_out_pixels": 50, "samples": 80, "note": null},
-        "timings": [{"stage": "rasterise", "seconds": 1.5}, {"stage": "observe", "seconds": 0.25},
-                    {"stage": "trials", "seconds": 3.0}],
-        "warnings": ["<script>alert('x')</script> few pixels near the peak"],
-        "confidence": {"level": "medium", "reasons": ["medium: the trials disagree by 20 %"],
-                       "trial_disagreement": 0.2},
-        "reliable_pixels": 4321
-    });
-    std::fs::write(
-        dir.join("report.json"),
-        serde_json::to_vec_pretty(&report).unwrap(),
-    )
-    .unwrap();
+        chosen_trial: 1,
+        model: ModelReport {
+            family: Family::Basis,
+            k: Some(6),
+            eta: Some(40.0),
+            analytic: None,
+            reason: "the simplest model within noise of the best".into(),
+        },
+        ladder: Some(Ladder {
+            scheme: FoldScheme::Images { folds: 2 },
+            held_out_pixels: 400,
+            rungs: vec![
+                rung(Family::Lambert, None, 0.5),
+                rung(Family::Basis, Some(6), 0.2),
+            ],
+            chosen: 1,
+            reason: "the simplest model within noise of the best".into(),
+        }),
+        plausibility: Plausibility {
+            observed_cells: 120,
+            prior_share: 0.7,
+            invalid_bins: 0,
+            max_albedo_before: 0.9,
+            max_albedo_after: 0.9,
+            max_albedo_theta_deg: 10.0,
+            scaled_bins: 0,
+            prior: "basis mean".into(),
+        },
+        comparisons: Vec::new(),
+        confidence: Confidence {
+            level: Level::Medium,
+            reasons: vec!["medium: the trials disagree by 20 %".into()],
+            trial_disagreement: Some(0.2),
+            held_out_error: Some(0.2),
+            theta_d_span_deg: 12.0,
+            unseen_energy: 0.1,
+        },
+        normals: Some(RefineReport {
+            accepted: true,
+            reason: "1 iteration lowered the held-out error".into(),
+            settings: RefineSettings::default(),
+            pixels: 800,
+            pixels_offered: 1000,
+            held_out_images: vec![1],
+            vertices_refined: 3,
+            iterations: vec![iteration(0, 0.0, 0.4), iteration(1, 1.4, 0.35)],
+            chosen_iterations: 1,
+            mean_tilt_deg: 1.5,
+            max_tilt_deg: 9.0,
+            seconds: 2.0,
+        }),
+        timings: [("rasterise", 1.5), ("observe", 0.25), ("trials", 3.0)]
+            .into_iter()
+            .map(|(stage, seconds)| StageTiming {
+                stage: stage.into(),
+                seconds,
+            })
+            .collect(),
+        peak_memory_bytes: Some(1 << 20),
+        warnings: vec!["<script>alert('x')</script> few pixels near the peak".into()],
+    }
+}
+
+fn iteration(iteration: usize, mean_tilt_deg: f64, held_out_error: f64) -> IterationReport {
+    IterationReport {
+        iteration,
+        mean_tilt_deg,
+        max_tilt_deg: 2.0 * mean_tilt_deg,
+        train_error: held_out_error - 0.05,
+        held_out_error,
+        seconds: 0.5,
+    }
 }
 
 /// Headless Chromium, or a failure that says how to install it (never a silent pass).
@@ -236,8 +376,8 @@ fn report_renders_in_headless_chromium() {
     );
     // 3 sphere renders + 1 render from the reconstruction + 2 single-light thumbnails.
     assert_eq!(body_attr(&dom, "data-images").as_deref(), Some("6"));
-    // 3 in-plane channels, similarity per trial, similarity vs error, k curve.
-    assert_eq!(body_attr(&dom, "data-svgs").as_deref(), Some("6"));
+    // 3 in-plane channels, similarity per trial, k curve.
+    assert_eq!(body_attr(&dom, "data-svgs").as_deref(), Some("5"));
     // The plotted curves are real polylines with many points (361 view angles per curve).
     let longest = dom
         .split("<polyline")
@@ -334,12 +474,47 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     assert!(html.contains("not available: no brdf.binary"));
     assert!(html.contains("test &lt;plan&gt;"));
 
-    // A reconstruction output naming its session finds the capture summary there.
+    // A reconstruction output whose job is in the session finds the capture summary there,
+    // and every section of its report.json.
+    std::fs::write(session.join("job.toml"), "# the job\n").unwrap();
     let named = tmp.path().join("named");
     std::fs::create_dir_all(&named).unwrap();
-    std::fs::write(named.join("report.json"), br#"{"session": "../session"}"#).unwrap();
+    report_file::write(&named, &example_report(session.join("job.toml"))).unwrap();
     let data = gather(&named, &opts).unwrap();
     assert!(matches!(&data.capture, Avail::Yes(c) if c.shots == 3));
+    let Avail::Yes(l) = &data.ladder else {
+        panic!("{:?}", data.ladder)
+    };
+    assert_eq!(l.model, "basis (k = 6, eta = 40)");
+    assert_eq!(l.scheme, "whole images held out, 2 folds");
+    assert_eq!((l.rows.len(), l.rows[1].chosen), (2, true));
+    let n = data.normals.as_ref().unwrap();
+    assert!(n.accepted);
+    assert_eq!((n.rows.len(), n.rows[1].held_out_error), (2, Some(0.35)));
+    assert!(
+        data.other_facts
+            .iter()
+            .any(|(k, v)| k == "curvature_threshold" && v == "null"),
+        "{:?}",
+        data.other_facts
+    );
+    assert!(data.other_facts.iter().all(|(k, _)| k != "normals"));
+
+    // A report.json of the version before the typed one: refused with both versions named.
+    std::fs::write(
+        named.join("report.json"),
+        br#"{"format_version": 1, "trials": [0.9]}"#,
+    )
+    .unwrap();
+    let data = gather(&named, &opts).unwrap();
+    assert!(
+        data.warnings
+            .iter()
+            .any(|w| w.contains("format_version 1") && w.contains("reads version 2")),
+        "{:?}",
+        data.warnings
+    );
+    assert!(matches!(&data.trials, Avail::No(w) if w.contains("format_version 1")));
 
     // A broken report.json and a truncated brdf.binary: a page all the same, with reasons.
     let recon = tmp.path().join("recon");
@@ -348,7 +523,13 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     std::fs::write(recon.join("brdf.binary"), [90u8, 0, 0, 0]).unwrap();
     let data = gather(&recon, &opts).unwrap();
     assert!(matches!(&data.brdf, Avail::No(w) if w.contains("brdf.binary")));
-    assert!(data.warnings.iter().any(|w| w.contains("not valid JSON")));
+    assert!(
+        data.warnings
+            .iter()
+            .any(|w| w.contains("not a valid reconstruction report")),
+        "{:?}",
+        data.warnings
+    );
     let html = render_html(&data);
     assert!(html.contains("not available"));
 

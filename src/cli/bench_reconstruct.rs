@@ -19,6 +19,7 @@ use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use brdf_rig::reconstruct::baselines::fit_baselines;
 use brdf_rig::reconstruct::reliable::ReliableSettings;
+use brdf_rig::reconstruct::report_file;
 use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
 use brdf_rig::reconstruct::{Job, Settings, reconstruct_with_basis};
 use clap::Args;
@@ -210,9 +211,8 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     if !status.success() {
         bail!("the timed reconstruction failed");
     }
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out_dir.join("report.json"))?)?;
-    let table = MerlTable::read(&out_dir.join("brdf.binary"))?;
+    let report = report_file::read(&out_dir)?;
+    let table = MerlTable::read(&out_dir.join(report_file::BRDF_FILE))?;
     let e = err(&bins, truth_of(&a.material)?, &table);
     eprintln!("rendered error: the sphere probe under the standard environment");
     let env = brdf_rig::eval::Truth::new(truth_of(&a.material)?, 3)
@@ -265,7 +265,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             .join(" ")
             .replace(&root.display().to_string(), "$SCENE"),
         wall,
-        report["peak_memory_bytes"].as_f64().unwrap_or(0.0) / 1048576.0,
+        report.peak_memory_bytes.unwrap_or(0) as f64 / 1048576.0,
         uptime
             .split_whitespace()
             .take(3)
@@ -273,25 +273,18 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             .join(" ")
     )?;
     writeln!(md, "| stage | seconds |\n|---|---:|")?;
-    if let Some(ts) = report["timings"].as_array() {
-        for t in ts {
-            writeln!(
-                md,
-                "| {} | {:.3} |",
-                t["stage"].as_str().unwrap_or("?"),
-                t["seconds"].as_f64().unwrap_or(f64::NAN)
-            )?;
-        }
+    for t in &report.timings {
+        writeln!(md, "| {} | {:.3} |", t.stage, t.seconds)?;
     }
     writeln!(
         md,
         "\nObserved pixels {}, reliable {}, k = {}, eta = {}, chosen trial {} of {}; rendered (environment) error {env:.4}; cosine-weighted relative error {:.4} (relative {:.4}, near-specular {:.4}).\n",
-        report["observed_pixels"],
-        report["reliable_pixels"],
-        report["components"]["k"],
-        report["components"]["eta"],
-        report["chosen_trial"].as_u64().unwrap_or(0) + 1,
-        report["trials"].as_array().map_or(0, Vec::len),
+        report.observed_pixels,
+        report.reliable_pixels,
+        report.components.k,
+        report.components.eta,
+        report.chosen_trial + 1,
+        report.trials.len(),
         e.cosine_weighted,
         e.relative,
         e.near_specular

@@ -123,7 +123,7 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
         t0.elapsed().as_secs_f64(),
         session.display(),
         recon
-            .join(brdf_rig::reconstruct::output::BRDF_FILE)
+            .join(brdf_rig::reconstruct::report_file::BRDF_FILE)
             .display(),
         report.display()
     );

@@ -22,9 +22,9 @@ use super::trials::{samples_of, select_pixels};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ComponentSettings {
     /// Candidate k; capped by the number of samples and by the basis.
     pub grid: Vec<usize>,
@@ -53,7 +53,7 @@ impl Default for ComponentSettings {
 }
 
 /// One point of the validation curve.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ValidationPoint {
     pub k: usize,
     pub eta: f64,
@@ -61,7 +61,7 @@ pub struct ValidationPoint {
     pub error: Option<f64>,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ComponentChoice {
     pub k: usize,
     pub eta: f64,

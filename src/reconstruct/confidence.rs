@@ -27,7 +27,7 @@ use super::prior::{Candidate, CandidateValues};
 use crate::brdf::BinValues;
 use crate::brdf::coords::{MerlBin, THETA_D_BINS, THETA_H_BINS};
 use crate::render::probe::{ProbeSettings, SphereProbe, compare};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::sync::OnceLock;
 
 /// The probe of the confidence (smaller than the evaluation's: it renders every trial).
@@ -62,7 +62,7 @@ pub fn render_disagreement(reference: &dyn BinValues, others: &[&dyn Candidate])
 }
 
 /// Overall verdict.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Level {
     Low,
@@ -81,7 +81,7 @@ impl std::fmt::Display for Level {
 }
 
 /// Where each indicator turns a result to medium and to low confidence.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ConfidenceSettings {
     pub disagreement_medium: f64,
     pub disagreement_low: f64,
@@ -109,7 +109,7 @@ impl Default for ConfidenceSettings {
 }
 
 /// The verdict and the indicators behind it.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Confidence {
     pub level: Level,
     /// One sentence per indicator that lowered the level.

@@ -17,11 +17,11 @@ use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
 use crate::brdf::analytic::LambertGgx;
 use crate::brdf::merl::MerlTable;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Which models the reconstruction may report.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ModelSelection {
     /// The ladder chooses by held-out error (`reconstruct::ladder`).
@@ -31,7 +31,7 @@ pub enum ModelSelection {
 }
 
 /// How the reported trial is chosen among the fitted ones.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TrialChoice {
     /// The paper's eq. 3: highest cosine similarity between captured and rendered pixels
@@ -44,7 +44,7 @@ pub enum TrialChoice {
 }
 
 /// Settings of the steps after observation.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoreSettings {
     pub reliable: ReliableSettings,
     pub trials: TrialSettings,
@@ -87,7 +87,7 @@ impl Default for CoreSettings {
 }
 
 /// The model the result comes from.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelReport {
     pub family: Family,
     /// Basis components and ridge weight (basis and hybrid).
@@ -100,7 +100,7 @@ pub struct ModelReport {
 }
 
 /// Parameters of a Lambert (+ GGX) model or peak.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AnalyticParams {
     pub kd: [f64; 3],
     pub ks: [f64; 3],

@@ -13,8 +13,9 @@
 //! - [`refine`]: optional: the mesh's normals refined from the images before all of the above.
 //!
 //! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and runs
-//! everything; [`output`] writes the results; [`synthetic`] writes simulated scenes. Only
-//! `pipeline`, `output` and `synthetic` touch files.
+//! everything; [`output`] writes the results; [`report_file`] owns the format of `report.json`
+//! (read back by the HTML report); [`synthetic`] writes simulated scenes. Only `pipeline`,
+//! `output`, `report_file` and `synthetic` touch files.
 //!
 //! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
@@ -32,9 +33,11 @@ pub mod output;
 pub mod pipeline;
 pub mod plausible;
 pub mod prior;
+pub mod read_back;
 pub mod reduce;
 pub mod refine;
 pub mod reliable;
+pub mod report_file;
 pub mod sweep;
 pub mod synthetic;
 pub mod trials;

@@ -11,10 +11,10 @@ use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
 use crate::brdf::ridge::{self, Reconstruction, RidgeSettings};
 use crate::brdf::sampling::{self, SamplingSettings};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Knobs of selection and fit (speed against conditioning).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NielsenSettings {
     /// Random candidates tried per added sample.
     pub n_random: usize,

@@ -17,7 +17,8 @@ use crate::brdf::coords::{HalfDiff, merl_index};
 use crate::render::frame::ShadingFrame;
 use crate::render::image::LinearImage;
 use nalgebra::{Point3, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 
 /// What the rasteriser knows about the surface seen through one pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,7 +142,7 @@ impl Observation {
 }
 
 /// Thresholds for keeping a pixel.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObserveSettings {
     /// Drop pixels with cos(theta_i) or cos(theta_o) below this (grazing: normal errors and
     /// foreshortening dominate there). Default cos(80 deg).
@@ -170,7 +171,7 @@ impl Default for ObserveSettings {
 /// tested in this order: masked out, invalid, turned away from the light (shadowed), grazing,
 /// saturated, black, redundant, cast shadow (shadowed: the shadow ray, the costly test, is cast
 /// only for a pixel that would otherwise be kept).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DropCounts {
     pub masked_out: usize,
     pub shadowed: usize,
@@ -181,6 +182,16 @@ pub struct DropCounts {
     pub invalid: usize,
     /// Left out by the reduction (`reduce`): their (MERL bin, image region) cell was full.
     pub redundant: usize,
+}
+
+/// One light image's pixel counts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageCounts {
+    pub file: PathBuf,
+    /// Pixels where the mesh is seen.
+    pub covered: usize,
+    pub observed: usize,
+    pub dropped: DropCounts,
 }
 
 /// Why a pixel was dropped before its shadow ray (see [`DropCounts`]).

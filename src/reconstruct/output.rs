@@ -1,16 +1,19 @@
 //! The report of a reconstruction and the files written for it: `brdf.binary` (MERL),
-//! `report.json`, sphere renders of the result (`sphere.exr`, linear; `sphere.png`, preview),
+//! `report.json` (its format is owned by `report_file`; [`report_of`] fills it from what the
+//! stages made), sphere renders of the result (`sphere.exr`, linear; `sphere.png`, preview),
 //! the photo/re-render panels, and `mesh_refined.ply` when the normals were refined.
 //!
 //! The sphere is seen by a camera on +z looking at the origin, lit from 45 degrees above-right in
 //! the camera's plane (a fixed, documented view, so reports compare across runs).
 //! Files are written atomically (`imageio::write_atomic`).
 
-use super::components::ComponentChoice;
 use super::core::CoreOutput;
 use super::job::Job;
-use super::observe::DropCounts;
-use super::pipeline::{ImageCounts, Observed, Output, Scene, Settings, peak_memory_bytes};
+use super::pipeline::{Observed, Output, Scene, Settings, peak_memory_bytes};
+use super::report_file::{
+    self, BRDF_FILE, BasisReport, ComparisonReport, REPORT_FORMAT_VERSION, Report, SettingsReport,
+    StageTiming, comparison_file,
+};
 use super::trials::Trial;
 use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
@@ -21,195 +24,102 @@ use crate::render::image::LinearImage;
 use crate::render::light::DirectionalLight;
 use crate::render::sphere::{Sphere, render_sphere};
 use nalgebra::{Point3, Vector3};
-use serde::Serialize;
 use std::path::{Path, PathBuf};
-
-/// The reconstruction's MERL table, in the output folder.
-pub const BRDF_FILE: &str = "brdf.binary";
-/// The reconstruction's report, in the output folder (the type is [`Report`]).
-pub const REPORT_FILE: &str = "report.json";
-/// The version of `report.json` written.
-pub const REPORT_FORMAT_VERSION: u32 = 1;
 
 /// Said wherever a result made from the neural fits is reported.
 pub const PROVENANCE: &str = "basis built from neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, not measured MERL data";
 
-/// One light image's comparison, as reported.
-#[derive(Clone, Debug, Serialize)]
-pub struct ComparisonReport {
-    /// Index of the light image in the job.
-    pub image: usize,
-    /// The light image.
-    pub photo: PathBuf,
-    /// The panel (photo | re-render | error), relative to the folder of `report.json`.
-    pub file: String,
-    /// Relative error of the re-render over the image's observed pixels.
-    pub fit_error: f64,
-    /// The chosen model's error on this image while it (or its blocks) was held out.
-    pub held_out_error: Option<f64>,
-    pub observed_pixels: usize,
-}
-
-/// The panel file of light image `index`, relative to the output folder.
-pub fn comparison_file(index: usize) -> String {
-    format!("compare/view_{index:02}.png")
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct StageTiming {
-    pub stage: String,
-    pub seconds: f64,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct BasisReport {
-    pub materials: usize,
-    pub excluded: Vec<String>,
-    pub stride: [usize; 3],
-    pub rows: usize,
-    pub components: usize,
-    pub cache: Option<String>,
-    pub note: &'static str,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct SettingsReport {
-    pub observe: super::observe::ObserveSettings,
-    pub core: super::core::CoreSettings,
-    pub nielsen: super::nielsen::NielsenSettings,
-    pub png_scale: f32,
-    pub saturation: Option<f64>,
-}
-
-#[derive(Serialize)]
-pub struct Report {
-    /// [`REPORT_FORMAT_VERSION`].
-    pub format_version: u32,
-    /// The job file, absolute.
-    pub job: PathBuf,
-    pub settings: SettingsReport,
-    pub basis: BasisReport,
-    pub mesh_vertices: usize,
-    pub mesh_faces: usize,
-    pub images: Vec<ImageCounts>,
-    pub dropped: DropCounts,
-    pub observed_pixels: usize,
-    pub reliable_pixels: usize,
-    pub dropped_by_curvature: usize,
-    pub curvature_threshold: Option<f64>,
-    pub components: ComponentChoice,
-    pub trials: Vec<Trial>,
-    pub chosen_trial: usize,
-    /// The model reported and why (`reconstruct::ladder`).
-    pub model: super::core::ModelReport,
-    /// Every rung's held-out score; `None` when the ladder did not run (a fixed k).
-    pub ladder: Option<super::ladder::Ladder>,
-    /// What the plausibility step found and did (`reconstruct::plausible`).
-    pub plausibility: super::plausible::Plausibility,
-    /// Per light image: the photo beside its re-render (`compare/view_NN.png`, relative to
-    /// this file's folder) and the errors.
-    pub comparisons: Vec<ComparisonReport>,
-    /// How far the result can be trusted, and why not (`reconstruct::confidence`).
-    pub confidence: super::confidence::Confidence,
-    /// What the normal refinement did (`reconstruct::refine`); `None` when it was off.
-    pub normals: Option<super::refine::RefineReport>,
-    pub timings: Vec<StageTiming>,
-    pub peak_memory_bytes: Option<u64>,
-    pub warnings: Vec<String>,
-}
-
-impl Report {
-    // One argument per stage whose output the report records; a struct would only rename them.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn new(
-        job: &Job,
-        settings: &Settings,
-        basis: &Basis,
-        scene: &Scene,
-        observed: &Observed,
-        core: &CoreOutput,
-        comparisons: &[super::compare::Comparison],
-        normals: Option<super::refine::RefineReport>,
-        timings: Vec<(String, f64)>,
-    ) -> Self {
-        let s = basis.settings().stride;
-        let mut warnings = scene.warnings.clone();
-        if let Some(note) = &core.components.note {
-            warnings.push(format!("components: {note}"));
-        }
-        Self {
-            format_version: REPORT_FORMAT_VERSION,
-            // Absolute, so the report finds the job (and its session) from any folder: a path
-            // relative to the caller's folder means nothing beside report.json.
-            job: std::path::absolute(&job.source).unwrap_or_else(|_| job.source.clone()),
-            settings: SettingsReport {
-                observe: settings.observe,
-                core: settings.core.clone(),
-                nielsen: settings.nielsen,
-                png_scale: settings.png_scale,
-                saturation: settings.saturation,
-            },
-            basis: BasisReport {
-                materials: basis.materials().len(),
-                excluded: basis.settings().exclude.clone(),
-                stride: [s.theta_h, s.theta_d, s.phi_d],
-                rows: basis.n_rows(),
-                components: basis.n_components(),
-                cache: None,
-                note: PROVENANCE,
-            },
-            mesh_vertices: scene.mesh.positions().len(),
-            mesh_faces: scene.mesh.faces().len(),
-            images: observed.images.clone(),
-            dropped: observed.dropped,
-            observed_pixels: observed.observations.len(),
-            reliable_pixels: core.reliable_pixels,
-            dropped_by_curvature: core.dropped_by_curvature,
-            curvature_threshold: core.curvature_threshold,
-            components: core.components.clone(),
-            trials: core
-                .trials
-                .iter()
-                .map(|t| Trial {
-                    index: t.index,
-                    similarity: t.similarity,
-                    rejected_by_monotonicity: t.rejected_by_monotonicity,
-                    samples: t.samples.clone(),
-                    candidate: None,
-                })
-                .collect(),
-            chosen_trial: core.chosen_trial,
-            model: core.model.clone(),
-            ladder: core.ladder.clone(),
-            plausibility: core.plausibility.clone(),
-            comparisons: comparisons
-                .iter()
-                .map(|c| ComparisonReport {
-                    image: c.image,
-                    photo: scene
-                        .views
-                        .iter()
-                        .find(|v| v.index == c.image)
-                        .map(|v| v.file.clone())
-                        .unwrap_or_default(),
-                    file: comparison_file(c.image),
-                    fit_error: c.error,
-                    held_out_error: core
-                        .ladder
-                        .as_ref()
-                        .and_then(|l| l.chosen().image_errors.get(c.image).copied().flatten()),
-                    observed_pixels: c.observed,
-                })
-                .collect(),
-            confidence: core.confidence.clone(),
-            normals,
-            timings: timings
-                .into_iter()
-                .map(|(stage, seconds)| StageTiming { stage, seconds })
-                .collect(),
-            peak_memory_bytes: peak_memory_bytes(),
-            warnings,
-        }
+/// The report of a reconstruction, from what each stage made.
+// One argument per stage whose output the report records; a struct would only rename them.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn report_of(
+    job: &Job,
+    settings: &Settings,
+    basis: &Basis,
+    scene: &Scene,
+    observed: &Observed,
+    core: &CoreOutput,
+    comparisons: &[super::compare::Comparison],
+    normals: Option<super::refine::RefineReport>,
+    timings: Vec<(String, f64)>,
+) -> Report {
+    let s = basis.settings().stride;
+    let mut warnings = scene.warnings.clone();
+    if let Some(note) = &core.components.note {
+        warnings.push(format!("components: {note}"));
+    }
+    Report {
+        format_version: REPORT_FORMAT_VERSION,
+        // Absolute, so the report finds the job (and its session) from any folder: a path
+        // relative to the caller's folder means nothing beside report.json.
+        job: std::path::absolute(&job.source).unwrap_or_else(|_| job.source.clone()),
+        settings: SettingsReport {
+            observe: settings.observe,
+            core: settings.core.clone(),
+            nielsen: settings.nielsen,
+            png_scale: settings.png_scale,
+            saturation: settings.saturation,
+        },
+        basis: BasisReport {
+            materials: basis.materials().len(),
+            excluded: basis.settings().exclude.clone(),
+            stride: [s.theta_h, s.theta_d, s.phi_d],
+            rows: basis.n_rows(),
+            components: basis.n_components(),
+            cache: None,
+            note: PROVENANCE.to_string(),
+        },
+        mesh_vertices: scene.mesh.positions().len(),
+        mesh_faces: scene.mesh.faces().len(),
+        images: observed.images.clone(),
+        dropped: observed.dropped,
+        observed_pixels: observed.observations.len(),
+        reliable_pixels: core.reliable_pixels,
+        dropped_by_curvature: core.dropped_by_curvature,
+        curvature_threshold: core.curvature_threshold,
+        components: core.components.clone(),
+        trials: core
+            .trials
+            .iter()
+            .map(|t| Trial {
+                index: t.index,
+                similarity: t.similarity,
+                rejected_by_monotonicity: t.rejected_by_monotonicity,
+                samples: t.samples.clone(),
+                candidate: None,
+            })
+            .collect(),
+        chosen_trial: core.chosen_trial,
+        model: core.model.clone(),
+        ladder: core.ladder.clone(),
+        plausibility: core.plausibility.clone(),
+        comparisons: comparisons
+            .iter()
+            .map(|c| ComparisonReport {
+                image: c.image,
+                photo: scene
+                    .views
+                    .iter()
+                    .find(|v| v.index == c.image)
+                    .map(|v| v.file.clone())
+                    .unwrap_or_default(),
+                file: comparison_file(c.image),
+                fit_error: c.error,
+                held_out_error: core
+                    .ladder
+                    .as_ref()
+                    .and_then(|l| l.chosen().image_errors.get(c.image).copied().flatten()),
+                observed_pixels: c.observed,
+            })
+            .collect(),
+        confidence: core.confidence.clone(),
+        normals,
+        timings: timings
+            .into_iter()
+            .map(|(stage, seconds)| StageTiming { stage, seconds })
+            .collect(),
+        peak_memory_bytes: peak_memory_bytes(),
+        warnings,
     }
 }
 
@@ -226,6 +136,8 @@ pub enum OutputError {
     Image(#[from] imageio::ImageIoError),
     #[error(transparent)]
     Mesh(#[from] crate::geometry::mesh_io::MeshIoError),
+    #[error(transparent)]
+    Report(#[from] crate::format::FormatError),
 }
 
 /// A preview of a BRDF on a sphere (see the module header), `size` pixels square.
@@ -252,12 +164,7 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
         source,
     })?;
     output.table.write(&dir.join(BRDF_FILE))?;
-    let json = serde_json::to_vec_pretty(&output.report).map_err(|e| OutputError::Io {
-        path: dir.join(REPORT_FILE),
-        source: std::io::Error::other(e),
-    })?;
-    let path = dir.join(REPORT_FILE);
-    imageio::write_atomic(&path, &json).map_err(|source| OutputError::Io { path, source })?;
+    report_file::write(dir, &output.report)?;
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
     imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;

@@ -13,7 +13,7 @@ use super::core::{CoreError, CoreOutput, CoreSettings, reconstruct_observations}
 use super::job::{Job, JobError};
 use super::nielsen::{NielsenPrior, NielsenSettings};
 use super::observe::{
-    DropCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
+    DropCounts, ImageCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
 };
 use super::reduce::reduce;
 use super::refine::{
@@ -34,7 +34,6 @@ use crate::geometry::raster::{GBuffer, Rasteriser, rasterise};
 use crate::geometry::shadow::shadow_mask;
 use crate::imageio::{self, ImageIoError};
 use crate::render::image::LinearImage;
-use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -161,16 +160,6 @@ pub struct Scene {
     pub mesh_report: MeshReport,
     pub views: Vec<View>,
     pub warnings: Vec<String>,
-}
-
-/// Per-image pixel counts.
-#[derive(Clone, Debug, Serialize)]
-pub struct ImageCounts {
-    pub file: PathBuf,
-    /// Pixels where the mesh is seen.
-    pub covered: usize,
-    pub observed: usize,
-    pub dropped: DropCounts,
 }
 
 /// Loads the mesh, the COLMAP model, the images and masks of a job, checking that they agree;
@@ -630,7 +619,7 @@ pub struct Output {
     pub table: MerlTable,
     pub core: CoreOutput,
     pub observed: Observed,
-    pub report: super::output::Report,
+    pub report: super::report_file::Report,
     /// Per light image: the photo beside its re-render (written by `output::write`).
     pub comparisons: Vec<Comparison>,
     /// The mesh with its refined normals, when a normal refinement was accepted
@@ -824,7 +813,7 @@ pub fn finish(
     progress("photo against re-render, per light image");
     let comparisons = comparisons(&scene, &observed, &table);
     timings.push(("compare".to_string(), t.elapsed().as_secs_f64()));
-    let report = super::output::Report::new(
+    let report = super::output::report_of(
         job,
         settings,
         basis,

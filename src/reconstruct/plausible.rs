@@ -31,11 +31,11 @@ use crate::brdf::coords::{MERL_BINS, MerlBin, THETA_D_BINS, THETA_H_BINS, merl_i
 use crate::brdf::merl::MerlTable;
 use nalgebra::Vector3;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
 
 /// Knobs of the plausibility step.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PlausibleSettings {
     /// Shrink unobserved regions towards the prior.
     pub shrink: bool,
@@ -62,7 +62,7 @@ impl Default for PlausibleSettings {
 }
 
 /// What the step found and did.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Plausibility {
     /// (theta_h, theta_d) cells with at least one observed pixel, of 90 x 90.
     pub observed_cells: usize,

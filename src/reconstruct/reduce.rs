@@ -21,11 +21,11 @@
 //! held-out validation and the eq. 3 choice still see every image. Pure.
 
 use super::observe::Observation;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
 /// How far to thin the observations of one light image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Reduction {
     /// Above this many pixels an image is looked at on a lattice (step 1 of the header).
     pub reference_pixels: usize,

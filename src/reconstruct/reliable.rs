@@ -19,10 +19,10 @@
 //! Pure: no I/O.
 
 use super::observe::Observation;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// How the curvature threshold is given.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", content = "value", rename_all = "snake_case")]
 pub enum CurvatureThreshold {
     /// Keep |H| <= this, in 1 / (mesh unit).
@@ -32,7 +32,7 @@ pub enum CurvatureThreshold {
 }
 
 /// Switches and thresholds of the three assumptions.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReliableSettings {
     pub use_curvature: bool,
     pub curvature_threshold: CurvatureThreshold,

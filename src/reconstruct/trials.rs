@@ -20,11 +20,11 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
 /// Settings of the trials.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrialSettings {
     pub trials: usize,
     /// Fraction of the reliable pixels each trial draws.
@@ -46,7 +46,7 @@ impl Default for TrialSettings {
 }
 
 /// A chosen sample pixel, as reported.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SamplePixel {
     pub image: usize,
     pub x: u32,
@@ -68,7 +68,7 @@ impl From<&Observation> for SamplePixel {
 }
 
 /// One trial's outcome.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct Trial {
     pub index: usize,
     pub similarity: f64,

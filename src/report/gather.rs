@@ -9,12 +9,11 @@
 //! - session folder: `manifest.json` (else `journal.jsonl`), `session.json`, the images it lists
 //!   (checksums, a few single-light thumbnails), through their owner `capture::session`
 //!   ([`super::session`]); `calibration.json` through its owner `pipeline::calibration_file`.
-//! - reconstruction output: `brdf.binary` (MERL table) and `report.json`, read as untyped JSON so
-//!   any producer's fields show; the keys interpreted are listed in `docs/report.md`
-//!   (`trials`, `chosen_trial`, `components`, `timings`, `warnings`, `truth`,
-//!   `baselines`, `session`), plus any `*.png` renders beside them.
+//! - reconstruction output: `brdf.binary` (MERL table) and `report.json` through its owner
+//!   `reconstruct::report_file` (the typed record `brdf-rig reconstruct` writes; a file of another
+//!   version says so), plus any `*.png` renders beside them.
 
-use super::charts::{ChartSpec, Goal, ScatterPoint, Series, line_chart, scatter_pareto};
+use super::charts::{ChartSpec, Series, line_chart};
 use super::images::{EmbeddedImage, png_files, sphere_renders};
 use super::inplane::{self, InPlaneCurve, InPlaneSettings};
 use super::session::{CaptureSummary, summarise_session};
@@ -23,12 +22,11 @@ use crate::brdf::merl::MerlTable;
 use crate::brdf::nbrdf::Nbrdf;
 use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
+use crate::reconstruct::ladder::{Family, FoldScheme};
+use crate::reconstruct::report_file::{self, BRDF_FILE, REPORT_FILE, Report};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-use crate::reconstruct::output::REPORT_FORMAT_VERSION;
-pub use crate::reconstruct::output::{BRDF_FILE, REPORT_FILE as REPORT_JSON};
 
 /// A piece of the report, or why it is missing.
 #[derive(Clone, Debug, PartialEq)]
@@ -119,8 +117,6 @@ pub struct BrdfSection {
 pub struct TrialRow {
     pub index: i64,
     pub similarity: Option<f64>,
-    /// Error against a ground truth, when the producer knew one (simulations).
-    pub error: Option<f64>,
     /// Other scalar fields, as text.
     pub other: Vec<(String, String)>,
 }
@@ -129,7 +125,7 @@ pub struct TrialRow {
 pub struct TrialsSection {
     pub rows: Vec<TrialRow>,
     pub chosen: Option<i64>,
-    /// Similarity by trial (and similarity against error when errors are known).
+    /// Similarity by trial.
     pub charts: Vec<String>,
 }
 
@@ -252,8 +248,8 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         kinds.push("session folder".to_string());
     }
 
-    // report.json, untyped.
-    let report: Avail<Value> = match &recon_dir {
+    // report.json, through its owner.
+    let report: Avail<Report> = match &recon_dir {
         None => Avail::No("no reconstruction output in this folder".into()),
         Some(r) => {
             kinds.push(if r == dir {
@@ -261,20 +257,13 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             } else {
                 format!("reconstruction output in {}", r.display())
             });
-            match read_json(&r.join(REPORT_JSON)) {
-                // a file of another version is not misread (a file without one is version 1)
-                Avail::Yes(v)
-                    if v.get("format_version")
-                        .is_some_and(|f| f.as_u64() != Some(u64::from(REPORT_FORMAT_VERSION))) =>
-                {
-                    Avail::No(format!(
-                        "{}: format_version {}, but this brdf-rig reads version \
-                         {REPORT_FORMAT_VERSION}",
-                        r.join(REPORT_JSON).display(),
-                        v["format_version"]
-                    ))
+            match report_file::read(r) {
+                Ok(report) => Avail::Yes(report),
+                Err(e) if e.is_not_found() => {
+                    Avail::No(format!("{} does not exist", r.join(REPORT_FILE).display()))
                 }
-                other => other,
+                // a file of another version is refused with both versions, never misread
+                Err(e) => Avail::No(error_chain(&e)),
             }
         }
     };
@@ -285,35 +274,31 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
     }
     let rj = report.as_option();
 
-    // Capture: this folder, or the session report.json points to.
+    // Capture: this folder, or the session the job was written into (`calibrate` writes the
+    // job into its session folder).
     let session_dir = if is_session {
         Some(dir.to_path_buf())
     } else {
         let base = recon_dir.as_deref().unwrap_or(dir);
-        let named = rj
-            .and_then(|v| v.get("session"))
-            .and_then(Value::as_str)
-            .map(|s| resolve(base, s));
-        // Else the folder of the job, when the capture step wrote the job into its session.
-        let of_job = || {
-            let job = resolve(base, rj?.get("job")?.as_str()?);
+        rj.and_then(|r| {
+            let job = base.join(&r.job);
             let parent = job.parent()?;
             parent
                 .join(MANIFEST_FILE)
                 .is_file()
                 .then(|| parent.to_path_buf())
-        };
-        named.or_else(of_job)
+        })
     };
-    let capture = match &session_dir {
-        Some(s) if s.is_dir() => Avail::Yes(summarise_session(s, opts)),
-        Some(s) => Avail::No(format!(
-            "report.json names the session {}, which is not a folder here",
-            s.display()
+    let capture = match (&session_dir, rj) {
+        (Some(s), _) => Avail::Yes(summarise_session(s, opts)),
+        (None, Some(r)) => Avail::No(format!(
+            "this is a reconstruction output without a session folder (its job, {}, is not in \
+             a session folder)",
+            r.job.display()
         )),
-        None => Avail::No(
-            "this is a reconstruction output without a session folder (report.json has no \
-             \"session\" path)"
+        (None, None) => Avail::No(
+            "this is a reconstruction output without a session folder (no readable report.json \
+             names its job)"
                 .into(),
         ),
     };
@@ -331,11 +316,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         },
     };
     let brdf = match (&table, &brdf_path) {
-        (Avail::Yes(t), Some(p)) => {
-            let mut compare = comparisons_from_report(rj, recon_dir.as_deref().unwrap_or(dir));
-            compare.extend(opts.compare.iter().cloned());
-            brdf_section(t, p, &compare, opts)
-        }
+        (Avail::Yes(t), Some(p)) => brdf_section(t, p, &opts.compare, opts),
         (Avail::No(why), _) => Avail::No(why.clone()),
         (_, None) => Avail::No("no brdf.binary".into()),
     };
@@ -349,11 +330,11 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
     };
 
     let (trials, components, timing, mut other_facts) = match rj {
-        Some(v) => (
-            trials_section(v),
-            components_section(v),
-            timing_section(v),
-            other_facts(v),
+        Some(r) => (
+            trials_section(r),
+            Avail::Yes(components_section(r)),
+            timing_section(r),
+            other_facts(r),
         ),
         None => {
             let why = match &report {
@@ -368,8 +349,8 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             )
         }
     };
-    if let Some(v) = rj {
-        warnings.extend(strings_at(v, "warnings"));
+    if let Some(r) = rj {
+        warnings.extend(r.warnings.iter().cloned());
     }
     if let Avail::Yes(c) = &capture {
         warnings.extend(c.notes.iter().cloned());
@@ -394,151 +375,109 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
         components,
         timing,
         warnings,
-        confidence: rj.and_then(confidence),
+        confidence: rj.map(|r| (r.confidence.level.to_string(), r.confidence.reasons.clone())),
         other_facts,
-        provenance: rj.map(provenance).unwrap_or_default(),
-        ladder: rj.map_or_else(|| Avail::No("no report.json".into()), ladder_section),
+        provenance: rj.map(|r| vec![r.basis.note.clone()]).unwrap_or_default(),
+        ladder: rj.map_or_else(
+            || Avail::No("no report.json".into()),
+            |r| Avail::Yes(ladder_section(r)),
+        ),
         normals: rj.and_then(normals_section),
         comparisons: match (rj, &recon_dir) {
-            (Some(v), Some(d)) => comparisons_section(v, d),
+            (Some(r), Some(d)) => comparisons_section(r, d),
             _ => Avail::No("no report.json".into()),
         },
     })
 }
 
-/// A rung's label from its JSON (`family`, `k`, `eta`).
-fn rung_label(r: &Value) -> String {
-    let family = match r.get("family").and_then(Value::as_str).unwrap_or("?") {
-        "lambert" => "Lambert",
-        "lambert-ggx" => "Lambert + GGX",
-        "basis" => "basis",
-        "hybrid" => "basis + GGX peak",
-        other => other,
-    };
-    match (
-        r.get("k").and_then(Value::as_u64),
-        r.get("eta").and_then(Value::as_f64),
-    ) {
-        (Some(k), Some(eta)) => format!("{family} (k = {k}, eta = {eta})"),
+/// A model's label from its family and, for the basis families, k and eta.
+fn model_label(family: Family, k: Option<usize>, eta: Option<f64>) -> String {
+    match (k, eta) {
+        (Some(k), Some(eta)) => format!("{family} (k = {k}, eta = {})", fmt_num(eta)),
         _ => family.to_string(),
     }
 }
 
 /// `model`, `ladder` and `plausibility` of report.json.
-fn ladder_section(v: &Value) -> Avail<LadderSection> {
-    let Some(model) = v.get("model") else {
-        return Avail::No("report.json has no \"model\" (made before the model ladder)".into());
-    };
-    let ladder = v.get("ladder").filter(|l| !l.is_null());
-    let chosen = ladder
-        .and_then(|l| l.get("chosen"))
-        .and_then(Value::as_u64)
-        .map(|c| c as usize);
+fn ladder_section(r: &Report) -> LadderSection {
+    let ladder = r.ladder.as_ref();
     let rows = ladder
-        .and_then(|l| l.get("rungs"))
-        .and_then(Value::as_array)
-        .map(|rs| {
-            rs.iter()
+        .map(|l| {
+            l.rungs
+                .iter()
                 .enumerate()
-                .map(|(i, r)| LadderRow {
-                    label: rung_label(r),
-                    parameters: r.get("parameters").and_then(Value::as_f64),
-                    error: r.get("error").and_then(Value::as_f64),
-                    standard_error: r.get("standard_error").and_then(Value::as_f64),
-                    chosen: Some(i) == chosen,
+                .map(|(i, g)| LadderRow {
+                    label: model_label(g.family, g.k, g.eta),
+                    parameters: Some(g.parameters as f64),
+                    error: g.error,
+                    standard_error: g.standard_error,
+                    chosen: i == l.chosen,
                 })
                 .collect()
         })
         .unwrap_or_default();
     let scheme = ladder
-        .and_then(|l| l.get("scheme"))
-        .map(|s| match s.get("kind").and_then(Value::as_str) {
-            Some("images") => format!(
-                "whole images held out, {} folds",
-                s.get("folds").map(value_text).unwrap_or_default()
-            ),
-            Some("blocks") => format!(
-                "spatial blocks of {} px held out, {} folds",
-                s.get("block_px").map(value_text).unwrap_or_default(),
-                s.get("folds").map(value_text).unwrap_or_default()
-            ),
-            _ => value_text(s),
+        .map(|l| match l.scheme {
+            FoldScheme::Images { folds } => format!("whole images held out, {folds} folds"),
+            FoldScheme::Blocks { folds, block_px } => {
+                format!("spatial blocks of {block_px} px held out, {folds} folds")
+            }
         })
         .unwrap_or_else(|| "the ladder did not run".to_string());
-    let plausibility = v
-        .get("plausibility")
-        .and_then(Value::as_object)
-        .map(|o| {
-            o.iter()
-                .map(|(k, x)| (k.replace('_', " "), value_text(x)))
-                .collect()
-        })
-        .unwrap_or_default();
-    Avail::Yes(LadderSection {
-        model: rung_label(model),
-        reason: model.get("reason").map(value_text).unwrap_or_default(),
+    LadderSection {
+        model: model_label(r.model.family, r.model.k, r.model.eta),
+        reason: r.model.reason.clone(),
         scheme,
         rows,
-        plausibility,
-    })
+        plausibility: fields_as_text(&r.plausibility)
+            .into_iter()
+            .map(|(k, v)| (k.replace('_', " "), v))
+            .collect(),
+    }
 }
 
-/// `normals` of report.json; `None` when the refinement did not run (absent or null).
-fn normals_section(v: &Value) -> Option<NormalsSection> {
-    let n = v.get("normals").filter(|n| !n.is_null())?;
-    let f = |x: &Value, k: &str| x.get(k).and_then(Value::as_f64);
-    let rows = n
-        .get("iterations")
-        .and_then(Value::as_array)
-        .map(|its| {
-            its.iter()
-                .map(|it| NormalsRow {
-                    iteration: it.get("iteration").and_then(Value::as_u64).unwrap_or(0),
-                    mean_tilt_deg: f(it, "mean_tilt_deg"),
-                    max_tilt_deg: f(it, "max_tilt_deg"),
-                    train_error: f(it, "train_error"),
-                    held_out_error: f(it, "held_out_error"),
-                })
-                .collect()
-        })
-        .unwrap_or_default();
+/// `normals` of report.json; `None` when the refinement did not run.
+fn normals_section(r: &Report) -> Option<NormalsSection> {
+    let n = r.normals.as_ref()?;
     Some(NormalsSection {
-        accepted: n.get("accepted").and_then(Value::as_bool).unwrap_or(false),
-        reason: n.get("reason").map(value_text).unwrap_or_default(),
-        held_out_images: n.get("held_out_images").map(value_text).unwrap_or_default(),
-        chosen_iterations: n.get("chosen_iterations").and_then(Value::as_u64),
-        mean_tilt_deg: f(n, "mean_tilt_deg"),
-        max_tilt_deg: f(n, "max_tilt_deg"),
-        vertices_refined: n.get("vertices_refined").and_then(Value::as_u64),
-        rows,
+        accepted: n.accepted,
+        reason: n.reason.clone(),
+        held_out_images: format!("{:?}", n.held_out_images),
+        chosen_iterations: Some(n.chosen_iterations as u64),
+        mean_tilt_deg: Some(n.mean_tilt_deg),
+        max_tilt_deg: Some(n.max_tilt_deg),
+        vertices_refined: Some(n.vertices_refined as u64),
+        rows: n
+            .iterations
+            .iter()
+            .map(|it| NormalsRow {
+                iteration: it.iteration as u64,
+                mean_tilt_deg: Some(it.mean_tilt_deg),
+                max_tilt_deg: Some(it.max_tilt_deg),
+                train_error: Some(it.train_error),
+                held_out_error: Some(it.held_out_error),
+            })
+            .collect(),
     })
 }
 
 /// `comparisons` of report.json, with their panels embedded.
-fn comparisons_section(v: &Value, recon_dir: &Path) -> Avail<Vec<ComparisonRow>> {
-    let Some(list) = v.get("comparisons").and_then(Value::as_array) else {
-        return Avail::No(
-            "report.json has no \"comparisons\" (made before photo/re-render panels)".into(),
-        );
-    };
+fn comparisons_section(r: &Report, recon_dir: &Path) -> Avail<Vec<ComparisonRow>> {
     let mut rows = Vec::new();
     let mut bad = Vec::new();
-    for c in list {
-        let Some(file) = c.get("file").and_then(Value::as_str) else {
-            continue;
-        };
-        let photo = c.get("photo").map(value_text).unwrap_or_default();
+    for c in &r.comparisons {
         let caption = format!(
-            "light image {}: {photo} | re-render | error (red: re-render brighter)",
-            c.get("image").map(value_text).unwrap_or_default()
+            "light image {}: {} | re-render | error (red: re-render brighter)",
+            c.image,
+            c.photo.display()
         );
-        match super::images::embed_png(&recon_dir.join(file), caption) {
+        match super::images::embed_png(&recon_dir.join(&c.file), caption) {
             Ok(image) => rows.push(ComparisonRow {
                 image,
-                fit_error: c.get("fit_error").and_then(Value::as_f64),
-                held_out_error: c.get("held_out_error").and_then(Value::as_f64),
+                fit_error: Some(c.fit_error),
+                held_out_error: c.held_out_error,
             }),
-            Err(e) => bad.push(format!("{file}: {e}")),
+            Err(e) => bad.push(format!("{}: {e}", c.file)),
         }
     }
     if rows.is_empty() {
@@ -555,7 +494,7 @@ fn comparisons_section(v: &Value, recon_dir: &Path) -> Avail<Vec<ComparisonRow>>
 /// `dir` itself if it holds `brdf.binary` or `report.json`, else the first subfolder (by name)
 /// that does.
 fn find_recon_dir(dir: &Path) -> Result<Option<PathBuf>, super::ReportError> {
-    let holds = |d: &Path| d.join(BRDF_FILE).is_file() || d.join(REPORT_JSON).is_file();
+    let holds = |d: &Path| d.join(BRDF_FILE).is_file() || d.join(REPORT_FILE).is_file();
     if holds(dir) {
         return Ok(Some(dir.to_path_buf()));
     }
@@ -572,11 +511,6 @@ fn find_recon_dir(dir: &Path) -> Result<Option<PathBuf>, super::ReportError> {
     Ok(subs.into_iter().next())
 }
 
-pub(super) fn resolve(base: &Path, s: &str) -> PathBuf {
-    let p = PathBuf::from(s);
-    if p.is_absolute() { p } else { base.join(p) }
-}
-
 pub(super) fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();
     let mut src = e.source();
@@ -585,19 +519,6 @@ pub(super) fn error_chain(e: &dyn std::error::Error) -> String {
         src = c.source();
     }
     s
-}
-
-pub(super) fn read_json(path: &Path) -> Avail<Value> {
-    match std::fs::read(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            Avail::No(format!("{} does not exist", path.display()))
-        }
-        Err(e) => Avail::No(format!("{}: cannot read: {e}", path.display())),
-        Ok(bytes) => match serde_json::from_slice(&bytes) {
-            Ok(v) => Avail::Yes(v),
-            Err(e) => Avail::No(format!("{}: not valid JSON: {e}", path.display())),
-        },
-    }
 }
 
 /// A JSON value as short text (strings without quotes).
@@ -631,14 +552,6 @@ pub fn fmt_num(x: f64) -> String {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
         s
-    }
-}
-
-fn strings_at(v: &Value, key: &str) -> Vec<String> {
-    match v.get(key) {
-        Some(Value::Array(a)) => a.iter().map(value_text).collect(),
-        Some(Value::Null) | None => Vec::new(),
-        Some(other) => vec![value_text(other)],
     }
 }
 
@@ -733,44 +646,6 @@ fn is_neural(path: &Path) -> bool {
     path.extension().is_some_and(|e| e == "f32")
 }
 
-/// `truth` and `baselines` of report.json: a path string, or an object with `path` (or `file`)
-/// and an optional `label`.
-fn comparisons_from_report(rj: Option<&Value>, base: &Path) -> Vec<(String, PathBuf)> {
-    let Some(v) = rj else {
-        return Vec::new();
-    };
-    let one = |x: &Value, default: &str| -> Option<(String, PathBuf)> {
-        match x {
-            Value::String(s) => Some((default.to_string(), resolve(base, s))),
-            Value::Object(o) => {
-                let p = o
-                    .get("path")
-                    .or_else(|| o.get("file"))
-                    .and_then(Value::as_str)?;
-                let label = o
-                    .get("label")
-                    .or_else(|| o.get("name"))
-                    .map(value_text)
-                    .unwrap_or_else(|| default.to_string());
-                Some((label, resolve(base, p)))
-            }
-            _ => None,
-        }
-    };
-    let mut out = Vec::new();
-    if let Some(t) = v.get("truth").and_then(|t| one(t, "truth")) {
-        out.push(t);
-    }
-    if let Some(Value::Array(a)) = v.get("baselines") {
-        for (i, b) in a.iter().enumerate() {
-            if let Some(x) = one(b, &format!("baseline {}", i + 1)) {
-                out.push(x);
-            }
-        }
-    }
-    out
-}
-
 fn brdf_section(
     table: &MerlTable,
     path: &Path,
@@ -831,52 +706,20 @@ fn brdf_section(
 // ---------------------------------------------------------------------------------------------
 // report.json sections
 
-fn trials_section(v: &Value) -> Avail<TrialsSection> {
-    let Some(arr) = v.get("trials").and_then(Value::as_array) else {
-        return Avail::No("report.json has no \"trials\" list".into());
-    };
-    let rows: Vec<TrialRow> = arr
+fn trials_section(r: &Report) -> Avail<TrialsSection> {
+    let rows: Vec<TrialRow> = r
+        .trials
         .iter()
-        .enumerate()
-        .map(|(i, t)| match t {
-            Value::Number(n) => TrialRow {
-                index: i as i64,
-                similarity: n.as_f64(),
-                error: None,
-                other: Vec::new(),
-            },
-            _ => TrialRow {
-                index: t.get("index").and_then(Value::as_i64).unwrap_or(i as i64),
-                similarity: t.get("similarity").and_then(Value::as_f64),
-                error: ["error", "relative_error", "error_vs_truth"]
-                    .iter()
-                    .find_map(|k| t.get(*k).and_then(Value::as_f64)),
-                other: t
-                    .as_object()
-                    .map(|o| {
-                        o.iter()
-                            .filter(|(k, x)| {
-                                ![
-                                    "index",
-                                    "similarity",
-                                    "error",
-                                    "relative_error",
-                                    "error_vs_truth",
-                                ]
-                                .contains(&k.as_str())
-                                    && !x.is_array()
-                                    && !x.is_object()
-                            })
-                            .map(|(k, x)| (k.clone(), value_text(x)))
-                            .collect()
-                    })
-                    .unwrap_or_default(),
-            },
+        .map(|t| TrialRow {
+            index: t.index as i64,
+            similarity: Some(t.similarity),
+            other: vec![(
+                "rejected_by_monotonicity".to_string(),
+                t.rejected_by_monotonicity.to_string(),
+            )],
         })
         .collect();
-    let chosen = ["chosen_trial", "chosen", "best_trial"]
-        .iter()
-        .find_map(|k| v.get(*k).and_then(Value::as_i64));
+    let chosen = Some(r.chosen_trial as i64);
     let mut charts = Vec::new();
     let sims: Vec<(f64, f64)> = rows
         .iter()
@@ -894,27 +737,6 @@ fn trials_section(v: &Value) -> Avail<TrialsSection> {
             charts.push(svg);
         }
     }
-    let pairs: Vec<ScatterPoint> = rows
-        .iter()
-        .filter_map(|r| {
-            Some(ScatterPoint::new(
-                format!("#{}", r.index),
-                r.similarity?,
-                r.error?,
-            ))
-        })
-        .collect();
-    if pairs.len() >= 2 {
-        let spec = ChartSpec::new(
-            "Similarity against error (paper Fig. 6)",
-            "similarity",
-            "error vs truth",
-        )
-        .size(560, 360);
-        if let Ok(svg) = scatter_pareto(&pairs, &spec, Goal::Maximise, Goal::Minimise) {
-            charts.push(svg);
-        }
-    }
     Avail::Yes(TrialsSection {
         rows,
         chosen,
@@ -922,28 +744,13 @@ fn trials_section(v: &Value) -> Avail<TrialsSection> {
     })
 }
 
-fn components_section(v: &Value) -> Avail<ComponentsSection> {
-    let c = v.get("components");
-    let k = c
-        .and_then(|c| c.get("k").and_then(Value::as_i64).or_else(|| c.as_i64()))
-        .or_else(|| v.get("k").and_then(Value::as_i64));
-    if c.is_none() && k.is_none() {
-        return Avail::No("report.json has neither \"components\" nor \"k\"".into());
-    }
+fn components_section(r: &Report) -> ComponentsSection {
+    let c = &r.components;
     let curve: Vec<(f64, f64)> = c
-        .and_then(|c| c.get("curve"))
-        .and_then(Value::as_array)
-        .map(|a| {
-            a.iter()
-                .filter_map(|p| {
-                    Some((
-                        p.get("k")?.as_f64()?,
-                        p.get("error").and_then(Value::as_f64)?,
-                    ))
-                })
-                .collect()
-        })
-        .unwrap_or_default();
+        .curve
+        .iter()
+        .filter_map(|p| Some((p.k as f64, p.error?)))
+        .collect();
     let chart = (!curve.is_empty())
         .then(|| {
             let spec = ChartSpec::new(
@@ -955,205 +762,77 @@ fn components_section(v: &Value) -> Avail<ComponentsSection> {
             line_chart(&[Series::new("validation", curve.clone())], &spec).ok()
         })
         .flatten();
-    let other = c
-        .and_then(Value::as_object)
-        .map(|o| {
-            o.iter()
-                .filter(|(k, _)| k.as_str() != "k" && k.as_str() != "curve")
-                .map(|(k, x)| (k.clone(), short_json(x)))
-                .collect()
-        })
-        .unwrap_or_default();
-    Avail::Yes(ComponentsSection {
-        k,
+    let other = fields_as_text(c)
+        .into_iter()
+        .filter(|(k, _)| k.as_str() != "k" && k.as_str() != "curve")
+        .collect();
+    ComponentsSection {
+        k: Some(c.k as i64),
         curve,
         chart,
         other,
-    })
-}
-
-fn timing_section(v: &Value) -> Avail<Vec<(String, f64)>> {
-    let Some(t) = ["timings", "timing", "timings_secs", "stage_secs"]
-        .iter()
-        .find_map(|k| v.get(*k))
-    else {
-        return Avail::No("report.json has no \"timings\"".into());
-    };
-    let mut out = Vec::new();
-    match t {
-        Value::Object(o) => {
-            for (k, x) in o {
-                if let Some(s) = x.as_f64() {
-                    out.push((k.clone(), s));
-                }
-            }
-        }
-        Value::Array(a) => {
-            for x in a {
-                match x {
-                    Value::Array(p) if p.len() == 2 => {
-                        if let (Some(n), Some(s)) = (p[0].as_str(), p[1].as_f64()) {
-                            out.push((n.to_string(), s));
-                        }
-                    }
-                    Value::Object(o) => {
-                        let name = ["stage", "name", "step"]
-                            .iter()
-                            .find_map(|k| o.get(*k).and_then(Value::as_str));
-                        let secs = ["secs", "seconds", "time_secs", "duration_secs"]
-                            .iter()
-                            .find_map(|k| o.get(*k).and_then(Value::as_f64));
-                        if let (Some(n), Some(s)) = (name, secs) {
-                            out.push((n.to_string(), s));
-                        }
-                    }
-                    _ => {}
-                }
-            }
-        }
-        _ => {}
-    }
-    if out.is_empty() {
-        Avail::No("report.json \"timings\" has no (stage, seconds) entries".into())
-    } else {
-        Avail::Yes(out)
     }
 }
 
-/// Provenance statements of `report.json` (`provenance`, `basis.note`).
-fn provenance(v: &Value) -> Vec<String> {
-    [
-        v.get("provenance"),
-        v.get("basis").and_then(|b| b.get("note")),
-    ]
-    .into_iter()
-    .flatten()
-    .map(value_text)
-    .filter(|t| !t.is_empty())
-    .collect()
+fn timing_section(r: &Report) -> Avail<Vec<(String, f64)>> {
+    if r.timings.is_empty() {
+        return Avail::No("report.json records no stage times".into());
+    }
+    Avail::Yes(
+        r.timings
+            .iter()
+            .map(|t| (t.stage.clone(), t.seconds))
+            .collect(),
+    )
 }
 
-/// `confidence.level` and `confidence.reasons` of report.json.
-fn confidence(v: &Value) -> Option<(String, Vec<String>)> {
-    let c = v.get("confidence")?;
-    let level = c.get("level")?.as_str()?.to_string();
-    Some((level, strings_at(c, "reasons")))
+/// A section's fields as (name, short text), in the order written.
+fn fields_as_text<T: serde::Serialize>(section: &T) -> Vec<(String, String)> {
+    match serde_json::to_value(section) {
+        Ok(Value::Object(o)) => o.iter().map(|(k, x)| (k.clone(), short_json(x))).collect(),
+        _ => Vec::new(),
+    }
 }
 
-const INTERPRETED: [&str; 25] = [
+/// The report.json fields that have a section of their own.
+const INTERPRETED: [&str; 12] = [
     "format_version",
     "model",
     "normals",
     "ladder",
     "plausibility",
     "comparisons",
-    "provenance",
     "confidence",
     "trials",
     "chosen_trial",
-    "chosen",
-    "best_trial",
     "components",
-    "k",
     "timings",
-    "timing",
-    "timings_secs",
-    "stage_secs",
     "warnings",
-    "calibration",
-    "truth",
-    "baselines",
-    "session",
-    "brdf",
-    "renders",
 ];
 
-fn other_facts(v: &Value) -> Vec<(String, String)> {
-    v.as_object()
-        .map(|o| {
-            o.iter()
-                .filter(|(k, _)| !INTERPRETED.contains(&k.as_str()))
-                .map(|(k, x)| {
-                    let text = match x {
-                        Value::Object(_) | Value::Array(_) => {
-                            serde_json::to_string_pretty(x).unwrap_or_else(|_| x.to_string())
-                        }
-                        other => value_text(other),
-                    };
-                    (k.clone(), text)
-                })
-                .collect()
+/// Every other field of report.json, verbatim (`basis` as well: its note is the provenance).
+fn other_facts(r: &Report) -> Vec<(String, String)> {
+    let Ok(Value::Object(o)) = serde_json::to_value(r) else {
+        return Vec::new();
+    };
+    o.iter()
+        .filter(|(k, _)| !INTERPRETED.contains(&k.as_str()))
+        .map(|(k, x)| {
+            let text = match x {
+                Value::Object(_) | Value::Array(_) => {
+                    serde_json::to_string_pretty(x).unwrap_or_else(|_| x.to_string())
+                }
+                other => value_text(other),
+            };
+            (k.clone(), text)
         })
-        .unwrap_or_default()
+        .collect()
 }
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
-    use serde_json::json;
-
-    #[test]
-    fn normals_section_when_the_refinement_ran() {
-        assert_eq!(normals_section(&json!({})), None);
-        assert_eq!(normals_section(&json!({"normals": null})), None);
-        let v = json!({"normals": {
-        "accepted": true, "reason": "1 iteration(s) lowered ...", "held_out_images": [1, 5],
-        "chosen_iterations": 1, "mean_tilt_deg": 1.5, "max_tilt_deg": 9.0,
-        "vertices_refined": 300,
-        "iterations": [
-            {"iteration": 0, "mean_tilt_deg": 0.0, "max_tilt_deg": 0.0,
-             "train_error": 0.3, "held_out_error": 0.4},
-            {"iteration": 1, "mean_tilt_deg": 1.4, "max_tilt_deg": 8.0,
-             "train_error": 0.25, "held_out_error": 0.35}
-        ]}});
-        let n = normals_section(&v).unwrap();
-        assert!(n.accepted);
-        assert_eq!(n.chosen_iterations, Some(1));
-        assert_eq!(n.rows.len(), 2);
-        assert_eq!(n.rows[1].held_out_error, Some(0.35));
-        assert!(other_facts(&v).iter().all(|(k, _)| k != "normals"));
-    }
-
-    #[test]
-    fn timings_in_each_accepted_shape() {
-        let want = vec![("a".to_string(), 1.5), ("b".to_string(), 2.0)];
-        for v in [
-            json!({"timings": [["a", 1.5], ["b", 2.0]]}),
-            json!({"timings": {"a": 1.5, "b": 2.0}}),
-            json!({"timing": [{"stage": "a", "secs": 1.5}, {"name": "b", "seconds": 2.0}]}),
-        ] {
-            assert_eq!(timing_section(&v), Avail::Yes(want.clone()), "{v}");
-        }
-        assert!(matches!(timing_section(&json!({})), Avail::No(w) if w.contains("timings")));
-        assert!(!timing_section(&json!({"timings": "soon"})).is_available());
-    }
-
-    #[test]
-    fn trials_components_and_other_facts() {
-        let v = json!({
-            "trials": [0.9, 0.95, 0.8], "chosen": 1, "k": 7,
-            "reliable_pixels": 12, "settings": {"eta": 40}
-        });
-        let Avail::Yes(t) = trials_section(&v) else {
-            panic!()
-        };
-        assert_eq!(t.chosen, Some(1));
-        assert_eq!(t.rows[1].similarity, Some(0.95));
-        assert_eq!(t.charts.len(), 1); // no errors known: no Fig. 6 chart
-        let Avail::Yes(c) = components_section(&v) else {
-            panic!()
-        };
-        assert_eq!(c.k, Some(7));
-        let facts = other_facts(&v);
-        assert_eq!(facts.len(), 2);
-        assert!(
-            facts
-                .iter()
-                .any(|(k, x)| k == "reliable_pixels" && x == "12")
-        );
-        assert!(!trials_section(&json!({"trials": 3})).is_available());
-    }
 
     #[test]
     fn session_calibration_is_one_entry_per_channel() {

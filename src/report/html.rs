@@ -515,7 +515,6 @@ fn section_trials(h: &mut String, trials: &Avail<TrialsSection>, comps: &Avail<C
                 }
                 (None, _) => na(h, "report.json names no chosen trial (\"chosen_trial\")"),
             }
-            let has_err = t.rows.iter().any(|r| r.error.is_some());
             let mut other_keys: Vec<String> = t
                 .rows
                 .iter()
@@ -524,9 +523,6 @@ fn section_trials(h: &mut String, trials: &Avail<TrialsSection>, comps: &Avail<C
             other_keys.sort();
             other_keys.dedup();
             h.push_str("<table><tr><th>trial</th><th>similarity</th>");
-            if has_err {
-                h.push_str("<th>error vs truth</th>");
-            }
             for k in &other_keys {
                 let _ = write!(h, "<th>{}</th>", escape(k));
             }
@@ -543,13 +539,6 @@ fn section_trials(h: &mut String, trials: &Avail<TrialsSection>, comps: &Avail<C
                     r.index,
                     r.similarity.map(fmt_num).unwrap_or_else(|| "-".into())
                 );
-                if has_err {
-                    let _ = write!(
-                        h,
-                        "<td>{}</td>",
-                        r.error.map(fmt_num).unwrap_or_else(|| "-".into())
-                    );
-                }
                 for k in &other_keys {
                     let v = r
                         .other

@@ -1,0 +1,240 @@
+//! Reading back the report sections whose types are declared, with `Serialize` only, in
+//! `ladder.rs` and `refine.rs`: `Deserialize` for them, so `report_file::Report` embeds those
+//! types as they are built and readers get them typed.
+//!
+//! Each impl goes through serde's remote derive: a mirror of the type's fields and variants,
+//! with the same serde attributes. The mirror builds the real type field by field, so a field
+//! added to or removed from the original is a compile error here, never a silent misread.
+//! When `ladder.rs` and `refine.rs` derive `Deserialize` themselves, this file goes (the two
+//! impls would then conflict, which the compiler says).
+//!
+//! Pure: no I/O.
+
+use super::ladder::{ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung};
+use super::refine::{IterationReport, RefineReport, RefineSettings};
+use serde::{Deserialize, Deserializer};
+
+/// `impl Deserialize for $ty` through its remote mirror `$mirror`.
+macro_rules! through_mirror {
+    ($($ty:ty => $mirror:ident),* $(,)?) => {$(
+        impl<'de> Deserialize<'de> for $ty {
+            fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                $mirror::deserialize(d)
+            }
+        }
+    )*};
+}
+
+through_mirror! {
+    Family => FamilyMirror,
+    HeldOutMetric => HeldOutMetricMirror,
+    ChoiceRule => ChoiceRuleMirror,
+    LadderSettings => LadderSettingsMirror,
+    FoldScheme => FoldSchemeMirror,
+    Rung => RungMirror,
+    Ladder => LadderMirror,
+    RefineSettings => RefineSettingsMirror,
+    IterationReport => IterationReportMirror,
+    RefineReport => RefineReportMirror,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "Family", rename_all = "kebab-case")]
+enum FamilyMirror {
+    Lambert,
+    LambertGgx,
+    Basis,
+    Hybrid,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "HeldOutMetric", rename_all = "kebab-case")]
+enum HeldOutMetricMirror {
+    Linear,
+    Log,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "ChoiceRule", rename_all = "kebab-case")]
+enum ChoiceRuleMirror {
+    OneStandardError,
+    Paired,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "LadderSettings")]
+struct LadderSettingsMirror {
+    folds: usize,
+    min_images_for_image_folds: usize,
+    block_px: Option<usize>,
+    analytic_max_pixels: usize,
+    analytic: bool,
+    analytic_on_all_pixels: bool,
+    hybrid: bool,
+    rule: ChoiceRule,
+    metric: HeldOutMetric,
+    max_trial_disagreement: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "FoldScheme", tag = "kind", rename_all = "kebab-case")]
+enum FoldSchemeMirror {
+    Images { folds: usize },
+    Blocks { folds: usize, block_px: usize },
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "Rung")]
+struct RungMirror {
+    family: Family,
+    k: Option<usize>,
+    eta: Option<f64>,
+    parameters: usize,
+    fold_errors: Vec<Option<f64>>,
+    error: Option<f64>,
+    standard_error: Option<f64>,
+    fold_errors_log: Vec<Option<f64>>,
+    error_log: Option<f64>,
+    standard_error_log: Option<f64>,
+    image_errors: Vec<Option<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "Ladder")]
+struct LadderMirror {
+    scheme: FoldScheme,
+    held_out_pixels: usize,
+    rungs: Vec<Rung>,
+    chosen: usize,
+    reason: String,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "RefineSettings")]
+struct RefineSettingsMirror {
+    max_iterations: usize,
+    sweeps: usize,
+    cg_iterations: usize,
+    cg_tolerance: f64,
+    step: f64,
+    max_tilt_deg: f64,
+    residual_sigma: f64,
+    smooth_deg: f64,
+    anchor_deg: f64,
+    min_pixels_per_vertex: usize,
+    hold_out_every: usize,
+    min_gain: f64,
+    max_fit_pixels: usize,
+    fit_min_cos: f64,
+    move_min_cos: f64,
+    max_pixels_per_face: usize,
+    final_alternations: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "IterationReport")]
+struct IterationReportMirror {
+    iteration: usize,
+    mean_tilt_deg: f64,
+    max_tilt_deg: f64,
+    train_error: f64,
+    held_out_error: f64,
+    seconds: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "RefineReport")]
+struct RefineReportMirror {
+    accepted: bool,
+    reason: String,
+    settings: RefineSettings,
+    pixels: usize,
+    pixels_offered: usize,
+    held_out_images: Vec<usize>,
+    vertices_refined: usize,
+    iterations: Vec<IterationReport>,
+    chosen_iterations: usize,
+    mean_tilt_deg: f64,
+    max_tilt_deg: f64,
+    seconds: f64,
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    /// What the ladder's and the refinement's own `Serialize` writes reads back as the same
+    /// value: the mirrors carry the same names and attributes.
+    #[test]
+    fn written_sections_read_back_equal() {
+        fn round_trip<
+            T: serde::Serialize + for<'de> Deserialize<'de> + PartialEq + std::fmt::Debug,
+        >(
+            x: &T,
+        ) {
+            let json = serde_json::to_string(x).unwrap();
+            assert_eq!(&serde_json::from_str::<T>(&json).unwrap(), x, "{json}");
+        }
+        let rung = |family, k| Rung {
+            family,
+            k,
+            eta: k.map(|_| 40.0),
+            parameters: 8,
+            fold_errors: vec![Some(0.2), None],
+            error: Some(0.2),
+            standard_error: None,
+            fold_errors_log: vec![Some(0.1), None],
+            error_log: Some(0.1),
+            standard_error_log: Some(0.01),
+            image_errors: vec![None, Some(0.3)],
+        };
+        for scheme in [
+            FoldScheme::Images { folds: 5 },
+            FoldScheme::Blocks {
+                folds: 3,
+                block_px: 16,
+            },
+        ] {
+            round_trip(&Ladder {
+                scheme,
+                held_out_pixels: 100,
+                rungs: vec![
+                    rung(Family::Lambert, None),
+                    rung(Family::LambertGgx, None),
+                    rung(Family::Basis, Some(6)),
+                    rung(Family::Hybrid, Some(4)),
+                ],
+                chosen: 2,
+                reason: "within noise".into(),
+            });
+        }
+        round_trip(&LadderSettings::default());
+        round_trip(&LadderSettings {
+            rule: ChoiceRule::OneStandardError,
+            metric: HeldOutMetric::Linear,
+            ..LadderSettings::default()
+        });
+        round_trip(&RefineReport {
+            accepted: true,
+            reason: "lowered the held-out error".into(),
+            settings: RefineSettings::default(),
+            pixels: 10,
+            pixels_offered: 20,
+            held_out_images: vec![1, 5],
+            vertices_refined: 3,
+            iterations: vec![IterationReport {
+                iteration: 0,
+                mean_tilt_deg: 0.0,
+                max_tilt_deg: 0.0,
+                train_error: 0.3,
+                held_out_error: 0.4,
+                seconds: 1.0,
+            }],
+            chosen_iterations: 1,
+            mean_tilt_deg: 1.5,
+            max_tilt_deg: 9.0,
+            seconds: 2.0,
+        });
+    }
+}
