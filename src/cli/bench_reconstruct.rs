@@ -15,6 +15,7 @@ use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
 use brdf_rig::brdf::merl::MerlTable;
 use brdf_rig::brdf::metrics::{ErrorReport, compare};
 use brdf_rig::brdf::nbrdf::{Nbrdf, default_dir, load_dir};
+use brdf_rig::eval::PAPER_MATERIALS;
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use brdf_rig::reconstruct::baselines::fit_baselines;
@@ -27,15 +28,6 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-
-pub const PAPER_MATERIALS: [&str; 6] = [
-    "alum-bronze",
-    "fruitwood-241",
-    "pink-fabric",
-    "blue-acrylic",
-    "pink-fabric2",
-    "green-latex",
-];
 
 #[derive(Args, Debug)]
 pub struct BenchReconstructArgs {
