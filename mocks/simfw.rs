@@ -24,8 +24,8 @@ use std::time::Duration;
 
 use clap::Parser;
 
-use brdf_rig::devices::rig::sim_config;
 use brdf_rig::profile::Profile;
+use brdf_rig::rig_factory::sim_config;
 use brdf_rig::sim::SimRig;
 
 #[derive(Parser, Debug)]

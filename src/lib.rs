@@ -20,5 +20,6 @@ pub mod ranges;
 pub mod reconstruct;
 pub mod render;
 pub mod report;
+pub mod rig_factory;
 pub mod serve;
 pub mod sim;

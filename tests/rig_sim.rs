@@ -8,10 +8,11 @@
 
 use std::time::{Duration, Instant};
 
-use brdf_rig::devices::rig::{self, RigEvent, RigSettings};
+use brdf_rig::devices::rig::{Rig, RigEvent};
 use brdf_rig::devices::{DeviceError, Light, Turntable};
 use brdf_rig::profile::{Profile, SIMULATED};
-use brdf_rig::sim::{MoveKind, SimRig};
+use brdf_rig::rig_factory::{self, OpenRig};
+use brdf_rig::sim::{FaultControl, MoveKind, SimHandle};
 
 /// The built-in profile, made fast: 3600 deg/s, 360000 deg/s^2 (a 1-degree step takes 3.3 ms),
 /// 20 ms reply timeout, 5 ms warm-up. 100 retries (2 s) because a loaded 2-core CI machine can
@@ -61,8 +62,7 @@ fn scan_through_five_percent_bad_frames_visits_every_angle_once() {
         ("corrupt_rate = 0.0", "corrupt_rate = 0.025"),
         ("seed = 1", "seed = 7"),
     ]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
+    let (mut r, sim, faults) = open_sim(&p);
     r.turntable.home().unwrap();
     r.light.on(1, 0.5, true).unwrap();
     for i in 0..360 {
@@ -79,7 +79,7 @@ fn scan_through_five_percent_bad_frames_visits_every_angle_once() {
     assert_eq!(snap.levels, vec![0.0; 3], "light off at the end");
     assert!((snap.angle_deg - 359.0).abs() < 1e-6);
     // The faults really happened, and the driver really retried.
-    let (dropped, corrupted) = r.faults.as_ref().unwrap().counts();
+    let (dropped, corrupted) = faults.counts();
     assert!(
         dropped > 20 && corrupted > 20,
         "{dropped} dropped, {corrupted} corrupted"
@@ -95,9 +95,7 @@ fn scan_through_five_percent_bad_frames_visits_every_angle_once() {
 #[test]
 fn pulling_the_port_mid_scan_resumes_the_scan() {
     let p = fast_profile(&[]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
-    let faults = r.faults.clone().unwrap();
+    let (mut r, sim, faults) = open_sim(&p);
     r.turntable.home().unwrap();
     r.light.on(0, 1.0, true).unwrap();
     let mut gone_at = None;
@@ -120,8 +118,7 @@ fn pulling_the_port_mid_scan_resumes_the_scan() {
 #[test]
 fn a_firmware_reset_mid_scan_is_detected_and_the_turntable_rehomed() {
     let p = fast_profile(&[]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
+    let (mut r, sim, _) = open_sim(&p);
     r.turntable.home().unwrap();
     r.light.on(2, 0.25, true).unwrap();
     let mut after_reset = None;
@@ -175,20 +172,27 @@ fn a_firmware_reset_mid_scan_is_detected_and_the_turntable_rehomed() {
     assert_eq!(sim.snapshot().levels, vec![0.0; 3]);
 }
 
-fn settings_for(sim: &SimRig, p: &Profile, watchdog_ms: u16, heartbeat: bool) -> RigSettings {
-    let mut s = RigSettings::from_profile(p, &sim.port_path);
-    s.watchdog_ms = watchdog_ms;
-    s.heartbeat = heartbeat;
-    s
+/// The simulated rig of `p`, opened as every command opens it, with its state and faults.
+fn open_sim(p: &Profile) -> (Rig, SimHandle, FaultControl) {
+    let OpenRig { rig, sim, faults } = rig_factory::open(p, None).unwrap();
+    (rig, sim.unwrap(), faults.unwrap())
+}
+
+/// The same with the driver's watchdog and heartbeat set.
+fn open_sim_with(p: &Profile, watchdog_ms: u16, heartbeat: bool) -> (Rig, SimHandle) {
+    let OpenRig { rig, sim, .. } = rig_factory::open_simulated(p, |s| {
+        s.watchdog_ms = watchdog_ms;
+        s.heartbeat = heartbeat;
+    })
+    .unwrap();
+    (rig, sim.unwrap())
 }
 
 #[test]
 fn the_watchdog_switches_the_light_off_when_the_host_goes_silent() {
     let p = fast_profile(&[]);
-    let sim = SimRig::spawn(rig::sim_config(&p)).unwrap();
-    let state = sim.state.clone();
     // A host without heartbeat that stops talking after switching the light on.
-    let mut r = rig::open_with(settings_for(&sim, &p, 500, false), Some(sim)).unwrap();
+    let (mut r, state) = open_sim_with(&p, 500, false);
     r.light.on(0, 1.0, true).unwrap();
     assert_eq!(state.snapshot().levels[0], 1.0);
     std::thread::sleep(Duration::from_millis(100));
@@ -209,9 +213,7 @@ fn the_watchdog_switches_the_light_off_when_the_host_goes_silent() {
 #[test]
 fn the_heartbeat_keeps_the_light_on_while_the_host_waits() {
     let p = fast_profile(&[]);
-    let sim = SimRig::spawn(rig::sim_config(&p)).unwrap();
-    let state = sim.state.clone();
-    let mut r = rig::open_with(settings_for(&sim, &p, 600, true), Some(sim)).unwrap();
+    let (mut r, state) = open_sim_with(&p, 600, true);
     r.light.on(0, 1.0, true).unwrap();
     // Three watchdog periods without a command: only the heartbeat talks.
     std::thread::sleep(Duration::from_millis(1800));
@@ -224,8 +226,7 @@ fn the_heartbeat_keeps_the_light_on_while_the_host_waits() {
 #[test]
 fn limits_from_the_profile_are_checked_before_sending() {
     let p = fast_profile(&[("max_level = 1.0", "max_level = 0.5")]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
+    let (mut r, sim, _) = open_sim(&p);
     r.turntable.home().unwrap();
     let before = sim.stats().executed;
     let e = r.turntable.move_to(400.0).unwrap_err();
@@ -249,17 +250,17 @@ fn limits_from_the_profile_are_checked_before_sending() {
 #[test]
 fn a_move_before_homing_is_refused_with_a_clear_error() {
     let p = fast_profile(&[]);
-    let mut r = rig::open(&p, None).unwrap();
+    let (mut r, sim, _) = open_sim(&p);
     let e = r.turntable.move_to(10.0).unwrap_err();
     assert!(e.to_string().contains("home the turntable first"), "{e}");
-    assert!(r.sim.unwrap().moves().is_empty());
+    assert!(sim.moves().is_empty());
 }
 
 #[test]
 fn a_missing_port_is_reported_with_its_path() {
     let p = fast_profile(&[]);
     let path = std::path::Path::new("/nonexistent/brdf-rig-tty");
-    let e = rig::open(&p, Some(path)).err().unwrap();
+    let e = rig_factory::open(&p, Some(path)).err().unwrap();
     assert!(matches!(e, DeviceError::Disconnected { .. }));
     assert!(e.to_string().contains("/nonexistent/brdf-rig-tty"), "{e}");
 }
@@ -267,8 +268,8 @@ fn a_missing_port_is_reported_with_its_path() {
 #[test]
 fn a_port_that_never_comes_back_gives_up_in_bounded_time() {
     let p = fast_profile(&[("reconnect_ms = 3000", "reconnect_ms = 300")]);
-    let mut r = rig::open(&p, None).unwrap();
-    r.faults.as_ref().unwrap().unplug(Duration::from_secs(30));
+    let (mut r, _, faults) = open_sim(&p);
+    faults.unplug(Duration::from_secs(30));
     std::thread::sleep(Duration::from_millis(20));
     let t = Instant::now();
     let e = r.turntable.status().unwrap_err();
@@ -280,9 +281,7 @@ fn a_port_that_never_comes_back_gives_up_in_bounded_time() {
 #[test]
 fn late_replies_and_lost_bytes_never_repeat_a_move() {
     let p = fast_profile(&[]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
-    let faults = r.faults.clone().unwrap();
+    let (mut r, sim, faults) = open_sim(&p);
     r.turntable.home().unwrap();
     // Replies arrive after the 20 ms timeout: the driver re-sends the same id, takes the late
     // reply as the answer, and drops the firmware's replayed copy as stale.
@@ -322,8 +321,7 @@ fn a_reset_during_a_motion_rehomes_and_finishes_the_move() {
         .replace("max_speed_deg_s = 3600.0", "max_speed_deg_s = 900.0")
         .replace("max_accel_deg_s2 = 360000.0", "max_accel_deg_s2 = 2250.0");
     let p = Profile::parse(&text, "slow").unwrap();
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
+    let (mut r, sim, _) = open_sim(&p);
     r.turntable.home().unwrap();
     let s2 = sim.clone();
     let resetter = std::thread::spawn(move || {
@@ -361,8 +359,7 @@ fn a_reset_during_a_motion_rehomes_and_finishes_the_move() {
 #[test]
 fn a_reset_seen_between_moves_returns_the_platter_and_the_light() {
     let p = fast_profile(&[]);
-    let mut r = rig::open(&p, None).unwrap();
-    let sim = r.sim.clone().unwrap();
+    let (mut r, sim, _) = open_sim(&p);
     r.turntable.home().unwrap();
     r.turntable.move_to(123.0).unwrap();
     r.light.on(0, 1.0, true).unwrap();
@@ -384,10 +381,16 @@ fn a_reset_seen_between_moves_returns_the_platter_and_the_light() {
 #[test]
 fn a_port_gone_longer_than_the_watchdog_comes_back_with_the_light_on() {
     let p = fast_profile(&[]);
-    let sim = SimRig::spawn(rig::sim_config(&p)).unwrap();
-    let state = sim.state.clone();
-    let faults = sim.faults.clone();
-    let mut r = rig::open_with(settings_for(&sim, &p, 300, true), Some(sim)).unwrap();
+    let OpenRig {
+        rig: mut r,
+        sim,
+        faults,
+    } = rig_factory::open_simulated(&p, |s| {
+        s.watchdog_ms = 300;
+        s.heartbeat = true;
+    })
+    .unwrap();
+    let (state, faults) = (sim.unwrap(), faults.unwrap());
     r.turntable.home().unwrap();
     r.light.on(2, 1.0, true).unwrap();
     for i in 0..40 {
@@ -419,7 +422,7 @@ fn a_board_in_its_bootloader_is_waited_for_within_the_boot_window() {
     ];
     let p = fast_profile(&booting);
     assert_eq!(p.boot_window_ms(), 0, "the simulated profile has no window");
-    let e = rig::open(&p, None).err().unwrap();
+    let e = rig_factory::open(&p, None).err().unwrap();
     assert!(matches!(e, DeviceError::Timeout { .. }), "{e}");
     assert!(e.to_string().contains("20 ms per attempt"), "{e}");
 
@@ -433,7 +436,7 @@ fn a_board_in_its_bootloader_is_waited_for_within_the_boot_window() {
     ));
     let p = fast_profile(&with_window);
     let t = Instant::now();
-    let mut r = rig::open(&p, None).unwrap();
+    let (mut r, _, faults) = open_sim(&p);
     let stats = r.link_stats();
     let first = stats.first_reply_ms.unwrap();
     assert!(
@@ -448,7 +451,6 @@ fn a_board_in_its_bootloader_is_waited_for_within_the_boot_window() {
     );
     r.turntable.home().unwrap();
     // Unplugged and back: the board boots again, and the window starts again with the port.
-    let faults = r.faults.clone().unwrap();
     faults.unplug(Duration::from_millis(50));
     std::thread::sleep(Duration::from_millis(10));
     r.turntable.status().unwrap();

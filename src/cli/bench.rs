@@ -8,7 +8,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 
 use super::ranges::{Closed, Open, int_in, real_in};
-use brdf_rig::devices::bench::{self, RigBenchOptions};
+use brdf_rig::eval::rig::{self as bench, RigBenchOptions};
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {

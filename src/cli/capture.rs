@@ -24,9 +24,9 @@ use brdf_rig::capture::runner::{KillPhase, Progress, RunOptions, stage_instructi
 use brdf_rig::capture::{
     CaptureError, Operator, Session, ShotRecord, Stage, check_disk_space, run_session,
 };
-use brdf_rig::devices::rig as rigdev;
 use brdf_rig::pipeline::capture_start::{self, CaptureRig, PROFILE_COPY};
 use brdf_rig::profile::Profile;
+use brdf_rig::rig_factory::{self, OpenRig};
 use brdf_rig::sim::scene::StageState;
 
 use super::ranges::int_in;
@@ -267,17 +267,18 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
 
     // 4. Devices, before anything moves or is written.
     let profile = &kit.profile;
-    let rig = rigdev::open(profile, args.rig.port.as_deref()).with_context(|| {
-        format!(
-            "opening the rig of {} (port {}); nothing has moved",
-            profile.origin,
-            args.rig
-                .port
-                .as_ref()
-                .map(|p| p.display().to_string())
-                .unwrap_or_else(|| profile.serial.port.clone())
-        )
-    })?;
+    let OpenRig { rig, sim, .. } = rig_factory::open(profile, args.rig.port.as_deref())
+        .with_context(|| {
+            format!(
+                "opening the rig of {} (port {}); nothing has moved",
+                profile.origin,
+                args.rig
+                    .port
+                    .as_ref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_else(|| profile.serial.port.clone())
+            )
+        })?;
     {
         use brdf_rig::devices::Light;
         plan.check_rig(rig.light.channel_count())
@@ -287,7 +288,7 @@ pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
     let mut camera = kit.open_camera(
         plan.camera.width,
         plan.camera.height,
-        rig.sim.as_ref(),
+        sim.as_ref(),
         &stage,
         &dir.join(".download"),
     )?;

@@ -7,9 +7,10 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Args, Subcommand};
 
-use brdf_rig::devices::rig::{self, Rig};
+use brdf_rig::devices::rig::Rig;
 use brdf_rig::profile::Profile;
 use brdf_rig::protocol::caps;
+use brdf_rig::rig_factory;
 
 /// How to reach the rig.
 #[derive(Args, Debug, Clone)]
@@ -38,7 +39,7 @@ impl RigArgs {
     /// Loads the profile and opens the rig (spawning the simulated firmware for `port = "sim"`).
     pub fn open(&self) -> anyhow::Result<(Profile, Rig)> {
         let profile = self.profile()?;
-        let rig = rig::open(&profile, self.port.as_deref()).with_context(|| {
+        let opened = rig_factory::open(&profile, self.port.as_deref()).with_context(|| {
             format!(
                 "opening the rig of {} (port {})",
                 profile.origin,
@@ -48,14 +49,14 @@ impl RigArgs {
                     .unwrap_or_else(|| profile.serial.port.clone())
             )
         })?;
-        if rig.sim.is_some() {
+        if opened.sim.is_some() {
             eprintln!(
                 "note: simulated rig on {}, spawned for this command only (state does not persist \
                  between invocations)",
-                rig.port.display()
+                opened.rig.port.display()
             );
         }
-        Ok((profile, rig))
+        Ok((profile, opened.rig))
     }
 }
 

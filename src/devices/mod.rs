@@ -5,7 +5,6 @@
 //! Units: angles in degrees at this boundary (operators and profiles think in degrees; the wire
 //! protocol uses millidegrees), light levels in [0, 1], exposure in seconds.
 
-pub mod bench;
 pub mod camera_gphoto2;
 #[cfg(feature = "v4l2")]
 pub mod camera_v4l2;
@@ -14,6 +13,7 @@ pub mod camera_webcam;
 pub mod cameras;
 pub mod error;
 pub mod link;
+pub mod motion;
 pub mod rig;
 
 pub use error::DeviceError;

@@ -13,7 +13,8 @@
 //!
 //! Units: degrees and levels in [0, 1] at the trait boundary, wire units (millidegrees, u16)
 //! inside. Must not parse bytes (that is `protocol`) or touch the port directly (that is
-//! `link`).
+//! `link`). Knows nothing of the simulated firmware: a board on a serial port and the simulated
+//! one on a pseudo-terminal are the same to it (`rig_factory` chooses which to open).
 
 use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
@@ -24,7 +25,6 @@ use super::{ChannelStatus, DeviceError, Light, Turntable, TurntableStatus};
 use crate::profile::Profile;
 use crate::protocol::messages::{PROTOCOL_MAJOR, caps, faults};
 use crate::protocol::{HelloInfo, NakCode, Reply, Request, StatusInfo};
-use crate::sim::{FaultControl, FirmwareConfig, LinkFaults, SimConfig, SimHandle, SimRig};
 
 /// Everything the driver needs, in wire units, derived from a profile.
 #[derive(Clone, Debug, PartialEq)]
@@ -107,9 +107,13 @@ pub struct Controller {
     /// The absolute target of the last move, millidegrees.
     target: Option<i32>,
     events: Vec<RigEvent>,
-    /// Keeps an in-process simulated firmware alive as long as the drivers.
-    _sim: Option<Arc<SimRig>>,
+    /// Whatever serves the port and must live as long as the drivers (the simulated firmware
+    /// on its pseudo-terminal); `None` for a board.
+    _port_server: Option<PortServer>,
 }
+
+/// What serves a rig's port from inside this process, kept alive with the drivers.
+pub type PortServer = Box<dyn Send>;
 
 fn tt(reason: impl Into<String>, what: impl Into<String>) -> DeviceError {
     DeviceError::Refused {
@@ -155,7 +159,7 @@ impl Controller {
             target: None,
             events: Vec::new(),
             settings,
-            _sim: None,
+            _port_server: None,
         };
         c.handshake()?;
         Ok(c)
@@ -423,7 +427,7 @@ impl Controller {
         } else {
             (target - start_angle).abs() as f64
         };
-        let expected = crate::sim::motion::trapezoid_time(
+        let expected = super::motion::trapezoid_time(
             distance,
             self.settings.max_speed as f64,
             self.settings.max_accel as f64,
@@ -740,17 +744,12 @@ impl Light for SerialLight {
     }
 }
 
-/// An open rig: its drivers, what the firmware said at handshake, and for the simulated rig
-/// the handles to its state and fault injection.
+/// An open rig: its drivers and what the firmware said at handshake.
 pub struct Rig {
     pub turntable: SerialTurntable,
     pub light: SerialLight,
     /// The handshake (name, protocol version, boot counter, firmware limits).
     pub hello: HelloInfo,
-    /// The simulated rig's state (platter angle, lit channels), when `port = "sim"`.
-    pub sim: Option<SimHandle>,
-    /// Fault injection into the simulated rig, when `port = "sim"`.
-    pub faults: Option<FaultControl>,
     /// The path actually opened.
     pub port: std::path::PathBuf,
     ctl: Arc<Mutex<Controller>>,
@@ -778,64 +777,20 @@ impl Rig {
     }
 }
 
-/// The simulated firmware a profile describes (its hard limits are the profile's).
-pub fn sim_config(p: &Profile) -> SimConfig {
-    let t = &p.turntable;
-    SimConfig {
-        firmware: FirmwareConfig {
-            name: "brdf-sim".into(),
-            channels: p.light.channels.len() as u8,
-            min_angle: (t.min_angle_deg * 1000.0).round() as i32,
-            max_angle: (t.max_angle_deg * 1000.0).round() as i32,
-            max_speed: (t.max_speed_deg_s * 1000.0).round() as u32,
-            max_accel: (t.max_accel_deg_s2 * 1000.0).round() as u32,
-            watchdog_ms: 2000,
-            warmup_ms: p.sim.warmup_ms,
-            boot_counter: 0,
-            power_on_angle: 12_345,
-        },
-        faults: LinkFaults {
-            drop_rate: p.sim.drop_rate,
-            corrupt_rate: p.sim.corrupt_rate,
-            ..LinkFaults::default()
-        },
-        seed: p.sim.seed,
-        boot_delay: Duration::from_millis(p.sim.boot_delay_ms.into()),
-        link_path: None,
-    }
+/// Opens the rig on `port` with the profile's link, limits and channels.
+pub fn open(profile: &Profile, port: &Path) -> Result<Rig, DeviceError> {
+    open_with(RigSettings::from_profile(profile, port), None)
 }
 
-/// Opens the rig a profile describes. With `port = "sim"` (and no `port_override`) this
-/// spawns the simulated firmware on a pty first; the rest is the same code as for a board.
-pub fn open(profile: &Profile, port_override: Option<&Path>) -> Result<Rig, DeviceError> {
-    if port_override.is_none() && profile.is_simulated() {
-        let sim = SimRig::spawn(sim_config(profile)).map_err(|e| DeviceError::Other {
-            device: "simulated rig".into(),
-            reason: format!("cannot create a pseudo-terminal: {e}"),
-        })?;
-        return open_with(
-            RigSettings::from_profile(profile, &sim.port_path),
-            Some(sim),
-        );
-    }
-    let port = port_override
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| profile.serial.port.clone().into());
-    open_with(RigSettings::from_profile(profile, &port), None)
-}
-
-/// Opens a rig from explicit settings; `sim` is kept alive with the drivers.
-pub fn open_with(settings: RigSettings, sim: Option<SimRig>) -> Result<Rig, DeviceError> {
+/// Opens a rig from explicit settings; `server` (what serves the port from inside this
+/// process, if anything) lives as long as the drivers.
+pub fn open_with(settings: RigSettings, server: Option<PortServer>) -> Result<Rig, DeviceError> {
     let heartbeat = settings.heartbeat;
     let watchdog = Duration::from_millis(settings.watchdog_ms as u64);
     let port = settings.link.path.clone();
     let channels = settings.max_levels.len();
     let mut c = Controller::connect(settings)?;
-    let (state, faults) = match &sim {
-        Some(s) => (Some(s.state.clone()), Some(s.faults.clone())),
-        None => (None, None),
-    };
-    c._sim = sim.map(Arc::new);
+    c._port_server = server;
     let hello = c.hello().clone();
     let ctl = Arc::new(Mutex::new(c));
     if heartbeat {
@@ -848,8 +803,6 @@ pub fn open_with(settings: RigSettings, sim: Option<SimRig>) -> Result<Rig, Devi
             channels,
         },
         hello,
-        sim: state,
-        faults,
         port,
         ctl,
     })

@@ -17,6 +17,7 @@
 pub mod accuracy;
 pub mod confidence;
 pub mod external;
+pub mod rig;
 pub mod sweeps;
 
 use crate::brdf::basis::Basis;

@@ -34,6 +34,7 @@ use crate::devices::{Light, Turntable};
 use crate::pipeline::capture_start::{
     self, CaptureRig, PROFILE_COPY, SimStage, check_output_folder,
 };
+use crate::sim::SimHandle;
 use crate::sim::firmware::SimSnapshot;
 use crate::sim::scene::StageState;
 
@@ -74,6 +75,8 @@ pub struct RigThread {
     hub: Arc<Hub>,
     kit: CaptureRig,
     rig: Rig,
+    /// The simulated rig's state, which the simulated camera looks at; `None` for a board.
+    sim: Option<SimHandle>,
     stage: StageState,
     worker: Arc<Worker>,
     live: LiveFeed,
@@ -85,6 +88,7 @@ impl RigThread {
         hub: Arc<Hub>,
         kit: CaptureRig,
         rig: Rig,
+        sim: Option<SimHandle>,
         worker: Arc<Worker>,
         settings: DeviceSettings,
     ) -> RigThread {
@@ -93,6 +97,7 @@ impl RigThread {
             hub,
             kit,
             rig,
+            sim,
             stage: StageState::default(),
             worker,
             live,
@@ -400,7 +405,7 @@ impl RigThread {
             .open_camera(
                 plan.camera.width,
                 plan.camera.height,
-                self.rig.sim.as_ref(),
+                self.sim.as_ref(),
                 &self.stage,
                 &dir.join(".download"),
             )
@@ -432,7 +437,7 @@ impl RigThread {
         let download = std::env::temp_dir().join("brdf-rig-preview");
         match self
             .kit
-            .open_camera(w, h, self.rig.sim.as_ref(), &self.stage, &download)
+            .open_camera(w, h, self.sim.as_ref(), &self.stage, &download)
         {
             Ok(c) => self.live.set_camera(Some(SharedCamera::new(c))),
             Err(e) => self.hub.update(|s| {

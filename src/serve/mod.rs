@@ -112,16 +112,18 @@ impl Server {
             config.sessions_dir.display()
         )))?;
         let kit = CaptureRig::load(config.profile.clone())?;
-        let rig = crate::devices::rig::open(&kit.profile, config.port_override.as_deref())
-            .map_err(|e| ServeError::Rig {
-                profile: kit.profile.origin.clone(),
-                port: config
-                    .port_override
-                    .as_ref()
-                    .map(|p| p.display().to_string())
-                    .unwrap_or_else(|| kit.profile.serial.port.clone()),
-                reason: e.to_string(),
-            })?;
+        let crate::rig_factory::OpenRig { rig, sim, .. } =
+            crate::rig_factory::open(&kit.profile, config.port_override.as_deref()).map_err(
+                |e| ServeError::Rig {
+                    profile: kit.profile.origin.clone(),
+                    port: config
+                        .port_override
+                        .as_ref()
+                        .map(|p| p.display().to_string())
+                        .unwrap_or_else(|| kit.profile.serial.port.clone()),
+                    reason: e.to_string(),
+                },
+            )?;
         // bind before anything else runs, so a taken port is an error here
         let listener = std::net::TcpListener::bind(config.bind)
             .map_err(io(format!("listening on {}", config.bind)))?;
@@ -162,7 +164,7 @@ impl Server {
         let (hub, ends) = Hub::new(
             initial,
             control::Token::new(config.token.as_deref()),
-            rig.sim.clone(),
+            sim.clone(),
         );
 
         let publish_hub = hub.clone();
@@ -184,7 +186,9 @@ impl Server {
         let rig_hub = hub.clone();
         let rig_thread = std::thread::Builder::new()
             .name("brdf-rig-rig".into())
-            .spawn(move || device::RigThread::new(rig_hub, kit, rig, worker, settings).run(ends))
+            .spawn(move || {
+                device::RigThread::new(rig_hub, kit, rig, sim, worker, settings).run(ends)
+            })
             .map_err(io("starting the rig's thread"))?;
 
         let app = routes::App {

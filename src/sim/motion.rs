@@ -3,7 +3,10 @@
 //! deceleration to rest for STOP and the watchdog.
 //!
 //! Units: the wire's (millidegrees, millidegrees per second, per second squared) as f64, time in
-//! seconds since the motion started. Pure: no clock.
+//! seconds since the motion started. Pure: no clock. A move's duration is the driver's
+//! (`devices::motion::trapezoid_time`): the host waits for the motion the firmware makes.
+
+use crate::devices::motion::trapezoid_time;
 
 /// A motion in progress.
 #[derive(Clone, Debug, PartialEq)]
@@ -84,18 +87,6 @@ fn peak(d: f64, v: f64, a: f64) -> (f64, f64) {
         (t, a * t)
     } else {
         (t_full, v)
-    }
-}
-
-/// Duration of a move of length `d` (closed form: triangle when `d <= v^2/a`).
-pub fn trapezoid_time(d: f64, v: f64, a: f64) -> f64 {
-    if d <= 0.0 {
-        return 0.0;
-    }
-    if d <= v * v / a {
-        2.0 * (d / a).sqrt()
-    } else {
-        d / v + v / a
     }
 }
 

@@ -8,9 +8,10 @@
 
 use std::time::{Duration, Instant};
 
-use super::rig;
-use super::{DeviceError, Turntable};
+use crate::devices::motion::trapezoid_time;
+use crate::devices::{DeviceError, Turntable};
 use crate::profile::Profile;
+use crate::rig_factory;
 
 #[derive(Clone, Debug)]
 pub struct RigBenchOptions {
@@ -45,7 +46,7 @@ pub struct RigBenchReport {
     /// Median of wall minus motion.
     pub overhead: Duration,
     /// Link counters over the whole run (resends mean a reply took longer than the timeout).
-    pub link: super::link::LinkStats,
+    pub link: crate::devices::link::LinkStats,
     /// Every step's wall time, in order.
     pub walls: Vec<Duration>,
 }
@@ -122,7 +123,7 @@ fn percentile(sorted: &[Duration], q: f64) -> Duration {
 /// Runs both measurements on a simulated rig spawned from `profile` (which should be
 /// `port = "sim"`; the link faults of its `[sim]` section apply).
 pub fn run(profile: &Profile, opts: &RigBenchOptions) -> Result<RigBenchReport, DeviceError> {
-    let mut r = rig::open(profile, None)?;
+    let mut r = rig_factory::open(profile, None)?.rig;
     let tt = &mut r.turntable;
     // Warm up (page faults, first allocations), then measure.
     for _ in 0..50 {
@@ -139,11 +140,7 @@ pub fn run(profile: &Profile, opts: &RigBenchOptions) -> Result<RigBenchReport, 
     tt.home()?;
     let v = profile.turntable.max_speed_deg_s * 1000.0;
     let a = profile.turntable.max_accel_deg_s2 * 1000.0;
-    let motion = Duration::from_secs_f64(crate::sim::motion::trapezoid_time(
-        opts.step_deg.abs() * 1000.0,
-        v,
-        a,
-    ));
+    let motion = Duration::from_secs_f64(trapezoid_time(opts.step_deg.abs() * 1000.0, v, a));
     let mut walls = Vec::with_capacity(opts.steps);
     for i in 1..=opts.steps {
         let t = Instant::now();
