@@ -125,7 +125,7 @@ impl Versioned {
             source,
         };
         let json = serde_json::to_vec_pretty(value).map_err(|e| write_err(e.into()))?;
-        crate::imageio::write_atomic(path, &json).map_err(write_err)
+        crate::atomic::write_atomic(path, &json).map_err(write_err)
     }
 }
 

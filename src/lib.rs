@@ -4,6 +4,7 @@
 //! pure computation (`protocol`, `geometry`, `brdf`, `render`) never touches files, ports or
 //! the terminal; `devices`, `sim`, `capture`, `calib` and `report` live at the edges.
 
+pub mod atomic;
 pub mod brdf;
 pub mod calib;
 pub mod capture;

@@ -126,10 +126,10 @@ fn a_session_of_another_version_is_refused_by_name() {
     }
     let data = brdf_rig::report::gather::gather(
         &session,
-        &brdf_rig::report::gather::ReportOptions::default(),
+        &brdf_rig::report::options::ReportOptions::default(),
     )
     .unwrap();
-    let brdf_rig::report::gather::Avail::Yes(c) = &data.capture else {
+    let brdf_rig::report::avail::Avail::Yes(c) = &data.capture else {
         panic!("{:?}", data.capture)
     };
     assert_eq!(c.shots, 0);

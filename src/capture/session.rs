@@ -188,10 +188,10 @@ fn sync_dir(dir: &Path) -> Result<(), CaptureError> {
 }
 
 /// Writes `bytes` to `path` atomically: temporary file beside it (`.NAME.tmp-XXXXXX`, which
-/// [`remove_stray_temporaries`] recognises), fsync, rename (`imageio::write_atomic`), then an fsync
+/// [`remove_stray_temporaries`] recognises), fsync, rename (`atomic::write_atomic`), then an fsync
 /// of the folder that, unlike there, must succeed: a session never reports a shot it could lose.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CaptureError> {
-    crate::imageio::write_atomic(path, bytes)
+    crate::atomic::write_atomic(path, bytes)
         .map_err(|e| CaptureError::io("writing atomically", path, e))?;
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => sync_dir(d),
@@ -337,7 +337,7 @@ fn remove_stale_staging(parent: &Path, name: &str) {
 fn remove_stray_temporaries(dir: &Path) -> Result<(), CaptureError> {
     for sub in ["", "ambient", "light", "calib", "sim"] {
         let d = dir.join(sub);
-        crate::imageio::remove_stray_temporaries(&d, None)
+        crate::atomic::remove_stray_temporaries(&d, None)
             .map_err(|e| CaptureError::io("removing stray temporaries", &d, e))?;
     }
     Ok(())

@@ -13,7 +13,6 @@ use brdf_rig::brdf::{basis_cache, nbrdf};
 use brdf_rig::eval::PAPER_MATERIALS;
 use brdf_rig::eval::accuracy::{self, AccuracySpec, Rig, Variant};
 use brdf_rig::geometry::mesh::Mesh;
-use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::reconstruct::core::CoreSettings;
 use brdf_rig::reconstruct::nielsen::NielsenSettings;
 
@@ -121,25 +120,6 @@ pub fn parse_stride(s: &str) -> anyhow::Result<GridStride> {
     }
 }
 
-/// A mesh by short name (`spot`, `bunny`) or path.
-pub fn load_named_mesh(name: &str) -> anyhow::Result<(String, Mesh)> {
-    let data = brdf_rig::data::data_dir().join("meshes");
-    let path = match name {
-        "spot" => data.join("spot_triangulated.obj"),
-        "bunny" => data.join("stanford-bunny.obj"),
-        other => PathBuf::from(other),
-    };
-    let (mesh, _) = load_mesh(&path).with_context(|| format!("loading mesh {}", path.display()))?;
-    let label = match name {
-        "spot" | "bunny" => name.to_string(),
-        _ => path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| name.to_string()),
-    };
-    Ok((label, mesh))
-}
-
 /// Resolved common options.
 pub struct Common {
     pub meshes: Vec<(String, Mesh)>,
@@ -177,7 +157,10 @@ impl EvalCommon {
         let meshes = self
             .meshes
             .iter()
-            .map(|m| load_named_mesh(m))
+            .map(|m| {
+                brdf_rig::eval::meshes::load_named_mesh(m)
+                    .with_context(|| format!("loading mesh {m}"))
+            })
             .collect::<anyhow::Result<Vec<_>>>()?;
         let dir = self.nbrdf_dir.clone().unwrap_or_else(nbrdf::default_dir);
         let materials = nbrdf::load_dir(&dir)
@@ -307,7 +290,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         command += " --exact-reference";
     }
     command += &format!(" --out {}", a.out.display());
-    let machine = super::bench::machine();
+    let machine = brdf_rig::eval::host::machine();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let start = std::time::Instant::now();
     let mut done = Vec::new();

@@ -200,7 +200,7 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
              image size; the controller's own overhead stays well under a millisecond per shot.\n{}",
             args.views,
             (args.views / 3).max(1),
-            super::bench::machine(),
+            brdf_rig::eval::host::machine(),
             page.as_ref().map(|p| page_section(p)).unwrap_or_default()
         );
         std::fs::write(&path, page).with_context(|| format!("writing {}", path.display()))?;

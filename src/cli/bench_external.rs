@@ -67,7 +67,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         },
         a.out.display()
     );
-    let machine = super::bench::machine();
+    let machine = brdf_rig::eval::host::machine();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let start = std::time::Instant::now();
     let out_dir = a.out.clone();

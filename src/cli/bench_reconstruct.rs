@@ -240,7 +240,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     writeln!(
         md,
         "Made by `{command}` on {}.\n\nGround truth and basis: neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, **not measured MERL data**. The target material is always left out of the basis.\n",
-        super::bench::machine()
+        brdf_rig::eval::host::machine()
     )?;
     writeln!(md, "## Time and memory (paper scale)\n")?;
     writeln!(

@@ -51,8 +51,8 @@ fn ms(d: Duration) -> String {
 }
 
 pub fn run(a: BenchRenderArgs) -> anyhow::Result<ExitCode> {
-    let machine = super::bench::machine();
-    let (_, bunny) = super::bench_accuracy::load_named_mesh("bunny")?;
+    let machine = brdf_rig::eval::host::machine();
+    let (_, bunny) = brdf_rig::eval::meshes::load_named_mesh("bunny")?;
     let path = nbrdf::default_dir().join("alum-bronze.f32");
     let alum = Nbrdf::load(&path).with_context(|| format!("loading {}", path.display()))?;
     let runs = a.runs.max(1);

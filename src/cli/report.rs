@@ -3,8 +3,8 @@
 //! renders, trials, timing, warnings). Prints the path written.
 
 use anyhow::{Context, bail};
-use brdf_rig::report::gather::ReportOptions;
 use brdf_rig::report::inplane::InPlaneSettings;
+use brdf_rig::report::options::ReportOptions;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -71,7 +71,7 @@ pub fn run(a: ReportArgs) -> anyhow::Result<ExitCode> {
     let opts = options(&a)?;
     let (path, data) = brdf_rig::report::write_report(&a.dir, a.out.as_deref(), &opts)
         .with_context(|| format!("making the report of {}", a.dir.display()))?;
-    if let brdf_rig::report::gather::Avail::Yes(b) = &data.brdf {
+    if let brdf_rig::report::avail::Avail::Yes(b) = &data.brdf {
         for m in &b.missing {
             eprintln!("warning: comparison not shown: {m}");
         }

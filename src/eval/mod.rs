@@ -17,6 +17,8 @@
 pub mod accuracy;
 pub mod confidence;
 pub mod external;
+pub mod host;
+pub mod meshes;
 pub mod rig;
 pub mod sweeps;
 

@@ -14,10 +14,10 @@
 //! per point f64 x, f64 y, u64 point3D id. 2D points are skipped (poses are all we need).
 //! Every error names the file and the line (text) or byte offset (binary). Quaternions are
 //! normalised on read (COLMAP writes unit quaternions to 17 digits; others may not). Depends
-//! only on `camera` (and `crate::imageio`'s atomic write).
+//! only on `camera` (and `crate::atomic`'s write).
 
 use super::camera::{Intrinsics, Pose};
-use crate::imageio::write_atomic;
+use crate::atomic::write_atomic;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

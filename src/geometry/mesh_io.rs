@@ -6,10 +6,10 @@
 //! properties (colours, normals in the file) are ignored: normals are recomputed from the
 //! geometry so every source gives the same shading. Every error names the file; content errors
 //! also name the element (see [`MeshError`]). Writers are atomic (temp file, fsync, rename).
-//! Depends only on `mesh` (and `crate::imageio`'s atomic-write helper).
+//! Depends only on `mesh` (and `crate::atomic`'s write).
 
 use super::mesh::{Mesh, MeshError, MeshReport};
-use crate::imageio::write_atomic;
+use crate::atomic::write_atomic;
 use nalgebra::Point3;
 use ply_rs::parser::Parser;
 use ply_rs::ply::{Property, PropertyAccess};

@@ -1,7 +1,7 @@
 //! Geometry: cameras, meshes and their import/export (PLY, OBJ), COLMAP models, the BVH, the
 //! rasteriser (z-buffer visibility, exact per-pixel rays), shadows, curvature and SfM-like meshes.
 //! Pure computation except the importers/exporters (`mesh_io`, `colmap`), which read and write
-//! files and name them in their errors (writes go through `crate::imageio::write_atomic`). Must
+//! files and name them in their errors (writes go through `crate::atomic::write_atomic`). Must
 //! not depend on `render`, `brdf` or anything at the edges (devices, capture, sim): those depend
 //! on geometry, not the other way round.
 

@@ -140,8 +140,8 @@ fn lock_and_clean(dir: &Path, hdr_dir: &Path) -> Result<std::fs::File, SessionCa
             reason: "another `brdf-rig calibrate` is writing to this session".into(),
         });
     }
-    crate::imageio::remove_stray_temporaries(hdr_dir, None).map_err(|e| file_err(hdr_dir, e))?;
-    crate::imageio::remove_stray_temporaries(dir, Some(&[JOB_FILE, CALIBRATION_FILE]))
+    crate::atomic::remove_stray_temporaries(hdr_dir, None).map_err(|e| file_err(hdr_dir, e))?;
+    crate::atomic::remove_stray_temporaries(dir, Some(&[JOB_FILE, CALIBRATION_FILE]))
         .map_err(|e| file_err(dir, e))?;
     Ok(lock)
 }
@@ -431,7 +431,7 @@ pub fn calibrate_session(
         path: job_path.clone(),
         reason: e.to_string(),
     })?;
-    crate::imageio::write_atomic(&job_path, text.as_bytes()).map_err(|e| {
+    crate::atomic::write_atomic(&job_path, text.as_bytes()).map_err(|e| {
         SessionCalibError::File {
             path: job_path.clone(),
             reason: e.to_string(),

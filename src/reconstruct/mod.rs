@@ -12,10 +12,11 @@
 //! - [`trials`]: random trials, chosen by cosine similarity with the captured images;
 //! - [`refine`]: optional: the mesh's normals refined from the images before all of the above.
 //!
-//! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and runs
-//! everything; [`output`] writes the results; [`report_file`] owns the format of `report.json`
-//! (read back by the HTML report); [`synthetic`] writes simulated scenes. Only `pipeline`,
-//! `output`, `report_file` and `synthetic` touch files.
+//! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and
+//! observes them; [`run`] runs everything on a job; [`output`] fills the report and writes the
+//! results; [`report_file`] owns the format of `report.json` (read back by the HTML report);
+//! [`synthetic`] writes simulated scenes. Only `pipeline`, `output`, `report_file` and
+//! `synthetic` touch files.
 //!
 //! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
@@ -38,10 +39,13 @@ pub mod reduce;
 pub mod refine;
 pub mod reliable;
 pub mod report_file;
+pub mod run;
 pub mod sweep;
 pub mod synthetic;
 pub mod trials;
 
 pub use core::{CoreOutput, CoreSettings, reconstruct_observations};
 pub use job::{Job, JobError, LightImageSpec};
-pub use pipeline::{Output, ReconstructError, Settings, reconstruct, reconstruct_with_basis};
+pub use output::Output;
+pub use pipeline::{ReconstructError, Settings};
+pub use run::{reconstruct, reconstruct_with_basis};

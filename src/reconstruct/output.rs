@@ -5,11 +5,12 @@
 //!
 //! The sphere is seen by a camera on +z looking at the origin, lit from 45 degrees above-right in
 //! the camera's plane (a fixed, documented view, so reports compare across runs).
-//! Files are written atomically (`imageio::write_atomic`).
+//! Files are written atomically (`atomic::write_atomic`).
 
+use super::compare::Comparison;
 use super::core::CoreOutput;
 use super::job::Job;
-use super::pipeline::{Observed, Output, Scene, Settings, peak_memory_bytes};
+use super::pipeline::{Observed, Scene, Settings};
 use super::report_file::{
     self, BRDF_FILE, BasisReport, ComparisonReport, REPORT_FORMAT_VERSION, Report, SettingsReport,
     StageTiming, comparison_file,
@@ -18,6 +19,7 @@ use super::trials::Trial;
 use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
 use crate::geometry::camera::{Intrinsics, Pose};
+use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io::{PlyEncoding, write_ply};
 use crate::imageio::{self, ExrPrecision};
 use crate::render::image::LinearImage;
@@ -121,6 +123,27 @@ pub(super) fn report_of(
         peak_memory_bytes: peak_memory_bytes(),
         warnings,
     }
+}
+
+/// The result of a reconstruction, before anything is written.
+pub struct Output {
+    pub table: MerlTable,
+    pub core: CoreOutput,
+    pub observed: Observed,
+    pub report: Report,
+    /// Per light image: the photo beside its re-render (written by `output::write`).
+    pub comparisons: Vec<Comparison>,
+    /// The mesh with its refined normals, when a normal refinement was accepted
+    /// (`mesh_refined.ply`).
+    pub refined_mesh: Option<Mesh>,
+}
+
+/// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is unavailable.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
 
 #[derive(Debug, thiserror::Error)]

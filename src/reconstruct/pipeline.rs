@@ -1,6 +1,7 @@
-//! The whole reconstruction of a job: load its files, rasterise and observe every light image,
-//! build (or read from the cache) the basis, then run the pure core. The only part of
-//! `reconstruct` besides `output` that touches files; every error names the file and the field.
+//! A job's files loaded and observed: load the mesh, cameras and images, rasterise and observe
+//! every light image (optionally refining the normals first), and read (or build) the basis;
+//! `run` chains this with the pure core. Touches files (as `output` and `report_file` do);
+//! every error names the file and the field.
 //!
 //! Images are streamed: [`prepare`] reads one light image, observes it (`sweep`: z-buffer,
 //! reduction, shadow rays for the kept pixels), keeps its thumbnail for the comparison and lets
@@ -8,10 +9,10 @@
 //! normal refinement, which works on every pixel of every view, holds the images instead
 //! ([`load_scene`], [`observe_scene_with`]).
 
-use super::compare::{Comparison, Thumbnail, compare_image};
-use super::core::{CoreError, CoreOutput, CoreSettings, reconstruct_observations};
+use super::compare::Thumbnail;
+use super::core::{CoreError, CoreSettings};
 use super::job::{Job, JobError};
-use super::nielsen::{NielsenPrior, NielsenSettings};
+use super::nielsen::NielsenSettings;
 use super::observe::{
     DropCounts, ImageCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
 };
@@ -22,7 +23,6 @@ use super::refine::{
 use super::sweep::{ViewSweep, sweep_view};
 use crate::brdf::basis::{Basis, BasisSettings};
 use crate::brdf::basis_cache::{self, BasisCacheError, CacheStatus};
-use crate::brdf::merl::MerlTable;
 use crate::brdf::nbrdf::{self, NbrdfError};
 use crate::geometry::bvh::Bvh;
 use crate::geometry::camera::{Intrinsics, Pose};
@@ -614,27 +614,6 @@ pub fn load_basis(settings: &Settings) -> Result<(Basis, CacheStatus), Reconstru
     )?)
 }
 
-/// The result of a reconstruction, before anything is written.
-pub struct Output {
-    pub table: MerlTable,
-    pub core: CoreOutput,
-    pub observed: Observed,
-    pub report: super::report_file::Report,
-    /// Per light image: the photo beside its re-render (written by `output::write`).
-    pub comparisons: Vec<Comparison>,
-    /// The mesh with its refined normals, when a normal refinement was accepted
-    /// (`mesh_refined.ply`).
-    pub refined_mesh: Option<Mesh>,
-}
-
-/// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is unavailable.
-pub fn peak_memory_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// A job loaded and observed: what every reconstruction of it starts from.
 pub struct Prepared {
     /// The scene as reconstructed: its mesh carries the refined normals when a refinement was
@@ -751,110 +730,5 @@ pub fn refine_prepared(
     seen
 }
 
-/// Reconstructs the BRDF of a job: loads and checks the job, then the basis (cache or build).
-pub fn reconstruct(
-    job: &Job,
-    settings: &Settings,
-    progress: &mut dyn FnMut(&str),
-) -> Result<Output, ReconstructError> {
-    let mut prepared = prepare(job, settings, progress)?;
-    let t = Instant::now();
-    progress("basis (cache or build)");
-    let (basis, status) = load_basis(settings)?;
-    prepared
-        .timings
-        .push(("basis".to_string(), t.elapsed().as_secs_f64()));
-    let mut out = finish(job, settings, &basis, prepared, progress)?;
-    out.report.basis.cache = Some(match status {
-        CacheStatus::Hit(p) => format!("hit {}", p.display()),
-        CacheStatus::Built(p) => format!("built {}", p.display()),
-        CacheStatus::Rebuilt { path, reason } => format!("rebuilt {} ({reason})", path.display()),
-    });
-    Ok(out)
-}
-
-/// Reconstructs with a basis already in memory (benchmarks and ablations share one).
-pub fn reconstruct_with_basis(
-    job: &Job,
-    settings: &Settings,
-    basis: &Basis,
-    progress: &mut dyn FnMut(&str),
-) -> Result<Output, ReconstructError> {
-    let prepared = prepare(job, settings, progress)?;
-    finish(job, settings, basis, prepared, progress)
-}
-
-/// The core on a prepared job, then the MERL table and the report.
-pub fn finish(
-    job: &Job,
-    settings: &Settings,
-    basis: &Basis,
-    prepared: Prepared,
-    progress: &mut dyn FnMut(&str),
-) -> Result<Output, ReconstructError> {
-    let Prepared {
-        scene,
-        observed,
-        refinement,
-        mut timings,
-    } = prepared;
-    let prior = NielsenPrior {
-        basis,
-        settings: settings.nielsen,
-    };
-    let core = reconstruct_observations(&observed.observations, &prior, &settings.core, progress)
-        .map_err(|source| ReconstructError::Core {
-        job: job.source.clone(),
-        source,
-    })?;
-    timings.extend(core.timings.iter().cloned());
-    let table = core.table.clone();
-    let t = Instant::now();
-    progress("photo against re-render, per light image");
-    let comparisons = comparisons(&scene, &observed, &table);
-    timings.push(("compare".to_string(), t.elapsed().as_secs_f64()));
-    let report = super::output::report_of(
-        job,
-        settings,
-        basis,
-        &scene,
-        &observed,
-        &core,
-        &comparisons,
-        refinement,
-        timings,
-    );
-    let refined_mesh = report
-        .normals
-        .as_ref()
-        .is_some_and(|r| r.accepted)
-        .then_some(scene.mesh);
-    Ok(Output {
-        table,
-        refined_mesh,
-        core,
-        observed,
-        report,
-        comparisons,
-    })
-}
-
 /// Width of one panel of a comparison image, pixels.
 const COMPARISON_WIDTH: usize = 320;
-
-/// Every light image beside its re-render (`compare`).
-fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Comparison> {
-    scene
-        .views
-        .iter()
-        .zip(&observed.thumbnails)
-        .filter_map(|(v, thumb)| {
-            let obs: Vec<&Observation> = observed
-                .observations
-                .iter()
-                .filter(|o| o.image == v.index)
-                .collect();
-            Some(compare_image(v.index, thumb.as_ref()?, &obs, table))
-        })
-        .collect()
-}

@@ -13,9 +13,12 @@
 //!   `reconstruct::report_file` (the typed record `brdf-rig reconstruct` writes; a file of another
 //!   version says so), plus any `*.png` renders beside them.
 
+use super::avail::{Avail, error_chain};
 use super::charts::{ChartSpec, Series, line_chart};
 use super::images::{EmbeddedImage, png_files, sphere_renders};
-use super::inplane::{self, InPlaneCurve, InPlaneSettings};
+use super::inplane::{self, InPlaneCurve};
+use super::numbers::fmt_num;
+use super::options::ReportOptions;
 use super::session::{CaptureSummary, summarise_session};
 use crate::brdf::Brdf;
 use crate::brdf::merl::MerlTable;
@@ -25,63 +28,7 @@ use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibrati
 use crate::reconstruct::ladder::{Family, FoldScheme};
 use crate::reconstruct::report_file::{self, BRDF_FILE, REPORT_FILE, Report};
 use serde_json::Value;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// A piece of the report, or why it is missing.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Avail<T> {
-    Yes(T),
-    No(String),
-}
-
-impl<T> Default for Avail<T> {
-    fn default() -> Self {
-        Avail::No("not looked for".into())
-    }
-}
-
-impl<T> Avail<T> {
-    pub fn is_available(&self) -> bool {
-        matches!(self, Avail::Yes(_))
-    }
-
-    pub fn as_option(&self) -> Option<&T> {
-        match self {
-            Avail::Yes(t) => Some(t),
-            Avail::No(_) => None,
-        }
-    }
-}
-
-/// How the report is made.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ReportOptions {
-    pub inplane: InPlaneSettings,
-    /// In-plane plots on a logarithmic f_r axis (specular peaks span decades).
-    pub log_y: bool,
-    /// Further BRDF files to compare in the in-plane plot: (label, path to `.binary` or `.f32`).
-    pub compare: Vec<(String, PathBuf)>,
-    /// Re-read every session image and check its SHA-256 against the manifest.
-    pub verify_checksums: bool,
-    /// At most this many single-light thumbnails from a session.
-    pub max_thumbnails: usize,
-    /// Width and height of each sphere render, pixels.
-    pub sphere_pixels: usize,
-}
-
-impl Default for ReportOptions {
-    fn default() -> Self {
-        Self {
-            inplane: InPlaneSettings::default(),
-            log_y: true,
-            compare: Vec::new(),
-            verify_checksums: true,
-            max_thumbnails: 6,
-            sphere_pixels: 160,
-        }
-    }
-}
 
 /// One calibration record found (a file or a `report.json` entry).
 #[derive(Clone, Debug, PartialEq)]
@@ -511,16 +458,6 @@ fn find_recon_dir(dir: &Path) -> Result<Option<PathBuf>, super::ReportError> {
     Ok(subs.into_iter().next())
 }
 
-pub(super) fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut src = e.source();
-    while let Some(c) = src {
-        let _ = write!(s, ": {c}");
-        src = c.source();
-    }
-    s
-}
-
 /// A JSON value as short text (strings without quotes).
 pub(super) fn value_text(v: &Value) -> String {
     match v {
@@ -530,28 +467,6 @@ pub(super) fn value_text(v: &Value) -> String {
             _ => n.to_string(),
         },
         other => other.to_string(),
-    }
-}
-
-/// Numbers with 4 significant digits, scientific when very large or small.
-pub fn fmt_num(x: f64) -> String {
-    if !x.is_finite() {
-        return x.to_string();
-    }
-    let a = x.abs();
-    if a != 0.0 && !(1e-3..1e6).contains(&a) {
-        return format!("{x:.3e}");
-    }
-    let digits = if a == 0.0 {
-        0
-    } else {
-        (3 - a.log10().floor() as i32).clamp(0, 6) as usize
-    };
-    let s = format!("{x:.digits$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
     }
 }
 
@@ -888,15 +803,5 @@ mod tests {
             panic!()
         };
         assert!(why.contains("format_version 7"), "{why}");
-    }
-
-    #[test]
-    fn numbers_are_short() {
-        assert_eq!(fmt_num(0.981), "0.981");
-        assert_eq!(fmt_num(1234.5678), "1235");
-        assert_eq!(fmt_num(12.0), "12");
-        assert_eq!(fmt_num(0.0), "0");
-        assert_eq!(fmt_num(2.5e-5), "2.500e-5");
-        assert_eq!(fmt_num(-0.125), "-0.125");
     }
 }

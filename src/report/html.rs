@@ -3,11 +3,12 @@
 //! charts are the SVG documents made by [`super::charts`], inlined. A small inline script marks
 //! `<body>` after load with whether every image decoded, for headless-browser tests.
 
+use super::avail::Avail;
 use super::gather::{
-    Avail, CalibrationEntry, ComparisonRow, ComponentsSection, LadderSection, ReportData,
-    TrialsSection, fmt_num,
+    CalibrationEntry, ComparisonRow, ComponentsSection, LadderSection, ReportData, TrialsSection,
 };
 use super::images::EmbeddedImage;
+use super::numbers::fmt_num;
 use super::session::CaptureSummary;
 use base64::Engine;
 use std::fmt::Write as _;

@@ -1,7 +1,7 @@
 //! Images in a report: PNG previews of linear images (8-bit sRGB, for humans, not data), sphere
 //! renders of a BRDF, and the PNG renders a reconstruction wrote. Pure except [`png_files`].
 
-use super::gather::Avail;
+use super::avail::Avail;
 use crate::brdf::Brdf;
 use crate::geometry::camera::{Intrinsics, Pose};
 use crate::render::image::LinearImage;

@@ -4,14 +4,18 @@
 //! `inplane` and `charts` are pure (data in, SVG strings out). `gather` (with `session` for the
 //! capture and `images` for previews and sphere renders) reads what a folder holds, tolerantly:
 //! a missing piece is reported as "not available" with the reason. `html` renders the page from
-//! that, purely. Only the gathering and [`write_report`] touch files.
+//! that, purely. `avail` (a piece or why it is missing), `options` and `numbers` are the leaves
+//! they share. Only the gathering and [`write_report`] touch files.
 
+pub mod avail;
 pub mod charts;
 pub mod gather;
 pub mod headless;
 pub mod html;
 pub mod images;
 pub mod inplane;
+pub mod numbers;
+pub mod options;
 pub mod session;
 
 use std::path::{Path, PathBuf};
@@ -47,7 +51,7 @@ pub fn default_output(dir: &Path) -> PathBuf {
 pub fn write_report(
     dir: &Path,
     out: Option<&Path>,
-    opts: &gather::ReportOptions,
+    opts: &options::ReportOptions,
 ) -> Result<(PathBuf, gather::ReportData), ReportError> {
     let data = gather::gather(dir, opts)?;
     let page = html::render_html(&data);
@@ -56,7 +60,7 @@ pub fn write_report(
         path: path.clone(),
         source,
     };
-    crate::imageio::write_atomic(&path, page.as_bytes()).map_err(werr)?;
+    crate::atomic::write_atomic(&path, page.as_bytes()).map_err(werr)?;
     // The atomic write goes through a private temporary file (mode 0600); a report is meant to
     // be shared, so give it the usual permissions of a document.
     #[cfg(unix)]

@@ -8,8 +8,10 @@
 //! what it can of a partial folder: problems (a manifest of another version, a torn journal)
 //! become notes or `Avail::No` with the reason, never errors.
 
-use super::gather::{Avail, ReportOptions, error_chain};
+use super::avail::{Avail, error_chain};
 use super::images::{EmbeddedImage, auto_exposure, downscale, encode_png};
+use super::numbers::fmt_num;
+use super::options::ReportOptions;
 use crate::capture::plan::ShotKind;
 use crate::capture::session::{
     JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE, SessionHeader, ShotRecord, current_records,
@@ -214,7 +216,7 @@ fn thumbnails(dir: &Path, shots: &[ShotRecord], max: usize) -> Avail<Vec<Embedde
                     Some(e) => out.push(EmbeddedImage {
                         caption: format!(
                             "{file}: turntable {} deg, channel {}",
-                            super::gather::fmt_num(r.angle_deg),
+                            fmt_num(r.angle_deg),
                             r.channel.map(|c| c.to_string()).unwrap_or_default()
                         ),
                         ..e

@@ -35,7 +35,6 @@ use crate::pipeline::capture_start::{
     self, CaptureRig, PROFILE_COPY, SimStage, check_output_folder,
 };
 use crate::sim::SimHandle;
-use crate::sim::firmware::SimSnapshot;
 use crate::sim::scene::StageState;
 
 /// How often the rig's state is polled while idle.
@@ -50,15 +49,6 @@ pub struct DeviceSettings {
     pub port_override: Option<PathBuf>,
     pub preview_size: (usize, usize),
     pub preview_fps: f64,
-}
-
-/// The simulated firmware's own state, for the page.
-pub fn sim_truth(s: &SimSnapshot) -> SimTruth {
-    SimTruth {
-        angle_deg: s.angle_deg,
-        levels: s.levels.clone(),
-        watchdog_trips: s.watchdog_trips,
-    }
 }
 
 /// A capture ready to run: its session is open (and locked), its camera open.
@@ -617,7 +607,7 @@ impl RigThread {
     fn poll_status(&mut self) {
         let t = self.rig.turntable.status();
         let l = self.rig.light.status();
-        let sim = self.hub.sim.as_ref().map(|h| sim_truth(&h.snapshot()));
+        let sim = self.hub.sim.as_ref().map(|h| SimTruth::of(&h.snapshot()));
         // pages wake only when something changed (a rig at rest sends nothing)
         self.hub.update_if(|s| {
             let before = s.rig.clone();

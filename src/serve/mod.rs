@@ -306,7 +306,7 @@ async fn watch_sim_truth(hub: Arc<Hub>) {
     let mut tick = tokio::time::interval(Duration::from_millis(100));
     loop {
         tick.tick().await;
-        let truth = device::sim_truth(&sim.snapshot());
+        let truth = state::SimTruth::of(&sim.snapshot());
         hub.update_if(|s| {
             if s.rig.sim.as_ref() == Some(&truth) {
                 return false;

@@ -104,7 +104,7 @@ impl Progress for PageProgress {
                 l.stable = on;
             }
             if let Some(snap) = sim {
-                s.rig.sim = Some(super::device::sim_truth(&snap));
+                s.rig.sim = Some(super::state::SimTruth::of(&snap));
             }
         });
     }

@@ -338,7 +338,7 @@ async fn report(State(app): State<App>, UrlPath(name): UrlPath<String>) -> Respo
             .into_response();
     }
     let made = tokio::task::spawn_blocking(move || {
-        let opts = crate::report::gather::ReportOptions::default();
+        let opts = crate::report::options::ReportOptions::default();
         crate::report::gather::gather(&dir, &opts)
             .map(|data| crate::report::html::render_html(&data))
             .map_err(|e| format!("making the report of {}: {e}", dir.display()))

@@ -109,6 +109,17 @@ pub struct SimTruth {
     pub watchdog_trips: u64,
 }
 
+impl SimTruth {
+    /// The simulated firmware's own state, for the page.
+    pub fn of(s: &crate::sim::SimSnapshot) -> SimTruth {
+        SimTruth {
+            angle_deg: s.angle_deg,
+            levels: s.levels.clone(),
+            watchdog_trips: s.watchdog_trips,
+        }
+    }
+}
+
 /// A plan on offer.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct PlanInfo {

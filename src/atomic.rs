@@ -1,0 +1,102 @@
+//! Atomic file writes: bytes go to a temporary file beside the target (`.NAME.tmp-XXXXXX`),
+//! which is fsynced and renamed over it, so a crash leaves the old file or the new one, never
+//! half of one; and the removal of the temporaries a killed write left. Every file this tool
+//! writes goes through here. Depends on nothing in the crate.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Writes `bytes` to `path` atomically (temp file in the same directory, fsync, rename). The
+/// temporary file is named `.NAME.tmp-XXXXXX` beside `path`, so a write killed half way leaves a
+/// file that is recognisably stray (`capture::session` removes them on resume).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// Removes the temporary files a killed [`write_atomic`] left in `dir` (`.NAME.tmp-XXXXXX`),
+/// for every NAME or only for the `names` given; returns how many. A folder that does not exist
+/// has none. Only for files no other process is writing (their owner holds a lock).
+pub fn remove_stray_temporaries(dir: &Path, names: Option<&[&str]>) -> std::io::Result<usize> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(e),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some((stem, _)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp-")) else {
+            continue;
+        };
+        if names.is_none_or(|ns| ns.contains(&stem)) && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
+/// Atomic write where `fill` streams into the (seekable) temp file.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}.tmp-"))
+        .tempfile_in(&dir)?;
+    fill(tmp.as_file_mut())?;
+    tmp.as_file_mut().flush()?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    // make the rename itself durable; not every platform can open a directory, so best effort
+    if let Ok(d) = std::fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stray_temporaries_are_removed_and_nothing_else() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        for name in [
+            ".a.exr.tmp-X1",
+            ".job.toml.tmp-Y2",
+            "a.exr",
+            ".lock",
+            "b.tmp-3",
+            ".calibration.json.tmp-Z3",
+        ] {
+            std::fs::write(d.join(name), b"x").unwrap();
+        }
+        std::fs::create_dir(d.join(".dir.tmp-4")).unwrap();
+        let names = ["job.toml", "calibration.json"];
+        assert_eq!(remove_stray_temporaries(d, Some(&names)).unwrap(), 2);
+        assert!(d.join(".a.exr.tmp-X1").exists());
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 1);
+        let mut left: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, [".dir.tmp-4", ".lock", "a.exr", "b.tmp-3"]);
+        assert_eq!(remove_stray_temporaries(&d.join("none"), None).unwrap(), 0);
+        // a real write leaves nothing behind
+        write_atomic(&d.join("c.bin"), b"abc").unwrap();
+        assert_eq!(remove_stray_temporaries(d, None).unwrap(), 0);
+    }
+}
