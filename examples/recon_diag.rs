@@ -363,6 +363,7 @@ impl brdf_rig::reconstruct::prior::Candidate for NetCandidate<'_> {
 }
 
 /// A flat MERL index the pipeline produced (always in range).
+#[allow(clippy::expect_used)] // an invariant: the index came from a MerlBin
 fn bin_of(index: usize) -> MerlBin {
     MerlBin::from_index(index).expect("MERL indices from observations and the truth are in range")
 }

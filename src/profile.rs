@@ -476,10 +476,10 @@ fn locate(text: &str, offset: usize) -> (usize, String) {
             section = t.trim_matches(|c| c == '[' || c == ']').trim().to_owned();
             key.clear();
         }
-        if i + 1 == line {
-            if let Some((k, _)) = t.split_once('=') {
-                key = k.trim().to_owned();
-            }
+        if i + 1 == line
+            && let Some((k, _)) = t.split_once('=')
+        {
+            key = k.trim().to_owned();
         }
     }
     let full = match (section.is_empty(), key.is_empty()) {

@@ -256,10 +256,10 @@ impl RawLink {
         self.send(kind, id, body);
         let deadline = std::time::Instant::now() + Duration::from_secs(5);
         while std::time::Instant::now() < deadline {
-            if let Some(f) = self.recv(Duration::from_secs(5)) {
-                if f.id == id {
-                    return f;
-                }
+            if let Some(f) = self.recv(Duration::from_secs(5))
+                && f.id == id
+            {
+                return f;
             }
         }
         panic!("no reply from the firmware to kind 0x{kind:02x} id {id} within 5 s");

@@ -237,10 +237,11 @@ fn file_imports() -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
                             path.push(seg);
                         }
                     }
-                    if let Some(target) = resolve(&path) {
-                        if &target != m && !target.is_empty() {
-                            deps.insert(target);
-                        }
+                    if let Some(target) = resolve(&path)
+                        && &target != m
+                        && !target.is_empty()
+                    {
+                        deps.insert(target);
                     }
                 }
             }

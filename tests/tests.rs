@@ -2,7 +2,7 @@
 //! the library or the real binary the way a user would.
 
 // Tests: a panic on unexpected input is the failure report, so unwrap is the clearest form.
-#![allow(clippy::unwrap_used)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod brdf;
 mod calib_cli;

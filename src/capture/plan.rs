@@ -279,6 +279,7 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<CapturePlan, CaptureError>
 }
 
 /// The embedded default plan.
+#[allow(clippy::expect_used)] // an invariant: the embedded file is checked by a unit test
 pub fn default_plan() -> CapturePlan {
     // The embedded file is checked by a unit test; a failure here is a build defect.
     parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (embedded)")

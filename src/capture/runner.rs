@@ -508,10 +508,10 @@ mod tests {
         fn capture(&mut self, s: ShotSettings) -> Result<(LinearImage, ShotMetadata), DeviceError> {
             let n = self.count;
             self.count += 1;
-            if let Some((at, flag)) = &self.cancel_at {
-                if *at == n {
-                    flag.store(true, Ordering::SeqCst);
-                }
+            if let Some((at, flag)) = &self.cancel_at
+                && *at == n
+            {
+                flag.store(true, Ordering::SeqCst);
             }
             if self.fail_at == Some(n) {
                 return Err(DeviceError::Fault {

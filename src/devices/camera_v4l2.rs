@@ -47,7 +47,7 @@ impl V4l2Camera {
 
 /// YUYV (4:2:2) to linear RGB.
 pub fn yuyv_to_linear(buf: &[u8], width: usize, height: usize) -> Option<LinearImage> {
-    if buf.len() < width * height * 2 || width % 2 != 0 {
+    if buf.len() < width * height * 2 || !width.is_multiple_of(2) {
         return None;
     }
     let mut img = LinearImage::new(width, height);

@@ -72,7 +72,7 @@ pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Po
     let radius = mesh.diagonal() / 2.0;
     let dist = 3.0 * radius;
     let az = 2.0 * std::f64::consts::PI * i as f64 / spec.views.max(1) as f64;
-    let el = spec.elevation_deg.to_radians() * if i % 2 == 0 { 1.0 } else { -0.4 };
+    let el = spec.elevation_deg.to_radians() * if i.is_multiple_of(2) { 1.0 } else { -0.4 };
     let eye = centre + dist * Vector3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
     let pose = Pose::look_at(eye, centre, Vector3::y());
     let short = spec.width.min(spec.height) as f64;
@@ -93,7 +93,7 @@ pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Po
     let (a0, a1) = spec.light_angle_deg;
     let alpha = (a0 + t * (a1 - a0)).to_radians();
     // Around the optical axis: from above (-y), tilted left or right.
-    let side = if i % 2 == 0 || spec.fixed_light {
+    let side = if i.is_multiple_of(2) || spec.fixed_light {
         40.0
     } else {
         -40.0

@@ -214,10 +214,10 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             }
         }
     };
-    if let Avail::No(why) = &report {
-        if recon_dir.is_some() {
-            warnings.push(format!("report.json: {why}"));
-        }
+    if let Avail::No(why) = &report
+        && recon_dir.is_some()
+    {
+        warnings.push(format!("report.json: {why}"));
     }
     let rj = report.as_option();
 

@@ -108,7 +108,7 @@ impl SrgbTable {
 /// The clipped-pixel mark: magenta and black diagonal stripes, 4 pixels wide, so a clipped area
 /// reads as such on any picture.
 fn mark(x: usize, y: usize) -> [u8; 3] {
-    if ((x + y) / 4) % 2 == 0 {
+    if ((x + y) / 4).is_multiple_of(2) {
         [255, 0, 255]
     } else {
         [0, 0, 0]
