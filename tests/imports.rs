@@ -12,48 +12,46 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-/// Top-level module -> the top-level modules its files name.
-fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
+/// Every source file's code (`code_of`), by its module path (`file_module`).
+fn source_files() -> BTreeMap<Vec<String>, String> {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut files = BTreeMap::new();
     let mut stack = vec![src.clone()];
     while let Some(dir) = stack.pop() {
         for e in std::fs::read_dir(&dir).unwrap() {
             let p = e.unwrap().path();
             if p.is_dir() {
                 stack.push(p);
-                continue;
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                let rel = p.strip_prefix(&src).unwrap();
+                let text = code_of(&std::fs::read_to_string(&p).unwrap());
+                files.insert(file_module(rel), text);
             }
-            if p.extension().is_none_or(|x| x != "rs") {
-                continue;
-            }
-            let rel = p.strip_prefix(&src).unwrap();
-            let first = rel
-                .components()
-                .next()
-                .unwrap()
-                .as_os_str()
-                .to_string_lossy();
-            let module = first.trim_end_matches(".rs").to_string();
-            if module == "lib" || module == "main" {
-                continue;
-            }
-            let text = code_of(&std::fs::read_to_string(&p).unwrap());
-            let deps = graph.entry(module.clone()).or_default();
-            for prefix in ["crate::", "brdf_rig::"] {
-                for (i, _) in text.match_indices(prefix) {
-                    // a path, not a word ending in "crate" (`my_crate::`)
-                    let before = text[..i].chars().next_back();
-                    if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
-                        continue;
-                    }
-                    let name: String = text[i + prefix.len()..]
-                        .chars()
-                        .take_while(|c| c.is_alphanumeric() || *c == '_')
-                        .collect();
-                    if !name.is_empty() && name != module {
-                        deps.insert(name);
-                    }
+        }
+    }
+    files
+}
+
+/// Top-level module -> the top-level modules its files name.
+fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (path, text) in source_files() {
+        // the crate roots (lib.rs, main.rs) only declare the modules
+        let Some(module) = path.first() else { continue };
+        let deps = graph.entry(module.clone()).or_default();
+        for prefix in ["crate::", "brdf_rig::"] {
+            for (i, _) in text.match_indices(prefix) {
+                // a path, not a word ending in "crate" (`my_crate::`)
+                let before = text[..i].chars().next_back();
+                if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+                    continue;
+                }
+                let name: String = text[i + prefix.len()..]
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if !name.is_empty() && &name != module {
+                    deps.insert(name);
                 }
             }
         }
@@ -191,21 +189,7 @@ fn paths_at(s: &str, prefix: Vec<String>, out: &mut Vec<Vec<String>>) -> usize {
 /// File -> the files it imports (both crates' files; `cli/` is the binary's, the rest the
 /// library's, and their module names do not overlap).
 fn file_imports() -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut texts: BTreeMap<Vec<String>, String> = BTreeMap::new();
-    let mut stack = vec![src.clone()];
-    while let Some(dir) = stack.pop() {
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else if p.extension().is_some_and(|x| x == "rs") {
-                let rel = p.strip_prefix(&src).unwrap();
-                let text = code_of(&std::fs::read_to_string(&p).unwrap());
-                texts.insert(file_module(rel), text);
-            }
-        }
-    }
+    let texts = source_files();
     let resolve = |path: &[String]| -> Option<Vec<String>> {
         (1..=path.len())
             .rev()
