@@ -4,7 +4,8 @@
 //!
 //! Each impl goes through serde's remote derive: a mirror of the type's fields and variants,
 //! with the same serde attributes. The mirror builds the real type field by field, so a field
-//! added to or removed from the original is a compile error here, never a silent misread.
+//! added to or removed from the original is a compile error here, never a silent misread; a
+//! variant added to one of the enums is one too ([`every_variant_is_mirrored`]).
 //! When `ladder.rs` and `refine.rs` derive `Deserialize` themselves, this file goes (the two
 //! impls would then conflict, which the compiler says).
 //!
@@ -36,6 +37,24 @@ through_mirror! {
     RefineSettings => RefineSettingsMirror,
     IterationReport => IterationReportMirror,
     RefineReport => RefineReportMirror,
+}
+
+/// Does nothing at run time: its exhaustive matches make a variant added to a mirrored enum a
+/// compile error here (serde's remote derive would only fail to read it), so its mirror below
+/// gets the variant too.
+pub fn every_variant_is_mirrored(f: Family, m: HeldOutMetric, r: ChoiceRule, s: FoldScheme) {
+    match f {
+        Family::Lambert | Family::LambertGgx | Family::Basis | Family::Hybrid => {}
+    }
+    match m {
+        HeldOutMetric::Linear | HeldOutMetric::Log => {}
+    }
+    match r {
+        ChoiceRule::OneStandardError | ChoiceRule::Paired => {}
+    }
+    match s {
+        FoldScheme::Images { .. } | FoldScheme::Blocks { .. } => {}
+    }
 }
 
 #[derive(Deserialize)]
