@@ -45,8 +45,8 @@ pub struct BenchExternalArgs {
     /// no pixel was observed (`PlausibleSettings::prior_ratio_limit`; default: the library's).
     #[arg(long, value_parser = clap::value_parser!(f64))]
     pub prior_ratio: Option<f64>,
-    /// Study knob: the held-out error the ladder's choice reads: `log` (the default), `linear`
-    /// or `both` (a richer model must win beyond noise in each).
+    /// Study knob: the held-out error the ladder's choice reads: `both` (the default: a richer
+    /// model must win beyond noise in each), `log` or `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
 }
