@@ -237,3 +237,48 @@ fn leave_one_out_small() {
         }
     }
 }
+
+fn compare(reference: &std::path::Path, candidate: &std::path::Path) -> std::process::Output {
+    Command::new(util::bin())
+        .args(["merl", "compare"])
+        .arg(reference)
+        .arg(candidate)
+        .args(["--bin-step", "50"])
+        .output()
+        .expect("run brdf-rig")
+}
+
+fn environment_error(out: &std::process::Output) -> f64 {
+    let text = String::from_utf8_lossy(&out.stdout);
+    text.lines()
+        .find_map(|l| l.strip_prefix("environment (relative L2 of the rendered sphere): "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no environment line in {text}"))
+}
+
+#[test]
+fn merl_compare_scores_a_brdf_against_a_reference_as_images_see_it() {
+    let acrylic = nbrdf_dir().join("blue-acrylic.f32");
+    let same = compare(&acrylic, &acrylic);
+    assert!(
+        same.status.success(),
+        "{}",
+        String::from_utf8_lossy(&same.stderr)
+    );
+    assert!(environment_error(&same) < 1e-9);
+    let other = compare(&acrylic, &nbrdf_dir().join("gold-metallic-paint.f32"));
+    assert!(
+        other.status.success(),
+        "{}",
+        String::from_utf8_lossy(&other.stderr)
+    );
+    assert!(
+        environment_error(&other) > 0.1,
+        "{}",
+        String::from_utf8_lossy(&other.stdout)
+    );
+    // A missing file is named.
+    let missing = compare(&acrylic, std::path::Path::new("/nonexistent/x.binary"));
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("/nonexistent/x.binary"));
+}

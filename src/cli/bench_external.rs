@@ -13,6 +13,7 @@ use brdf_rig::brdf::basis::BasisSettings;
 use brdf_rig::brdf::{basis_cache, nbrdf};
 use brdf_rig::eval::external;
 use brdf_rig::reconstruct::Settings;
+use brdf_rig::reconstruct::ladder::HeldOutMetric;
 
 #[derive(Args, Debug)]
 pub struct BenchExternalArgs {
@@ -34,15 +35,49 @@ pub struct BenchExternalArgs {
     /// Reconstruct with the normals refined from the images (`reconstruct --refine-normals`).
     #[arg(long)]
     pub refine_normals: bool,
+    /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.
+    #[arg(long, value_delimiter = ',', default_value = "1")]
+    pub seeds: Vec<u64>,
+    /// How the reported trial is chosen (`reconstruct --choose`).
+    #[arg(long, value_parser = super::reconstruct::parse_choice, default_value = "similarity")]
+    pub choose: brdf_rig::reconstruct::core::TrialChoice,
+    /// Study knob: how far (a factor) the result may stray from the Lambert + GGX prior where
+    /// no pixel was observed (`PlausibleSettings::prior_ratio_limit`; default: the library's).
+    #[arg(long, value_parser = clap::value_parser!(f64))]
+    pub prior_ratio: Option<f64>,
+    /// Study knob: the held-out error the ladder's choice reads: `both` (the default: a richer
+    /// model must win beyond noise in each), `log` or `linear`.
+    #[arg(long, value_parser = parse_metric)]
+    pub held_out: Option<HeldOutMetric>,
+}
+
+fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
+    match s {
+        "log" => Ok(HeldOutMetric::Log),
+        "linear" => Ok(HeldOutMetric::Linear),
+        "both" => Ok(HeldOutMetric::Both),
+        _ => Err(format!("{s:?}: expected log, linear or both")),
+    }
 }
 
 pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
-    let settings = Settings {
+    let mut settings = Settings {
         refine: a
             .refine_normals
             .then(brdf_rig::reconstruct::refine::RefineSettings::default),
         ..Settings::default()
     };
+    settings.core.choose = a.choose;
+    if let Some(r) = a.prior_ratio {
+        anyhow::ensure!(
+            r.is_finite() && r >= 1.0,
+            "--prior-ratio must be a finite factor >= 1, got {r}"
+        );
+        settings.core.plausible.prior_ratio_limit = r;
+    }
+    if let Some(m) = a.held_out {
+        settings.core.ladder.metric = m;
+    }
     let materials = nbrdf::load_dir(&settings.nbrdf_dir).with_context(|| {
         format!(
             "loading the neural MERL fits from {}",
@@ -56,14 +91,32 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let (basis, _) = basis_cache::load_or_build(&BasisSettings::default(), &materials, &cache)
         .context("loading the basis")?;
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --bin-step {}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
+        a.seeds
+            .iter()
+            .map(|s| s.to_string())
+            .collect::<Vec<_>>()
+            .join(","),
         a.bin_step,
         if a.refine_normals {
             " --refine-normals"
         } else {
             ""
+        },
+        match a.choose {
+            brdf_rig::reconstruct::core::TrialChoice::Similarity => "",
+            brdf_rig::reconstruct::core::TrialChoice::PixelError => " --choose pixel-error",
+            brdf_rig::reconstruct::core::TrialChoice::Mean => " --choose mean",
+        },
+        a.prior_ratio
+            .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
+        match a.held_out {
+            None => "",
+            Some(HeldOutMetric::Log) => " --held-out log",
+            Some(HeldOutMetric::Linear) => " --held-out linear",
+            Some(HeldOutMetric::Both) => " --held-out both",
         },
         a.out.display()
     );
@@ -87,6 +140,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let results = external::run(
         &a.scenes,
         &a.jobs,
+        &a.seeds,
         &settings,
         &basis,
         a.bin_step as usize,

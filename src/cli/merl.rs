@@ -5,6 +5,11 @@
 //! `.binary` table, or a neural MERL fit (`.f32`, evaluated at the exact angles).
 //! `tabulate NBRDF OUT` writes the full MERL table of a neural fit (a smooth approximation of the
 //! MERL measurement, not measured data).
+//! `compare REFERENCE CANDIDATE` scores a BRDF against a reference as an image sees it: the
+//! errors of docs/error-metrics.md (a sphere rendered under the standard environment and novel
+//! lights, the solid-angle weighted table error, the log-space error, the old peak-dominated
+//! cosine-weighted error), for a user who has a reference (a gonioreflectometer table, or the
+//! truth of a rendered scene).
 
 use anyhow::{Context, bail};
 use brdf_rig::brdf::Brdf;
@@ -38,6 +43,16 @@ pub enum MerlCommand {
     },
     /// Write the full MERL table of a neural fit (.f32) to a .binary file.
     Tabulate { nbrdf: PathBuf, out: PathBuf },
+    /// Score a BRDF against a reference as images see it (docs/error-metrics.md).
+    Compare {
+        /// The reference: a MERL .binary table or a neural .f32 fit.
+        reference: PathBuf,
+        /// The BRDF to score: a MERL .binary table or a neural .f32 fit.
+        candidate: PathBuf,
+        /// Table errors over every N-th MERL bin (1: all 1.46 million).
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..=1000))]
+        bin_step: u64,
+    },
 }
 
 fn direction(theta_deg: f64, phi_deg: f64, what: &str) -> anyhow::Result<Vector3<f64>> {
@@ -48,6 +63,15 @@ fn direction(theta_deg: f64, phi_deg: f64, what: &str) -> anyhow::Result<Vector3
     }
     let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
     Ok(Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
+}
+
+impl brdf_rig::brdf::BinValues for Loaded {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        match self {
+            Loaded::Neural(n) => n.values_at(bins),
+            Loaded::Table(t) => t.values_at(bins),
+        }
+    }
 }
 
 /// A BRDF file: a neural fit (evaluated exactly) or a MERL table (nearest bin, may lack data).
@@ -111,6 +135,33 @@ pub fn run(args: MerlArgs) -> anyhow::Result<ExitCode> {
             net.tabulate()
                 .write(&out)
                 .with_context(|| format!("tabulating {}", nbrdf.display()))?;
+        }
+        MerlCommand::Compare {
+            reference,
+            candidate,
+            bin_step,
+        } => {
+            let r = load(&reference)
+                .with_context(|| format!("loading the reference {}", reference.display()))?;
+            let c = load(&candidate)
+                .with_context(|| format!("loading the candidate {}", candidate.display()))?;
+            let truth = brdf_rig::eval::Truth::new(&r, bin_step as usize);
+            let e = truth.errors_of(&c);
+            println!(
+                "environment (relative L2 of the rendered sphere): {:.4}",
+                e.environment
+            );
+            println!(
+                "environment PSNR (tone-mapped): {:.2} dB",
+                e.environment_psnr_db
+            );
+            println!("novel lights (relative L2): {:.4}", e.lights);
+            println!("table, solid-angle weighted: {:.4}", e.solid_angle);
+            println!("table, log space: {:.4}", e.log);
+            println!(
+                "table, cosine weighted (peak-dominated): {:.4}",
+                e.cosine_weighted
+            );
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -85,7 +85,8 @@ pub struct Args {
     #[arg(long, default_value_t = 80, value_parser = int_in(1usize, MAX_COMPONENTS))]
     pub basis_components: usize,
     /// How the reported trial is chosen: `similarity` (the paper's eq. 3, cosine similarity with
-    /// the images) or `pixel-error` (lowest relative error over every observed pixel).
+    /// the images), `pixel-error` (lowest relative error over every observed pixel) or `mean`
+    /// (the mean of every trial's table).
     #[arg(long, value_parser = parse_choice, default_value = "similarity")]
     pub choose: TrialChoice,
     /// Which model to report: `auto` (the model ladder: the simplest model within noise of the
@@ -120,11 +121,12 @@ pub struct Args {
     pub min_confidence: Option<Level>,
 }
 
-fn parse_choice(s: &str) -> Result<TrialChoice, String> {
+pub(crate) fn parse_choice(s: &str) -> Result<TrialChoice, String> {
     match s {
         "similarity" => Ok(TrialChoice::Similarity),
         "pixel-error" => Ok(TrialChoice::PixelError),
-        _ => Err(format!("{s:?}: expected similarity or pixel-error")),
+        "mean" => Ok(TrialChoice::Mean),
+        _ => Err(format!("{s:?}: expected similarity, pixel-error or mean")),
     }
 }
 

@@ -60,6 +60,8 @@ pub struct ExternalResult {
     pub rig: String,
     pub material: String,
     pub job: String,
+    /// The reconstruction's seed (trials and held-out folds).
+    pub seed: u64,
     pub median_normal_error_deg: Option<f64>,
     pub ours: Result<Errors, String>,
     pub model: Option<ModelReport>,
@@ -82,10 +84,13 @@ impl ExternalResult {
     }
 }
 
-/// Runs every selected job of every scene under `dir`.
+/// Runs every selected job of every scene under `dir`, once per seed (`settings`' own seed
+/// when `seeds` is empty).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     dir: &Path,
     jobs: &[String],
+    seeds: &[u64],
     settings: &Settings,
     basis: &Basis,
     bin_step: usize,
@@ -102,11 +107,19 @@ pub fn run(
             source: std::io::Error::other(e),
         })?;
         let truth = Truth::new(&table, bin_step);
-        for job_name in jobs {
+        let seeds = if seeds.is_empty() {
+            vec![settings.core.trials.seed]
+        } else {
+            seeds.to_vec()
+        };
+        for (job_name, &seed) in jobs.iter().flat_map(|j| seeds.iter().map(move |s| (j, s))) {
             let Some(file) = entry.jobs.get(job_name) else {
                 continue;
             };
-            progress(&format!("{name}: {job_name}"));
+            let mut settings = settings.clone();
+            settings.core.trials.seed = seed;
+            let settings = &settings;
+            progress(&format!("{name}: {job_name}, seed {seed}"));
             let t = Instant::now();
             let job_path: PathBuf = scene_dir.join(file);
             let mut r = ExternalResult {
@@ -115,6 +128,7 @@ pub fn run(
                 rig: entry.rig.clone(),
                 material: entry.material.clone(),
                 job: job_name.clone(),
+                seed,
                 median_normal_error_deg: entry
                     .median_normal_error_deg
                     .get(job_name.trim_end_matches("_path"))
@@ -195,13 +209,15 @@ pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> Str
             f3(ratios.iter().copied().fold(0.0, f64::max)),
         );
     }
-    s += "\n## Per job\n\n| scene | mesh given | median normal error deg | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours E_sa | ours log | confidence | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += &per_scene(results);
+    s += "\n## Per job\n\n| scene | mesh given | seed | median normal error deg | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours E_sa | ours log | confidence | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for r in results {
         let ours = r.ours.as_ref().ok();
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |\n",
             r.scene,
             r.job,
+            r.seed,
             r.median_normal_error_deg
                 .map_or("-".to_string(), |x| format!("{x:.1}")),
             match &r.ours {
@@ -220,6 +236,71 @@ pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> Str
             ours.map_or("-".to_string(), |e| f3(e.log)),
             r.confidence.map_or("-".to_string(), |c| c.to_string()),
             r.seconds
+        );
+    }
+    s
+}
+
+fn geometric_mean(xs: &[f64]) -> f64 {
+    (xs.iter().map(|x| x.ln()).sum::<f64>() / xs.len().max(1) as f64).exp()
+}
+
+/// Per scene and job, over its seeds: the environment errors' means and the ratio's geometric
+/// mean and minimum (empty with one seed per job).
+fn per_scene(results: &[ExternalResult]) -> String {
+    let mut keys: Vec<(&str, &str)> = results
+        .iter()
+        .map(|r| (r.scene.as_str(), r.job.as_str()))
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    if keys.len() == results.len() {
+        return String::new();
+    }
+    let mut s = "\n## Per scene, over seeds\n\n| scene | mesh given | seeds | ours env mean | \
+                 Lambert env mean | L+GGX env mean | ratio geometric mean | min |\n\
+                 |---|---|---|---|---|---|---|---|\n"
+        .to_string();
+    let mut gms = Vec::new();
+    for (scene, job) in keys {
+        let rs: Vec<&ExternalResult> = results
+            .iter()
+            .filter(|r| r.scene == scene && r.job == job)
+            .collect();
+        let mean = |f: &dyn Fn(&ExternalResult) -> Option<f64>| -> String {
+            let v: Vec<f64> = rs.iter().filter_map(|r| f(r)).collect();
+            if v.is_empty() {
+                "-".to_string()
+            } else {
+                f3(v.iter().sum::<f64>() / v.len() as f64)
+            }
+        };
+        let ratios: Vec<f64> = rs.iter().filter_map(|r| r.ratio()).collect();
+        let gm = geometric_mean(&ratios);
+        if !ratios.is_empty() {
+            gms.push(gm);
+        }
+        s += &format!(
+            "| {scene} | {job} | {} | {} | {} | {} | {} | {} |\n",
+            rs.len(),
+            mean(&|r| r.ours.as_ref().ok().map(|e| e.environment)),
+            mean(&|r| r.lambert.map(|e| e.environment)),
+            mean(&|r| r.lambert_ggx.map(|e| e.environment)),
+            if ratios.is_empty() {
+                "-".to_string()
+            } else {
+                f3(gm)
+            },
+            f3(ratios.iter().copied().fold(f64::INFINITY, f64::min)),
+        );
+    }
+    if !gms.is_empty() {
+        s += &format!(
+            "\nScenes' geometric means: geometric mean {}, min {}, scenes below 1/1.1: {} of {}.\n",
+            f3(geometric_mean(&gms)),
+            f3(gms.iter().copied().fold(f64::INFINITY, f64::min)),
+            gms.iter().filter(|&&x| x < 1.0 / 1.1).count(),
+            gms.len()
         );
     }
     s

@@ -41,6 +41,10 @@ pub enum TrialChoice {
     /// observed pixel (`components::held_out_error`; scale-sensitive). Measured against eq. 3 in
     /// docs/evaluation.md section 1.
     PixelError,
+    /// The mean of every trial's table (bagging): no single draw of pixels decides the
+    /// extrapolation. The trial eq. 3 picks is still reported as the chosen one, and its
+    /// disagreement with the others still guards the basis.
+    Mean,
 }
 
 /// Settings of the steps after observation.
@@ -264,7 +268,7 @@ pub fn reconstruct_observations(
         eta,
     );
     let chosen = match settings.choose {
-        TrialChoice::Similarity => best_trial(&trials),
+        TrialChoice::Similarity | TrialChoice::Mean => best_trial(&trials),
         TrialChoice::PixelError => trials
             .iter()
             .enumerate()
@@ -306,10 +310,19 @@ pub fn reconstruct_observations(
             }
         }
     }
-    let basis_fit = trials[chosen]
-        .candidate
-        .take()
-        .ok_or(CoreError::AllTrialsFailed)?;
+    let basis_fit: Box<dyn Candidate> = match settings.choose {
+        TrialChoice::Mean => {
+            let fits: Vec<&dyn Candidate> = trials
+                .iter()
+                .filter_map(|t| t.candidate.as_deref())
+                .collect();
+            Box::new(TableCandidate(mean_table(&fits)))
+        }
+        _ => trials[chosen]
+            .candidate
+            .take()
+            .ok_or(CoreError::AllTrialsFailed)?,
+    };
     timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
 
     // The reported model, and the analytic prior for regions no pixel saw.
@@ -433,6 +446,21 @@ pub fn reconstruct_observations(
 
 /// A tabulated BRDF as a candidate.
 struct TableCandidate(MerlTable);
+
+/// The bin-by-bin mean of several fits, as a table.
+fn mean_table(fits: &[&dyn Candidate]) -> MerlTable {
+    let n = fits.len().max(1) as f64;
+    MerlTable::from_fn(|b| {
+        let mut sum = [0.0; 3];
+        for f in fits {
+            let v = f.eval_bin(b.index());
+            for c in 0..3 {
+                sum[c] += v[c];
+            }
+        }
+        Some(sum.map(|x| x / n))
+    })
+}
 
 impl Candidate for TableCandidate {
     fn eval_bin(&self, bin: usize) -> [f64; 3] {
