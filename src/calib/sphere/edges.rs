@@ -14,6 +14,7 @@
 
 use super::outline::tangent_ray;
 use super::rim::{OUTSIDE_PX, RimModel};
+use super::scale;
 use super::seed::{self, Seed};
 use super::{SphereError, SphereOptions, SphereOutline, check_size};
 use crate::calib::regions::{self, Plane};
@@ -37,10 +38,20 @@ const MIN_SUPPORT: f64 = 0.3;
 /// the least step across it, relative to the ring's.
 const OUTER_SEARCH: f64 = 1.3;
 const MIN_OUTER_CONTRAST: f64 = 0.1;
-/// Largest scatter (pixels, RMS) of the edge points about the fitted outline: a sphere's edge
+/// Largest scatter (RMS) of the edge points about the fitted outline, in pixels and relative to
+/// the outline's radius in pixels; the larger applies ([`max_outline_rms_px`]). A sphere's edge
 /// points scatter by about 0.1 px (0.06 to 0.11 px on the Mitsuba fixtures, defocus and noise
-/// included); a rectangle's sides near a circle scatter by a pixel or more.
+/// included, radius about 60 px); a rectangle's sides near a circle scatter by a pixel or more
+/// at that radius (over 1.5 % of it), and by as much relative to its size at any size. The
+/// relative part (0.4 % of the radius, 0.25 px at 60 px) lets a sharp large image's edge
+/// (aliased, every pixel a step) through: 4 px at a radius of 1000 px.
 const MAX_OUTLINE_RMS_PX: f64 = 0.5;
+const MAX_OUTLINE_RMS_REL: f64 = 0.004;
+
+/// The largest scatter (pixels) allowed about an outline of `radius_px`.
+fn max_outline_rms_px(radius_px: f64) -> f64 {
+    MAX_OUTLINE_RMS_PX.max(MAX_OUTLINE_RMS_REL * radius_px)
+}
 /// Circle candidates tried.
 const CANDIDATES: usize = 4;
 /// At most this many profiles search the blur width; the rest use their median.
@@ -61,6 +72,41 @@ pub fn detect_outline(
         });
     }
     let lum = Plane::luminance(img);
+    let f = scale::factor(w, h);
+    if f == 1 {
+        return locate(&lum, intr, opts);
+    }
+    // A large image: the outline is found on the image downsampled to about 1500 px, then
+    // measured again at full resolution along profiles across it (twice, the second time
+    // centred on the first full-resolution fit), so that only a band around it is read.
+    let coarse_opts = SphereOptions {
+        min_radius_px: (opts.min_radius_px / f as f64).max(3.0),
+        ..*opts
+    };
+    let coarse = locate(
+        &scale::box_down(&lum, f),
+        &scale::coarse_intrinsics(intr, f),
+        &coarse_opts,
+    )?;
+    let circle = outline_circle(&coarse, intr, w, h);
+    let first = match measure(&lum, &circle, SEARCH_PX, intr, opts) {
+        Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
+            return Err(not_a_sphere(&m));
+        }
+        Some(m) => m,
+        None => return Err(no_sphere(&circle, None)),
+    };
+    finish(&lum, intr, opts, &first.outline, &first)
+}
+
+/// The outline in the image as given (the whole search: candidates, the outermost concentric
+/// outline, the final measurement and the checks).
+fn locate(
+    lum: &Plane,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Result<SphereOutline, SphereError> {
+    let (w, h) = (lum.width, lum.height);
     let lo = regions::quantile(&lum.data, 0.001).unwrap_or(0.0);
     let hi = regions::quantile(&lum.data, 0.999).unwrap_or(0.0);
     if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
@@ -69,7 +115,7 @@ pub fn detect_outline(
         });
     }
     let r_max = 0.5 * w.min(h) as f64 + SEARCH_PX;
-    let seeds = seed::circles(&lum, opts.min_radius_px, r_max, CANDIDATES);
+    let seeds = seed::circles(lum, opts.min_radius_px, r_max, CANDIDATES);
     let Some(&first) = seeds.first() else {
         return Err(SphereError::NoSphere {
             reason: format!(
@@ -80,8 +126,8 @@ pub fn detect_outline(
     };
     let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
         .iter()
-        .filter_map(|s| measure(&lum, s, SEARCH_PX, intr, opts))
-        .partition(|m| m.rms_px <= MAX_OUTLINE_RMS_PX);
+        .filter_map(|s| measure(lum, s, SEARCH_PX, intr, opts))
+        .partition(|m| m.rms_px <= max_outline_rms_px(m.outline.radius_px));
     let Some(best) = measured
         .iter()
         .max_by(|a, b| a.support.total_cmp(&b.support))
@@ -112,8 +158,8 @@ pub fn detect_outline(
     // A strong ring can hide a weaker outline outside it (a dark backdrop that the rim mirrors
     // out to some angle): look for a well supported edge further out, around the same centre,
     // with each search window clear of the edge already found.
-    let mut circle = outline_circle(&best.outline, intr, w, h);
-    let inner = circle;
+    let mut outer = None;
+    let inner = outline_circle(&best.outline, intr, w, h);
     let mut step = 1;
     loop {
         let r = inner.r + 1.5 + SEARCH_PX * step as f64;
@@ -121,19 +167,35 @@ pub fn detect_outline(
             break;
         }
         let probe = Seed { r, ..inner };
-        if let Some(m) = measure(&lum, &probe, SEARCH_PX, intr, opts)
+        if let Some(m) = measure(lum, &probe, SEARCH_PX, intr, opts)
             && m.support >= enough
             && m.contrast >= MIN_OUTER_CONTRAST * best.contrast
         {
-            circle = outline_circle(&m.outline, intr, w, h);
+            outer = Some(m);
         }
         step += 1;
     }
-    // once more, the profiles centred on the fitted outline
-    let (outline, support) = match measure(&lum, &circle, FINAL_SEARCH_PX, intr, opts) {
-        Some(m) if m.rms_px > MAX_OUTLINE_RMS_PX => return Err(not_a_sphere(&m)),
+    let around = outer.as_ref().map_or(&best.outline, |m| &m.outline);
+    finish(lum, intr, opts, around, best)
+}
+
+/// The outline measured once more with the profiles centred on `around`, and checked: enough
+/// support, inside the frame; `fitted` stands when no profile fits there.
+fn finish(
+    lum: &Plane,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+    around: &SphereOutline,
+    fitted: &Measured,
+) -> Result<SphereOutline, SphereError> {
+    let (w, h) = (lum.width, lum.height);
+    let circle = outline_circle(around, intr, w, h);
+    let (outline, support) = match measure(lum, &circle, FINAL_SEARCH_PX, intr, opts) {
+        Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
+            return Err(not_a_sphere(&m));
+        }
         Some(m) => (m.outline, m.support),
-        None => (best.outline.clone(), best.support),
+        None => (fitted.outline.clone(), fitted.support),
     };
     if support < MIN_SUPPORT {
         return Err(no_sphere(&circle, Some(support)));
@@ -187,13 +249,14 @@ fn not_a_sphere(m: &Measured) -> SphereError {
         reason: format!(
             "the best circle of edges, centred at ({:.1}, {:.1}) px with radius {:.1} px, has edges \
              on {:.0} % of it, but they scatter by {:.2} px about it where a sphere's outline \
-             scatters by less than {MAX_OUTLINE_RMS_PX} px: what is there is not round (a board, \
+             scatters by less than {:.2} px at that radius: what is there is not round (a board, \
              a box, a polygon?)",
             m.outline.centre_px[0],
             m.outline.centre_px[1],
             m.outline.radius_px,
             100.0 * m.support,
-            m.rms_px
+            m.rms_px,
+            max_outline_rms_px(m.outline.radius_px)
         ),
     }
 }

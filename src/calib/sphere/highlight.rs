@@ -3,6 +3,7 @@
 //! Conventions: as `calib::sphere`. Pure: no I/O.
 
 use super::mirror::reflect;
+use super::scale;
 use super::{SphereError, SphereOptions, SphereOutline, check_size};
 use crate::calib::regions::{self, Plane};
 use crate::geometry::camera::Intrinsics;
@@ -33,6 +34,8 @@ pub struct Highlight {
 /// the clip level. Brighter things elsewhere in the frame (a lamp, a lit wall) are ignored; when
 /// nothing on the sphere stands out but a compact bright spot lies off it, the outline and the
 /// light image disagree: [`SphereError::HighlightOutsideSphere`].
+/// On a large image only a window around the sphere is searched (`scale`), so a bright spot
+/// far off the sphere is not reported as such.
 pub fn find_highlight(
     img: &LinearImage,
     outline: &SphereOutline,
@@ -40,6 +43,45 @@ pub fn find_highlight(
     opts: &SphereOptions,
 ) -> Result<Highlight, SphereError> {
     check_size(img, intr, "the light image")?;
+    let Some((crop, k, o, [x0, y0])) = scale::sphere_window(img, outline, intr) else {
+        return find_in(img, outline, intr, opts);
+    };
+    let (dx, dy) = (x0 as f64, y0 as f64);
+    match find_in(&crop, &o, &k, opts) {
+        Ok(mut hl) => {
+            hl.centroid_px[0] += dx;
+            hl.centroid_px[1] += dy;
+            Ok(hl)
+        }
+        Err(SphereError::HighlightAtRim {
+            x,
+            y,
+            normal_from_view_deg,
+        }) => Err(SphereError::HighlightAtRim {
+            x: x + dx,
+            y: y + dy,
+            normal_from_view_deg,
+        }),
+        Err(SphereError::HighlightOutsideSphere { x, y, .. }) => {
+            Err(SphereError::HighlightOutsideSphere {
+                x: x + dx,
+                y: y + dy,
+                cx: outline.centre_px[0],
+                cy: outline.centre_px[1],
+                radius_px: outline.radius_px,
+            })
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// [`find_highlight`] in the image as given.
+fn find_in(
+    img: &LinearImage,
+    outline: &SphereOutline,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Result<Highlight, SphereError> {
     let (w, h) = (img.width(), img.height());
     let sat = opts.saturation;
     let lum = Plane::luminance(img);

@@ -37,6 +37,7 @@ mod highlight;
 mod mirror;
 mod outline;
 mod rim;
+mod scale;
 mod seed;
 
 pub use edges::detect_outline;

@@ -1,0 +1,139 @@
+//! Working on a large image at the scale the sphere needs: the outline is found on a
+//! box-downsampled luminance and refined at full resolution along profiles across it (`edges`),
+//! the highlight is looked for in a window around the sphere (`highlight`), so that the time no
+//! longer grows with the sensor's pixel count. Images up to `COARSE_WIDTH_PX` wide (every test
+//! image) are used whole.
+//!
+//! Conventions: as `calib::sphere`; a coarse pixel `(i, j)` averages the full pixels
+//! `[f i, f i + f) x [f j, f j + f)`, so full-resolution coordinates are `f` times coarse ones
+//! (pixel centres at half-integers in both). Pure: no I/O.
+
+use super::SphereOutline;
+use crate::calib::regions::Plane;
+use crate::geometry::camera::Intrinsics;
+use crate::render::image::LinearImage;
+
+/// Width (pixels) from which the outline is searched on a downsampled image, and about the width
+/// it is downsampled to.
+const COARSE_WIDTH_PX: usize = 1500;
+
+/// The integer downsampling factor for a `w`x`h` image: 1 up to `COARSE_WIDTH_PX` (the image is
+/// used whole), else the factor that brings the larger side to about that width.
+pub(super) fn factor(w: usize, h: usize) -> usize {
+    let side = w.max(h);
+    if side <= COARSE_WIDTH_PX {
+        1
+    } else {
+        (side as f64 / COARSE_WIDTH_PX as f64).round().max(2.0) as usize
+    }
+}
+
+/// The mean of each `f`x`f` block of `p` (a partial block at the right or bottom is dropped).
+pub(super) fn box_down(p: &Plane, f: usize) -> Plane {
+    let (w, h) = (p.width / f, p.height / f);
+    let mut data = vec![0f32; w * h];
+    let norm = 1.0 / (f * f) as f32;
+    for (j, row) in data.chunks_mut(w.max(1)).enumerate().take(h) {
+        for y in j * f..(j + 1) * f {
+            let src = &p.data[y * p.width..y * p.width + w * f];
+            for (i, v) in row.iter_mut().enumerate() {
+                *v += src[i * f..(i + 1) * f].iter().sum::<f32>();
+            }
+        }
+        row.iter_mut().for_each(|v| *v *= norm);
+    }
+    Plane {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// The camera of the image downsampled by `f` (as [`box_down`]).
+pub(super) fn coarse_intrinsics(intr: &Intrinsics, f: usize) -> Intrinsics {
+    Intrinsics {
+        width: intr.width / f,
+        height: intr.height / f,
+        ..intr.scaled(1.0 / f as f64)
+    }
+}
+
+/// A window of a large light image around the sphere (its outline widened by half its radius
+/// and a margin), with the camera and the outline moved into it; `None` when the image is small
+/// enough to be used whole or the window would be the whole frame.
+pub(super) fn sphere_window(
+    img: &LinearImage,
+    outline: &SphereOutline,
+    intr: &Intrinsics,
+) -> Option<(LinearImage, Intrinsics, SphereOutline, [usize; 2])> {
+    let (w, h) = (img.width(), img.height());
+    if factor(w, h) == 1 {
+        return None;
+    }
+    let reach = 1.5 * outline.radius_px + 16.0;
+    let [cx, cy] = outline.centre_px;
+    let clamp = |v: f64, n: usize| v.clamp(0.0, n as f64) as usize;
+    let (x0, x1) = (
+        clamp((cx - reach).floor(), w),
+        clamp((cx + reach).ceil(), w),
+    );
+    let (y0, y1) = (
+        clamp((cy - reach).floor(), h),
+        clamp((cy + reach).ceil(), h),
+    );
+    if x1 <= x0 || y1 <= y0 || (x1 - x0) * (y1 - y0) >= w * h {
+        return None;
+    }
+    let (cw, ch) = (x1 - x0, y1 - y0);
+    let mut data = Vec::with_capacity(3 * cw * ch);
+    for y in y0..y1 {
+        data.extend_from_slice(&img.data()[3 * (y * w + x0)..3 * (y * w + x1)]);
+    }
+    let crop = LinearImage::from_rgb(cw, ch, data)?;
+    let k = Intrinsics {
+        width: cw,
+        height: ch,
+        cx: intr.cx - x0 as f64,
+        cy: intr.cy - y0 as f64,
+        ..*intr
+    };
+    let mut o = outline.clone();
+    o.centre_px = [cx - x0 as f64, cy - y0 as f64];
+    Some((crop, k, o, [x0, y0]))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_images_are_used_whole_and_large_ones_come_down_to_about_1500_px() {
+        assert_eq!(factor(320, 240), 1);
+        assert_eq!(factor(1500, 1000), 1);
+        assert_eq!(factor(6000, 4000), 4);
+        assert_eq!(factor(4000, 6000), 4);
+        assert_eq!(factor(1800, 1200), 2);
+    }
+
+    #[test]
+    fn box_down_averages_blocks_and_keeps_coordinates_proportional() {
+        let (w, h) = (7, 5);
+        let p = Plane {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .map(|i| ((i % w) + 10 * (i / w)) as f32)
+                .collect(),
+        };
+        let d = box_down(&p, 2);
+        assert_eq!((d.width, d.height), (3, 2));
+        // block (1, 1): x 2..4, y 2..4 -> mean x 2.5, mean y 2.5
+        assert!((d.at(1, 1) - (2.5 + 25.0)).abs() < 1e-5);
+        // a coarse pixel centre maps to the full-resolution centre of its block
+        let k = Intrinsics::pinhole(w, h, 10.0, 10.0, 3.5, 2.5);
+        let c = coarse_intrinsics(&k, 2);
+        assert_eq!((c.width, c.height), (3, 2));
+        assert!((c.cx * 2.0 - k.cx).abs() < 1e-12 && (c.fx * 2.0 - k.fx).abs() < 1e-12);
+    }
+}
