@@ -348,7 +348,11 @@ fn a_page_cut_off_from_the_network_pauses_its_capture() {
     let _one = one_at_a_time();
     let tmp = tempfile::tempdir().unwrap();
     let profile = fast_profile(tmp.path());
-    let plans = plan(tmp.path(), "64x48", 150);
+    // The page is silent from the start, so taking control and starting must both happen
+    // within `--lost-after` of its connecting: 0.5 s was too short on a loaded machine (the
+    // page was lost before the start, which then ran to the end). 2 s, and shots slow enough
+    // (300 ms per light change) that the capture is still running when the loss is seen.
+    let plans = plan(tmp.path(), "64x48", 300);
     let sessions = tmp.path().join("sessions");
     let serve = Serve::start(&[
         "--profile",
@@ -358,8 +362,11 @@ fn a_page_cut_off_from_the_network_pauses_its_capture() {
         "--sessions",
         s(&sessions),
         "--lost-after",
-        "0.5",
+        "2",
     ]);
+    // The rig connected and answering (the simulated board's boot is over), so the start below
+    // is not queued behind it while the silent page's clock runs.
+    serve.wait_state("the rig polled", 60, |s| s["rig"]["polled"] == true);
     // a page that connects, takes control, starts a capture, then neither reads nor answers
     let (socket, key) = silent_page(serve.port);
     let client = [("x-client", key.as_str())];
@@ -385,12 +392,15 @@ fn a_page_cut_off_from_the_network_pauses_its_capture() {
         "control was released"
     );
     drop(socket);
-    let levels = serve.wait_state("the light off", 5, |s| {
-        s["rig"]["sim"]["levels"]
-            .as_array()
-            .is_some_and(|l| l.iter().all(|v| v.as_f64().unwrap() == 0.0))
+    // The board's own light levels (read beside the serial link, on their own timer) go dark,
+    // and the server polls the idle rig again over the link (every 400 ms; on a loaded
+    // machine that can come after the levels are seen, so both are waited for).
+    serve.wait_state("the light off and the idle rig polled again", 15, |s| {
+        s["rig"]["polled"] == true
+            && s["rig"]["sim"]["levels"]
+                .as_array()
+                .is_some_and(|l| l.iter().all(|v| v.as_f64().unwrap() == 0.0))
     });
-    assert_eq!(levels["rig"]["polled"], true);
     // and the terminal can continue it (the server holds no lock on it)
     let o = run(&[
         "capture",

@@ -404,6 +404,25 @@ impl MeshAids {
 
 /// Observes one view from its pixels (`sweep`; a view the z-buffer cannot take is ray-cast
 /// with a shadow ray per pixel, then reduced) and takes its thumbnail.
+/// [`observe_one`] on a view whose image (and mask) the scene holds.
+fn observe_held(
+    mesh: &Mesh,
+    aids: &MeshAids,
+    view: &View,
+    image: &LinearImage,
+    settings: &ObserveSettings,
+) -> (ViewSweep, Thumbnail) {
+    observe_one(
+        mesh,
+        aids,
+        view,
+        image,
+        view.mask.as_deref(),
+        view.saturation,
+        settings,
+    )
+}
+
 fn observe_one(
     mesh: &Mesh,
     aids: &MeshAids,
@@ -456,15 +475,7 @@ pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
     for view in &scene.views {
         match &view.image {
             Some(image) => {
-                let (sweep, thumb) = observe_one(
-                    &scene.mesh,
-                    &aids,
-                    view,
-                    image,
-                    view.mask.as_deref(),
-                    view.saturation,
-                    settings,
-                );
+                let (sweep, thumb) = observe_held(&scene.mesh, &aids, view, image, settings);
                 observed.push(&view.file, sweep, Some(thumb));
             }
             None => observed.push(&view.file, ViewSweep::default(), None),
@@ -491,15 +502,7 @@ pub fn observe_scene_streamed(
             view.file.display()
         ));
         let (sweep, thumb) = match &view.image {
-            Some(image) => observe_one(
-                &scene.mesh,
-                &aids,
-                view,
-                image,
-                view.mask.as_deref(),
-                view.saturation,
-                &settings.observe,
-            ),
+            Some(image) => observe_held(&scene.mesh, &aids, view, image, &settings.observe),
             None => {
                 let (image, mask, saturation) =
                     load_view_pixels(job, view.index, &view.intrinsics, settings)?;
