@@ -4,20 +4,28 @@
 //! `BRDF_RIG_CALIB24_DIR=/tmp/c24 cargo test --release --all-features --test tests -- --ignored
 //! write_24_megapixel_calibration_images --nocapture`
 
-use crate::calib_synth::{BoardScene, SphereScene};
+use crate::calib_synth::{BoardScene, SphereScene, random_dir_around};
+use brdf_rig::calib::light::{OutlineInput, SphereShot, calibrate_light};
+use brdf_rig::calib::sphere::{OutlineSource, SphereOptions, SphereOutline, find_highlight};
 use brdf_rig::geometry::camera::Intrinsics;
 use brdf_rig::imageio::{ExrPrecision, write_exr};
 use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
-/// The fixture's camera scaled to a 6000x4000 sensor (same field of view vertically, the
+/// The fixture's camera scaled to a `w`x`h` sensor (same field of view vertically, the
 /// principal point moved with the wider frame).
-fn sensor_24mp(k: &Intrinsics) -> Intrinsics {
-    let s = 4000.0 / k.height as f64;
+fn sensor(k: &Intrinsics, w: usize, h: usize) -> Intrinsics {
+    let s = h as f64 / k.height as f64;
     let mut big = k.scaled(s);
-    big.width = 6000;
-    big.height = 4000;
-    big.cx += (6000.0 - k.width as f64 * s) / 2.0;
+    big.width = w;
+    big.height = h;
+    big.cx += (w as f64 - k.width as f64 * s) / 2.0;
     big
+}
+
+fn sensor_24mp(k: &Intrinsics) -> Intrinsics {
+    sensor(k, 6000, 4000)
 }
 
 #[test]
@@ -74,4 +82,89 @@ fn write_24_megapixel_calibration_images() {
         n.z
     );
     println!("light direction (camera axes): {},{},{}", l.x, l.y, l.z);
+}
+
+/// The sphere's light direction at camera resolutions against the truth, with the uncertainty
+/// the calibration reports and the error of each part (outline centre and radius, highlight
+/// normal read with the true outline): docs/calibration.md, "Accuracy at camera resolution".
+/// `BRDF_RIG_STUDY_SIZES` (default `320x240,1500x1000,6000x4000`) and `BRDF_RIG_STUDY_CASES`
+/// (light directions per sphere position, default 3; two sphere positions):
+/// `cargo test --release --all-features --test tests -- --ignored sphere_accuracy_at_camera_resolution --nocapture`
+#[test]
+#[ignore = "renders 24-megapixel images: a study run by hand"]
+fn sphere_accuracy_at_camera_resolution() {
+    let sizes = std::env::var("BRDF_RIG_STUDY_SIZES")
+        .unwrap_or_else(|_| "320x240,1500x1000,6000x4000".into());
+    let cases: usize = std::env::var("BRDF_RIG_STUDY_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3);
+    println!(
+        "| size | sphere | light | error (deg) | reported (deg) | error / reported | centre (px) | radius (px) | highlight normal (deg) | edge points | edge rms (px) | seconds |"
+    );
+    println!("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for size in sizes.split(',') {
+        let (w, h) = size.split_once('x').unwrap();
+        let (w, h): (usize, usize) = (w.parse().unwrap(), h.parse().unwrap());
+        for (position, centre) in [
+            Vector3::new(0.025, -0.012, 0.42),
+            Vector3::new(-0.04, 0.03, 0.45),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut rng = ChaCha8Rng::seed_from_u64(17 + position as u64);
+            for case in 0..cases {
+                let mut scene = SphereScene::new(Vector3::z());
+                scene.centre = centre;
+                scene.light_dir = random_dir_around(&mut rng, &scene.view_axis(), 10.0, 70.0);
+                // the unit tests' supersampling at their size, less as the pixels shrink
+                scene.supersample = (4 * 240 / h).clamp(1, 4);
+                scene.intr = sensor(&scene.intr, w, h);
+                let seed = 100 * position as u64 + case as u64;
+                let light = scene.render_light(seed);
+                let ambient = scene.render_ambient(seed + 50);
+                let opts = SphereOptions {
+                    saturation: Some(1.0),
+                    ..SphereOptions::default()
+                };
+                let t = std::time::Instant::now();
+                let cal = calibrate_light(
+                    &[SphereShot {
+                        light: &light,
+                        outline: OutlineInput::Image(&ambient),
+                    }],
+                    &scene.intr,
+                    &opts,
+                )
+                .unwrap_or_else(|e| panic!("{size}, sphere {position}, light {case}: {e}"));
+                let secs = t.elapsed().as_secs_f64();
+                let one = &cal.per_image[0];
+                let o = &one.outline;
+                let f = scene.intr.fx;
+                let alpha = (scene.radius / scene.centre.norm()).asin();
+                let truth = SphereOutline {
+                    centre_dir: scene.centre.normalize(),
+                    angular_radius_rad: alpha,
+                    centre_px: [0.0; 2],
+                    radius_px: alpha.tan() * f,
+                    edge_points: 0,
+                    rms_residual_rad: 0.0,
+                    source: OutlineSource::UserCircle,
+                };
+                let h_true = find_highlight(&light, &truth, &scene.intr, &opts).unwrap();
+                let err = cal.dir_camera.angle(&scene.light_dir).to_degrees();
+                println!(
+                    "| {size} | {position} | {case} | {err:.4} | {:.4} | {:.2} | {:.3} | {:+.3} | {:.4} | {} | {:.3} | {secs:.1} |",
+                    cal.uncertainty_deg,
+                    err / cal.uncertainty_deg,
+                    o.centre_dir.angle(&truth.centre_dir) * f,
+                    (o.angular_radius_rad - alpha) * f,
+                    h_true.normal.angle(&scene.mirror_normal()).to_degrees(),
+                    o.edge_points,
+                    o.rms_residual_rad * f,
+                );
+            }
+        }
+    }
 }

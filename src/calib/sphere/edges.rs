@@ -41,10 +41,11 @@ const MIN_OUTER_CONTRAST: f64 = 0.1;
 /// Largest scatter (RMS) of the edge points about the fitted outline, in pixels and relative to
 /// the outline's radius in pixels; the larger applies ([`max_outline_rms_px`]). A sphere's edge
 /// points scatter by about 0.1 px (0.06 to 0.11 px on the Mitsuba fixtures, defocus and noise
-/// included, radius about 60 px); a rectangle's sides near a circle scatter by a pixel or more
-/// at that radius (over 1.5 % of it), and by as much relative to its size at any size. The
-/// relative part (0.4 % of the radius, 0.25 px at 60 px) lets a sharp large image's edge
-/// (aliased, every pixel a step) through: 4 px at a radius of 1000 px.
+/// included, radius about 60 px; 0.09 px on the 24 MP fixture, radius 1037 px); a rectangle's
+/// sides near a circle scatter by a pixel or more at that radius (over 1.5 % of it), and by as
+/// much relative to its size at any size. Telling a shape from a circle is a matter of relative
+/// scatter, so above a radius of 125 px the limit grows with it (0.4 %); below, the absolute
+/// 0.5 px leaves room for noise and aliasing.
 const MAX_OUTLINE_RMS_PX: f64 = 0.5;
 const MAX_OUTLINE_RMS_REL: f64 = 0.004;
 
@@ -89,7 +90,7 @@ pub fn detect_outline(
         &coarse_opts,
     )?;
     let circle = outline_circle(&coarse, intr, w, h);
-    let first = match measure(&lum, &circle, SEARCH_PX, intr, opts) {
+    let first = match measure(&lum, &Guide::along(&coarse, circle), SEARCH_PX, intr, opts) {
         Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
             return Err(not_a_sphere(&m));
         }
@@ -126,7 +127,7 @@ fn locate(
     };
     let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
         .iter()
-        .filter_map(|s| measure(lum, s, SEARCH_PX, intr, opts))
+        .filter_map(|s| measure(lum, &Guide::circle(*s), SEARCH_PX, intr, opts))
         .partition(|m| m.rms_px <= max_outline_rms_px(m.outline.radius_px));
     let Some(best) = measured
         .iter()
@@ -167,7 +168,7 @@ fn locate(
             break;
         }
         let probe = Seed { r, ..inner };
-        if let Some(m) = measure(lum, &probe, SEARCH_PX, intr, opts)
+        if let Some(m) = measure(lum, &Guide::circle(probe), SEARCH_PX, intr, opts)
             && m.support >= enough
             && m.contrast >= MIN_OUTER_CONTRAST * best.contrast
         {
@@ -190,7 +191,8 @@ fn finish(
 ) -> Result<SphereOutline, SphereError> {
     let (w, h) = (lum.width, lum.height);
     let circle = outline_circle(around, intr, w, h);
-    let (outline, support) = match measure(lum, &circle, FINAL_SEARCH_PX, intr, opts) {
+    let guide = Guide::along(around, circle);
+    let (outline, support) = match measure(lum, &guide, FINAL_SEARCH_PX, intr, opts) {
         Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
             return Err(not_a_sphere(&m));
         }
@@ -279,6 +281,67 @@ fn outline_circle(o: &SphereOutline, intr: &Intrinsics, w: usize, h: usize) -> S
     }
 }
 
+/// Where the radial profiles of a measurement start and where along each the outline is
+/// expected: on a circle (a Hough seed, a probe further out), or on a fitted outline. Under
+/// perspective an outline is an ellipse, and the centroid of its points (the profiles' origin)
+/// is not its centre: at 24 MP the sphere of the calibration fixtures lies 3 px further from that
+/// origin on one side than on the other, and an ellipse's axes differ by 2 px, more than the
+/// final pass's search window. Each profile's window is therefore centred on where the outline
+/// crosses it.
+struct Guide<'a> {
+    circle: Seed,
+    outline: Option<&'a SphereOutline>,
+}
+
+impl<'a> Guide<'a> {
+    fn circle(circle: Seed) -> Self {
+        Self {
+            circle,
+            outline: None,
+        }
+    }
+
+    fn along(outline: &'a SphereOutline, circle: Seed) -> Self {
+        Self {
+            circle,
+            outline: Some(outline),
+        }
+    }
+
+    /// Distance (pixels) from the circle's centre to the expected outline in direction
+    /// `(ux, uy)`: where the back-projected ray meets the outline's cone (secant steps on
+    /// `ray . d - cos(alpha)`, which falls steadily outwards); the circle's radius when that
+    /// fails (the centre outside the outline, a distortion model that folds).
+    fn expected(&self, intr: &Intrinsics, ux: f64, uy: f64) -> f64 {
+        let c = &self.circle;
+        let Some(o) = self.outline else {
+            return c.r;
+        };
+        let cos_a = o.angular_radius_rad.cos();
+        let g = |s: f64| intr.ray(c.cx + s * ux, c.cy + s * uy).dot(&o.centre_dir) - cos_a;
+        let (mut s0, mut s1) = (c.r, c.r + 1.0);
+        let (mut g0, mut g1) = (g(s0), g(s1));
+        for _ in 0..8 {
+            let slope = g1 - g0;
+            if slope.abs() < f64::MIN_POSITIVE || !slope.is_finite() {
+                break;
+            }
+            let s2 = s1 - g1 * (s1 - s0) / slope;
+            (s0, g0) = (s1, g1);
+            s1 = s2;
+            g1 = g(s1);
+            if (s1 - s0).abs() < 1e-4 {
+                break;
+            }
+        }
+        if s1.is_finite() && (s1 - c.r).abs() < 0.5 * c.r {
+            s1
+        } else {
+            c.r
+        }
+    }
+}
+
 /// How far (pixels) the outline may lie from a profile's steepest point: a glossy rim is
 /// steepest just inside the outline, a blurred step at it.
 const STEEPEST_TO_EDGE_PX: f64 = 1.5;
@@ -305,28 +368,32 @@ struct Measured {
     rms_px: f64,
 }
 
-/// One radial profile: its direction and samples.
+/// One radial profile: its direction, where the outline is expected along it, and its samples
+/// at the measurement's offsets from there.
 struct Profile {
     ux: f64,
     uy: f64,
+    base: f64,
     samples: Vec<f64>,
 }
 
-/// Fits the rim model along radial profiles around `seed` and the tangent cone to their edges.
+/// Fits the rim model along radial profiles around `guide` and the tangent cone to their edges.
 fn measure(
     lum: &Plane,
-    seed: &Seed,
+    guide: &Guide<'_>,
     search_px: f64,
     intr: &Intrinsics,
     opts: &SphereOptions,
 ) -> Option<Measured> {
+    let seed = &guide.circle;
     let fresnel_f0 = opts.rim_fresnel_f0.filter(|f| (0.0..0.5).contains(f));
     let model = RimModel::new(fresnel_f0, seed.r);
+    // sample offsets from the expected outline (positive outwards)
     let (from, to) = (
-        seed.r - search_px - model.inside_px - 1.0,
-        seed.r + search_px + OUTSIDE_PX + 1.0,
+        -(search_px + model.inside_px + 1.0),
+        search_px + OUTSIDE_PX + 1.0,
     );
-    if from <= 1.0 {
+    if seed.r + from <= 1.0 {
         return None;
     }
     let ns = ((to - from) / PROFILE_STEP).round() as usize + 1;
@@ -337,25 +404,32 @@ fn measure(
         .filter_map(|k| {
             let a = k as f64 * 2.0 * PI / n_angles as f64;
             let (ux, uy) = (a.cos(), a.sin());
+            let base = guide.expected(intr, ux, uy);
+            if base + from <= 1.0 {
+                return None;
+            }
             let samples = positions
                 .iter()
-                .map(|&s| regions::bilinear(lum, seed.cx + s * ux, seed.cy + s * uy))
+                .map(|&s| {
+                    let s = base + s;
+                    regions::bilinear(lum, seed.cx + s * ux, seed.cy + s * uy)
+                })
                 .collect::<Option<Vec<f64>>>()?;
             if clip.is_some_and(|c| samples.iter().any(|&v| v >= c)) {
                 return None;
             }
-            Some(Profile { ux, uy, samples })
+            Some(Profile {
+                ux,
+                uy,
+                base,
+                samples,
+            })
         })
         .collect();
     // Each profile's edge is searched within a pixel of its steepest point: the model fits a
     // flat stretch of backdrop perfectly, so a free search would wander off the edge.
     let range = |p: &Profile| {
-        let steepest = steepest_point(
-            &positions,
-            &p.samples,
-            seed.r - search_px,
-            seed.r + search_px,
-        )?;
+        let steepest = steepest_point(&positions, &p.samples, -search_px, search_px)?;
         Some((
             steepest - STEEPEST_TO_EDGE_PX,
             steepest + STEEPEST_TO_EDGE_PX,
@@ -407,7 +481,10 @@ fn measure(
         .collect();
     let rays: Vec<Vector3<f64>> = kept
         .iter()
-        .map(|(p, f)| intr.ray(seed.cx + f.edge * p.ux, seed.cy + f.edge * p.uy))
+        .map(|(p, f)| {
+            let e = p.base + f.edge;
+            intr.ray(seed.cx + e * p.ux, seed.cy + e * p.uy)
+        })
         .collect();
     let mut steps: Vec<f64> = kept
         .iter()
@@ -425,4 +502,50 @@ fn measure(
         rms_px,
         contrast: crate::calib::robust::median(&mut steps)?,
     })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
+mod tests {
+    use super::*;
+    use crate::calib::sphere::OutlineSource;
+
+    /// The 24 MP fixture's sphere (off the optical axis, radius 1037 px): the profiles' origin
+    /// (the centroid of the outline's points) lies pixels off the ellipse's centre, so a circle
+    /// about it misses the outline by more than the final search window on some sides, while
+    /// the guide's expected distances land on the outline's cone.
+    #[test]
+    fn the_guide_follows_an_off_axis_outline_where_a_circle_does_not() {
+        let f = 8666.666666666666;
+        let intr = Intrinsics::pinhole(6000, 4000, f, f, 3021.6666666666665, 1981.6666666666667);
+        let centre = Vector3::<f64>::new(0.025, -0.012, 0.42);
+        let alpha = (0.05 / centre.norm()).asin();
+        let outline = SphereOutline {
+            centre_dir: centre.normalize(),
+            angular_radius_rad: alpha,
+            centre_px: [0.0; 2],
+            radius_px: alpha.tan() * f,
+            edge_points: 0,
+            rms_residual_rad: 0.0,
+            source: OutlineSource::Detected,
+        };
+        let circle = outline_circle(&outline, &intr, 6000, 4000);
+        let guide = Guide::along(&outline, circle);
+        let mut worst_circle = 0.0f64;
+        for k in 0..360 {
+            let a = (k as f64).to_radians();
+            let (ux, uy) = (a.cos(), a.sin());
+            let s = guide.expected(&intr, ux, uy);
+            let on_cone = |s: f64| {
+                let ray = intr.ray(circle.cx + s * ux, circle.cy + s * uy);
+                (ray.dot(&outline.centre_dir).clamp(-1.0, 1.0).acos() - alpha) * f
+            };
+            // within a thousandth of a pixel of the outline
+            assert!(on_cone(s).abs() < 1e-3, "angle {k}: {} px", on_cone(s));
+            worst_circle = worst_circle.max((s - circle.r).abs());
+        }
+        assert!(worst_circle > FINAL_SEARCH_PX, "{worst_circle}");
+        // a circle guide expects the circle
+        assert_eq!(Guide::circle(circle).expected(&intr, 1.0, 0.0), circle.r);
+    }
 }
