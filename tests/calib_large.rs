@@ -88,7 +88,8 @@ fn write_24_megapixel_calibration_images() {
 /// the calibration reports and the error of each part (outline centre and radius, highlight
 /// normal read with the true outline): docs/calibration.md, "Accuracy at camera resolution".
 /// `BRDF_RIG_STUDY_SIZES` (default `320x240,1500x1000,6000x4000`) and `BRDF_RIG_STUDY_CASES`
-/// (light directions per sphere position, default 3; two sphere positions):
+/// (light directions per sphere position, default 3; two sphere positions);
+/// `BRDF_RIG_STUDY_COSINE=1` renders the lobe with the light's cosine (`SphereScene::lobe_cosine`):
 /// `cargo test --release --all-features --test tests -- --ignored sphere_accuracy_at_camera_resolution --nocapture`
 #[test]
 #[ignore = "renders 24-megapixel images: a study run by hand"]
@@ -99,10 +100,11 @@ fn sphere_accuracy_at_camera_resolution() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
+    let cosine = std::env::var("BRDF_RIG_STUDY_COSINE").is_ok_and(|v| v == "1");
     println!(
-        "| size | sphere | light | error (deg) | reported (deg) | error / reported | centre (px) | radius (px) | highlight normal (deg) | edge points | edge rms (px) | seconds |"
+        "| size | sphere | light | error (deg) | reported (deg) | error / reported | centre (px) | radius (px) | highlight normal (deg) | its reported (deg) | edge points | edge rms (px) | seconds |"
     );
-    println!("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for size in sizes.split(',') {
         let (w, h) = size.split_once('x').unwrap();
         let (w, h): (usize, usize) = (w.parse().unwrap(), h.parse().unwrap());
@@ -121,6 +123,7 @@ fn sphere_accuracy_at_camera_resolution() {
                 // the unit tests' supersampling at their size, less as the pixels shrink
                 scene.supersample = (4 * 240 / h).clamp(1, 4);
                 scene.intr = sensor(&scene.intr, w, h);
+                scene.lobe_cosine = cosine;
                 let seed = 100 * position as u64 + case as u64;
                 let light = scene.render_light(seed);
                 let ambient = scene.render_ambient(seed + 50);
@@ -146,7 +149,11 @@ fn sphere_accuracy_at_camera_resolution() {
                 let truth = SphereOutline {
                     centre_dir: scene.centre.normalize(),
                     angular_radius_rad: alpha,
-                    centre_px: [0.0; 2],
+                    centre_px: scene
+                        .intr
+                        .project(&scene.centre)
+                        .map(|(x, y)| [x, y])
+                        .unwrap(),
                     radius_px: alpha.tan() * f,
                     edge_points: 0,
                     rms_residual_rad: 0.0,
@@ -155,12 +162,13 @@ fn sphere_accuracy_at_camera_resolution() {
                 let h_true = find_highlight(&light, &truth, &scene.intr, &opts).unwrap();
                 let err = cal.dir_camera.angle(&scene.light_dir).to_degrees();
                 println!(
-                    "| {size} | {position} | {case} | {err:.4} | {:.4} | {:.2} | {:.3} | {:+.3} | {:.4} | {} | {:.3} | {secs:.1} |",
+                    "| {size} | {position} | {case} | {err:.4} | {:.4} | {:.2} | {:.3} | {:+.3} | {:.4} | {:.4} | {} | {:.3} | {secs:.1} |",
                     cal.uncertainty_deg,
                     err / cal.uncertainty_deg,
                     o.centre_dir.angle(&truth.centre_dir) * f,
                     (o.angular_radius_rad - alpha) * f,
                     h_true.normal.angle(&scene.mirror_normal()).to_degrees(),
+                    one.highlight.uncertainty_rad.to_degrees(),
                     o.edge_points,
                     o.rms_residual_rad * f,
                 );

@@ -127,6 +127,10 @@ pub struct SphereScene {
     pub ambient: f64,
     /// A second, weaker light: direction and strength relative to the main one.
     pub second_light: Option<(Vector3<f64>, f64)>,
+    /// The lobe times `n.l / (n_h.l)` (a BRDF's radiance carries the light's cosine; equal to
+    /// the plain lobe at the mirror normal `n_h`); off, the lobe is radiance as it is, one cosine
+    /// off what the calibration assumes.
+    pub lobe_cosine: bool,
     /// Fresnel reflection of the backdrop (Schlick, F0 = 0.04) in both images: a real glossy
     /// sphere's rim fades into the backdrop at grazing angles, which shrinks its apparent outline.
     pub fresnel_rim: bool,
@@ -152,6 +156,7 @@ impl SphereScene {
             backdrop: 0.25,
             ambient: 0.3,
             second_light: None,
+            lobe_cosine: false,
             fresnel_rim: true,
             post: None,
             noise: Noise {
@@ -215,7 +220,12 @@ impl SphereScene {
             let v = -ray;
             let lobe = |l: &Vector3<f64>| {
                 let h = (l + v).normalize();
-                self.specular * n.dot(&h).max(0.0).powf(self.exponent)
+                let cosine = if self.lobe_cosine {
+                    n.dot(l).max(0.0) / h.dot(l).max(1e-6)
+                } else {
+                    1.0
+                };
+                self.specular * n.dot(&h).max(0.0).powf(self.exponent) * cosine
             };
             let mut s =
                 self.diffuse_albedo / PI * n.dot(&self.light_dir).max(0.0) + lobe(&self.light_dir);

@@ -21,6 +21,7 @@ use crate::calib::regions::{self, Plane};
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Sampling step of the radial profiles (pixels).
@@ -53,6 +54,10 @@ const MAX_OUTLINE_RMS_REL: f64 = 0.004;
 fn max_outline_rms_px(radius_px: f64) -> f64 {
     MAX_OUTLINE_RMS_PX.max(MAX_OUTLINE_RMS_REL * radius_px)
 }
+/// Most profiles around an outline (one per pixel of circumference below), and in the first
+/// full-resolution pass of a large image, which only re-centres the final pass's windows.
+const MAX_PROFILES: usize = 1440;
+const FIRST_PASS_PROFILES: usize = 360;
 /// Circle candidates tried.
 const CANDIDATES: usize = 4;
 /// At most this many profiles search the blur width; the rest use their median.
@@ -77,7 +82,7 @@ pub fn detect_outline(
     if f == 1 {
         return locate(&lum, intr, opts);
     }
-    // A large image: the outline is found on the image downsampled to about 1500 px, then
+    // A large image: the outline is found on the image downsampled to about 750 px, then
     // measured again at full resolution along profiles across it (twice, the second time
     // centred on the first full-resolution fit), so that only a band around it is read.
     let coarse_opts = SphereOptions {
@@ -85,12 +90,19 @@ pub fn detect_outline(
         ..*opts
     };
     let coarse = locate(
-        &scale::box_down(&lum, f),
+        &lum.box_down(f),
         &scale::coarse_intrinsics(intr, f),
         &coarse_opts,
     )?;
     let circle = outline_circle(&coarse, intr, w, h);
-    let first = match measure(&lum, &Guide::along(&coarse, circle), SEARCH_PX, intr, opts) {
+    let first = match measure(
+        &lum,
+        &Guide::along(&coarse, circle),
+        SEARCH_PX,
+        FIRST_PASS_PROFILES,
+        intr,
+        opts,
+    ) {
         Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
             return Err(not_a_sphere(&m));
         }
@@ -126,8 +138,10 @@ fn locate(
         });
     };
     let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
-        .iter()
-        .filter_map(|s| measure(lum, &Guide::circle(*s), SEARCH_PX, intr, opts))
+        .par_iter()
+        .filter_map(|s| measure(lum, &Guide::circle(*s), SEARCH_PX, MAX_PROFILES, intr, opts))
+        .collect::<Vec<_>>()
+        .into_iter()
         .partition(|m| m.rms_px <= max_outline_rms_px(m.outline.radius_px));
     let Some(best) = measured
         .iter()
@@ -159,23 +173,28 @@ fn locate(
     // A strong ring can hide a weaker outline outside it (a dark backdrop that the rim mirrors
     // out to some angle): look for a well supported edge further out, around the same centre,
     // with each search window clear of the edge already found.
-    let mut outer = None;
+    // The probes are independent: measured in parallel, the outermost that passes is taken.
     let inner = outline_circle(&best.outline, intr, w, h);
-    let mut step = 1;
-    loop {
-        let r = inner.r + 1.5 + SEARCH_PX * step as f64;
-        if r > OUTER_SEARCH * inner.r {
-            break;
-        }
-        let probe = Seed { r, ..inner };
-        if let Some(m) = measure(lum, &Guide::circle(probe), SEARCH_PX, intr, opts)
-            && m.support >= enough
-            && m.contrast >= MIN_OUTER_CONTRAST * best.contrast
-        {
-            outer = Some(m);
-        }
-        step += 1;
-    }
+    let probes: Vec<f64> = (1..)
+        .map(|step| inner.r + 1.5 + SEARCH_PX * step as f64)
+        .take_while(|&r| r <= OUTER_SEARCH * inner.r)
+        .collect();
+    let outer = probes
+        .par_iter()
+        .filter_map(|&r| {
+            let probe = Seed { r, ..inner };
+            measure(
+                lum,
+                &Guide::circle(probe),
+                SEARCH_PX,
+                MAX_PROFILES,
+                intr,
+                opts,
+            )
+            .filter(|m| m.support >= enough && m.contrast >= MIN_OUTER_CONTRAST * best.contrast)
+        })
+        .collect::<Vec<_>>()
+        .pop();
     let around = outer.as_ref().map_or(&best.outline, |m| &m.outline);
     finish(lum, intr, opts, around, best)
 }
@@ -192,7 +211,7 @@ fn finish(
     let (w, h) = (lum.width, lum.height);
     let circle = outline_circle(around, intr, w, h);
     let guide = Guide::along(around, circle);
-    let (outline, support) = match measure(lum, &guide, FINAL_SEARCH_PX, intr, opts) {
+    let (outline, support) = match measure(lum, &guide, FINAL_SEARCH_PX, MAX_PROFILES, intr, opts) {
         Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
             return Err(not_a_sphere(&m));
         }
@@ -382,6 +401,7 @@ fn measure(
     lum: &Plane,
     guide: &Guide<'_>,
     search_px: f64,
+    max_profiles: usize,
     intr: &Intrinsics,
     opts: &SphereOptions,
 ) -> Option<Measured> {
@@ -398,9 +418,10 @@ fn measure(
     }
     let ns = ((to - from) / PROFILE_STEP).round() as usize + 1;
     let positions: Vec<f64> = (0..ns).map(|j| from + j as f64 * PROFILE_STEP).collect();
-    let n_angles = ((2.0 * PI * seed.r).round() as usize).clamp(64, 1440);
+    let n_angles = ((2.0 * PI * seed.r).round() as usize).clamp(64, max_profiles.max(64));
     let clip = opts.saturation.map(|s| 0.98 * f64::from(s));
     let profiles: Vec<Profile> = (0..n_angles)
+        .into_par_iter()
         .filter_map(|k| {
             let a = k as f64 * 2.0 * PI / n_angles as f64;
             let (ux, uy) = (a.cos(), a.sin());
@@ -438,7 +459,7 @@ fn measure(
     // the blur: searched on a subset of the profiles, the median used for all
     let stride = (profiles.len() / BLUR_PROFILES).max(1);
     let mut sigmas: Vec<f64> = profiles
-        .iter()
+        .par_iter()
         .step_by(stride)
         .filter_map(|p| {
             let (lo, hi) = range(p)?;
@@ -448,7 +469,7 @@ fn measure(
         .collect();
     let sigma = crate::calib::robust::median(&mut sigmas)?;
     let fits: Vec<(&Profile, super::rim::RimFit)> = profiles
-        .iter()
+        .par_iter()
         .filter_map(|p| {
             let (lo, hi) = range(p)?;
             model

@@ -39,6 +39,7 @@ mod outline;
 mod rim;
 mod scale;
 mod seed;
+mod uncertainty;
 
 pub use edges::detect_outline;
 pub use highlight::{Highlight, find_highlight};

@@ -107,7 +107,8 @@ impl RimModel {
     fn blurred(&self, sigma_index: usize, depth: f64) -> f64 {
         let t = &self.tables[sigma_index];
         let x = ((depth + TABLE_OUT) / TABLE_STEP).clamp(0.0, (t.len() - 1) as f64);
-        let i = (x.floor() as usize).min(t.len() - 2);
+        // x >= 0: truncation is the floor (and needs no call into libm)
+        let i = (x as usize).min(t.len() - 2);
         let f = x - i as f64;
         t[i] * (1.0 - f) + t[i + 1] * f
     }
@@ -121,25 +122,39 @@ impl RimModel {
         sigma_index: usize,
         edge: f64,
     ) -> Option<(f64, f64, f64, usize)> {
-        let mut ata = Matrix3::<f64>::zeros();
+        // the six distinct entries of A^T A, A^T p and p.p, summed over the window
+        let (mut a00, mut a01, mut a02, mut a11, mut a12, mut a22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let mut atb = Vector3::<f64>::zeros();
         let mut rows = 0;
         let mut sum_pp = 0.0;
         // the blur spreads what lies beyond the band (the room the rim mirrors further in) over
         // about two sigmas into it: those samples are left out
         let inside = (self.inside_px - 2.0 * SIGMAS[sigma_index]).max(2.0);
-        for (&s, &p) in positions.iter().zip(samples) {
+        // positions ascend: only the window (one sample wider each side, the test decides) is
+        // visited
+        let first = positions
+            .partition_point(|&s| s < edge - inside)
+            .saturating_sub(1);
+        let last =
+            (positions.partition_point(|&s| s <= edge + OUTSIDE_PX) + 1).min(positions.len());
+        for (&s, &p) in positions[first..last].iter().zip(&samples[first..last]) {
             let depth = edge - s;
             if depth > inside || depth < -OUTSIDE_PX {
                 continue;
             }
             let b = self.blurred(sigma_index, depth);
-            let row = Vector3::new(1.0 - b, b, s - edge);
-            ata += row * row.transpose();
-            atb += row * p;
+            let (r0, r1, r2) = (1.0 - b, b, s - edge);
+            a00 += r0 * r0;
+            a01 += r0 * r1;
+            a02 += r0 * r2;
+            a11 += r1 * r1;
+            a12 += r1 * r2;
+            a22 += r2 * r2;
+            atb += Vector3::new(r0 * p, r1 * p, r2 * p);
             sum_pp += p * p;
             rows += 1;
         }
+        let ata = Matrix3::new(a00, a01, a02, a01, a11, a12, a02, a12, a22);
         if rows < 8 {
             return None;
         }

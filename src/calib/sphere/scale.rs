@@ -9,47 +9,25 @@
 //! (pixel centres at half-integers in both). Pure: no I/O.
 
 use super::SphereOutline;
-use crate::calib::regions::Plane;
+use crate::calib::regions;
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 
 /// Width (pixels) from which the outline is searched on a downsampled image, and about the width
-/// it is downsampled to.
-const COARSE_WIDTH_PX: usize = 1500;
+/// it is downsampled to. The search over candidates (a rim fit on every profile of each, and
+/// the probes outside the best) costs as the sphere's circumference times its rim band, about
+/// the square of the width: on the 24 MP fixture it took 12 s at 1500 px and 3 s at 750 px
+/// (load average 9), with the same light direction to 1e-7, since the full-resolution profiles
+/// measure the outline again (docs/calibration.md).
+const COARSE_WIDTH_PX: usize = 750;
 
 /// The integer downsampling factor for a `w`x`h` image: 1 up to `COARSE_WIDTH_PX` (the image is
 /// used whole), else the factor that brings the larger side to about that width.
 pub(super) fn factor(w: usize, h: usize) -> usize {
-    let side = w.max(h);
-    if side <= COARSE_WIDTH_PX {
-        1
-    } else {
-        (side as f64 / COARSE_WIDTH_PX as f64).round().max(2.0) as usize
-    }
+    regions::downsample_factor(w, h, COARSE_WIDTH_PX)
 }
 
-/// The mean of each `f`x`f` block of `p` (a partial block at the right or bottom is dropped).
-pub(super) fn box_down(p: &Plane, f: usize) -> Plane {
-    let (w, h) = (p.width / f, p.height / f);
-    let mut data = vec![0f32; w * h];
-    let norm = 1.0 / (f * f) as f32;
-    for (j, row) in data.chunks_mut(w.max(1)).enumerate().take(h) {
-        for y in j * f..(j + 1) * f {
-            let src = &p.data[y * p.width..y * p.width + w * f];
-            for (i, v) in row.iter_mut().enumerate() {
-                *v += src[i * f..(i + 1) * f].iter().sum::<f32>();
-            }
-        }
-        row.iter_mut().for_each(|v| *v *= norm);
-    }
-    Plane {
-        width: w,
-        height: h,
-        data,
-    }
-}
-
-/// The camera of the image downsampled by `f` (as [`box_down`]).
+/// The camera of the image downsampled by `f` (as [`regions::Plane::box_down`]).
 pub(super) fn coarse_intrinsics(intr: &Intrinsics, f: usize) -> Intrinsics {
     Intrinsics {
         width: intr.width / f,
@@ -108,30 +86,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn small_images_are_used_whole_and_large_ones_come_down_to_about_1500_px() {
-        assert_eq!(factor(320, 240), 1);
-        assert_eq!(factor(1500, 1000), 1);
-        assert_eq!(factor(6000, 4000), 4);
-        assert_eq!(factor(4000, 6000), 4);
-        assert_eq!(factor(1800, 1200), 2);
-    }
-
-    #[test]
-    fn box_down_averages_blocks_and_keeps_coordinates_proportional() {
-        let (w, h) = (7, 5);
-        let p = Plane {
-            width: w,
-            height: h,
-            data: (0..w * h)
-                .map(|i| ((i % w) + 10 * (i / w)) as f32)
-                .collect(),
-        };
-        let d = box_down(&p, 2);
-        assert_eq!((d.width, d.height), (3, 2));
-        // block (1, 1): x 2..4, y 2..4 -> mean x 2.5, mean y 2.5
-        assert!((d.at(1, 1) - (2.5 + 25.0)).abs() < 1e-5);
+    fn a_coarse_camera_keeps_coordinates_proportional() {
+        assert_eq!(factor(640, 480), 1);
+        assert_eq!(factor(6000, 4000), 8);
         // a coarse pixel centre maps to the full-resolution centre of its block
-        let k = Intrinsics::pinhole(w, h, 10.0, 10.0, 3.5, 2.5);
+        let k = Intrinsics::pinhole(7, 5, 10.0, 10.0, 3.5, 2.5);
         let c = coarse_intrinsics(&k, 2);
         assert_eq!((c.width, c.height), (3, 2));
         assert!((c.cx * 2.0 - k.cx).abs() < 1e-12 && (c.fx * 2.0 - k.fx).abs() < 1e-12);
