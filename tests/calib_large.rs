@@ -1,14 +1,17 @@
-//! Calibration images at a camera's resolution (issue #14), written for a timing by hand of
-//! `calibrate sphere` and `calibrate white` (docs/benchmarks-reconstruct.md gives the commands;
-//! speed goals live in benchmarks, not in tests):
+//! Calibration at a camera's resolution (issue #14): a sphere and a board large enough to go
+//! through the downsampled searches (in the suite), and, run by hand, 24-megapixel images for a
+//! timing of `calibrate sphere` and `calibrate white` (docs/calibration.md gives the commands;
+//! speed goals live in benchmarks, not in tests) and a study of the sphere's accuracy:
 //! `BRDF_RIG_CALIB24_DIR=/tmp/c24 cargo test --release --all-features --test tests -- --ignored
 //! write_24_megapixel_calibration_images --nocapture`
 
 use crate::calib_synth::{BoardScene, SphereScene, random_dir_around};
 use brdf_rig::calib::light::{OutlineInput, SphereShot, calibrate_light};
 use brdf_rig::calib::sphere::{OutlineSource, SphereOptions, SphereOutline, find_highlight};
+use brdf_rig::calib::white::{BoardRegion, WhiteError, WhiteOptions, calibrate_irradiance};
 use brdf_rig::geometry::camera::Intrinsics;
 use brdf_rig::imageio::{ExrPrecision, write_exr};
+use brdf_rig::render::image::LinearImage;
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -26,6 +29,110 @@ fn sensor(k: &Intrinsics, w: usize, h: usize) -> Intrinsics {
 
 fn sensor_24mp(k: &Intrinsics) -> Intrinsics {
     sensor(k, 6000, 4000)
+}
+
+/// A 1600x1200 sphere (radius 416 px) goes through the search on the image downsampled by 2,
+/// the full-resolution profiles that follow its elliptical outline and the window around it
+/// for the highlight: the light within 0.1 deg and within twice the uncertainty it reports,
+/// nearly every profile kept.
+#[test]
+fn a_large_sphere_through_the_downsampled_search() {
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    for i in 0..2 {
+        let mut scene = SphereScene::new(Vector3::z());
+        scene.light_dir = random_dir_around(&mut rng, &scene.view_axis(), 10.0, 70.0);
+        scene.intr = sensor(&scene.intr, 1600, 1200);
+        scene.supersample = 1;
+        let light = scene.render_light(60 + i);
+        let ambient = scene.render_ambient(70 + i);
+        let cal = calibrate_light(
+            &[SphereShot {
+                light: &light,
+                outline: OutlineInput::Image(&ambient),
+            }],
+            &scene.intr,
+            &SphereOptions {
+                saturation: Some(1.0),
+                ..SphereOptions::default()
+            },
+        )
+        .unwrap();
+        let err = cal.dir_camera.angle(&scene.light_dir).to_degrees();
+        let o = &cal.per_image[0].outline;
+        println!(
+            "1600x1200 sphere {i}: error {err:.4} deg, reported {:.4} deg, {} edge points, scatter {:.3} px",
+            cal.uncertainty_deg,
+            o.edge_points,
+            o.rms_residual_rad * scene.intr.fx
+        );
+        assert!(
+            err < 0.1 && err < 2.0 * cal.uncertainty_deg,
+            "{err} {}",
+            cal.uncertainty_deg
+        );
+        assert!(o.edge_points >= 1400, "{}", o.edge_points);
+    }
+}
+
+/// A 2400x1800 board (about 800 000 board pixels, glints and dust) is found on the image
+/// downsampled to 1200 px and read on a lattice: the irradiance within 0.5 % per channel, every
+/// board pixel counted; pure noise at that size is still refused.
+#[test]
+fn a_large_board_is_found_downsampled_and_read_on_a_lattice() {
+    let l = Vector3::new(0.2, -0.3, -1.0).normalize();
+    let mut board = BoardScene::new(l);
+    board.intr = sensor(&board.intr, 2400, 1800);
+    board.supersample = 1;
+    board.glints = 300;
+    board.dust = 300;
+    let img = board.render(9);
+    let r = calibrate_irradiance(
+        &img,
+        board.albedo,
+        &l,
+        Some(&board.normal),
+        &BoardRegion::Detect,
+        &WhiteOptions {
+            saturation: Some(1.0),
+            ..WhiteOptions::default()
+        },
+    )
+    .unwrap();
+    let truth = board.irradiance;
+    for (k, (got, want)) in r.irradiance.iter().zip(truth.iter()).enumerate() {
+        let rel = (got - want).abs() / want;
+        assert!(rel < 0.005, "channel {k}: {got} against {want}");
+    }
+    // every pixel of the board but a rim of a few blocks is counted; the fit read a lattice
+    let k = &board.intr;
+    let on_board = (0..k.width * k.height)
+        .filter(|&i| {
+            let (x, y) = ((i % k.width) as f64 + 0.5, (i / k.width) as f64 + 0.5);
+            board.on_board(&Vector3::new((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.0).normalize())
+        })
+        .count();
+    let counted = r.pixels_on_board + r.pixels_saturated;
+    println!(
+        "2400x1800 board: {counted} of {on_board} board pixels counted, read every {} px, {} used",
+        r.sample_stride, r.pixels_used
+    );
+    assert!(counted <= on_board && counted as f64 > 0.95 * on_board as f64);
+    assert!(r.sample_stride >= 2 && r.pixels_used <= 250_000 && r.pixels_used > 100_000);
+    // pure noise of that size
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let noise: Vec<f32> = (0..2000 * 1500 * 3)
+        .map(|_| rand::Rng::gen_range(&mut rng, 0.0..0.5))
+        .collect();
+    let e = calibrate_irradiance(
+        &LinearImage::from_rgb(2000, 1500, noise).unwrap(),
+        [0.8; 3],
+        &Vector3::new(0.0, 0.0, -1.0),
+        None,
+        &BoardRegion::Detect,
+        &WhiteOptions::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, WhiteError::NoBoard { .. }), "{e}");
 }
 
 #[test]

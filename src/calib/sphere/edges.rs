@@ -82,24 +82,32 @@ pub fn detect_outline(
     if f == 1 {
         return locate(&lum, intr, opts);
     }
-    // A large image: the outline is found on the image downsampled to about 750 px, then
-    // measured again at full resolution along profiles across it (twice, the second time
-    // centred on the first full-resolution fit), so that only a band around it is read.
-    let coarse_opts = SphereOptions {
-        min_radius_px: (opts.min_radius_px / f as f64).max(3.0),
-        ..*opts
+    // A large image: the outline is found on the image downsampled to about 500 px (a small
+    // sphere: 1500 px), then measured again at full resolution along profiles across it (twice,
+    // the second time centred on the first full-resolution fit), so that only a band around it
+    // is read.
+    let at = |f: usize| {
+        let coarse_opts = SphereOptions {
+            min_radius_px: (opts.min_radius_px / f as f64).max(3.0),
+            ..*opts
+        };
+        locate(
+            &lum.box_down(f),
+            &scale::coarse_intrinsics(intr, f),
+            &coarse_opts,
+        )
     };
-    let coarse = locate(
-        &lum.box_down(f),
-        &scale::coarse_intrinsics(intr, f),
-        &coarse_opts,
-    )?;
+    let coarse = match (at(f), scale::retry_factor(w, h)) {
+        (Err(SphereError::NoSphere { .. }), Some(finer)) => at(finer)?,
+        (first, _) => first?,
+    };
     let circle = outline_circle(&coarse, intr, w, h);
     let first = match measure(
         &lum,
         &Guide::along(&coarse, circle),
         SEARCH_PX,
         FIRST_PASS_PROFILES,
+        None,
         intr,
         opts,
     ) {
@@ -109,7 +117,8 @@ pub fn detect_outline(
         Some(m) => m,
         None => return Err(no_sphere(&circle, None)),
     };
-    finish(&lum, intr, opts, &first.outline, &first)
+    // the final pass keeps the first's blur: the same lens on the same edge
+    finish(&lum, intr, opts, &first.outline, &first, Some(first.sigma))
 }
 
 /// The outline in the image as given (the whole search: candidates, the outermost concentric
@@ -139,7 +148,17 @@ fn locate(
     };
     let (measured, not_round): (Vec<Measured>, Vec<Measured>) = seeds
         .par_iter()
-        .filter_map(|s| measure(lum, &Guide::circle(*s), SEARCH_PX, MAX_PROFILES, intr, opts))
+        .filter_map(|s| {
+            measure(
+                lum,
+                &Guide::circle(*s),
+                SEARCH_PX,
+                MAX_PROFILES,
+                None,
+                intr,
+                opts,
+            )
+        })
         .collect::<Vec<_>>()
         .into_iter()
         .partition(|m| m.rms_px <= max_outline_rms_px(m.outline.radius_px));
@@ -188,6 +207,7 @@ fn locate(
                 &Guide::circle(probe),
                 SEARCH_PX,
                 MAX_PROFILES,
+                None,
                 intr,
                 opts,
             )
@@ -196,28 +216,31 @@ fn locate(
         .collect::<Vec<_>>()
         .pop();
     let around = outer.as_ref().map_or(&best.outline, |m| &m.outline);
-    finish(lum, intr, opts, around, best)
+    finish(lum, intr, opts, around, best, None)
 }
 
 /// The outline measured once more with the profiles centred on `around`, and checked: enough
-/// support, inside the frame; `fitted` stands when no profile fits there.
+/// support, inside the frame; `fitted` stands when no profile fits there. `blur`: the profiles'
+/// blur when already known, else searched again.
 fn finish(
     lum: &Plane,
     intr: &Intrinsics,
     opts: &SphereOptions,
     around: &SphereOutline,
     fitted: &Measured,
+    blur: Option<f64>,
 ) -> Result<SphereOutline, SphereError> {
     let (w, h) = (lum.width, lum.height);
     let circle = outline_circle(around, intr, w, h);
     let guide = Guide::along(around, circle);
-    let (outline, support) = match measure(lum, &guide, FINAL_SEARCH_PX, MAX_PROFILES, intr, opts) {
-        Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
-            return Err(not_a_sphere(&m));
-        }
-        Some(m) => (m.outline, m.support),
-        None => (fitted.outline.clone(), fitted.support),
-    };
+    let (outline, support) =
+        match measure(lum, &guide, FINAL_SEARCH_PX, MAX_PROFILES, blur, intr, opts) {
+            Some(m) if m.rms_px > max_outline_rms_px(m.outline.radius_px) => {
+                return Err(not_a_sphere(&m));
+            }
+            Some(m) => (m.outline, m.support),
+            None => (fitted.outline.clone(), fitted.support),
+        };
     if support < MIN_SUPPORT {
         return Err(no_sphere(&circle, Some(support)));
     }
@@ -379,6 +402,8 @@ fn steepest_point(positions: &[f64], samples: &[f64], lo: f64, hi: f64) -> Optio
 /// An outline measured around a candidate circle.
 struct Measured {
     outline: SphereOutline,
+    /// The blur (pixels) the profiles were fitted with.
+    sigma: f64,
     /// Fraction of the profiles around the circle whose edge was kept by the fit.
     support: f64,
     /// Median step between backdrop and sphere across the kept profiles.
@@ -402,6 +427,7 @@ fn measure(
     guide: &Guide<'_>,
     search_px: f64,
     max_profiles: usize,
+    blur: Option<f64>,
     intr: &Intrinsics,
     opts: &SphereOptions,
 ) -> Option<Measured> {
@@ -456,18 +482,23 @@ fn measure(
             steepest + STEEPEST_TO_EDGE_PX,
         ))
     };
-    // the blur: searched on a subset of the profiles, the median used for all
-    let stride = (profiles.len() / BLUR_PROFILES).max(1);
-    let mut sigmas: Vec<f64> = profiles
-        .par_iter()
-        .step_by(stride)
-        .filter_map(|p| {
-            let (lo, hi) = range(p)?;
-            model.fit(&positions, &p.samples, lo, hi, None)
-        })
-        .map(|f| f.sigma)
-        .collect();
-    let sigma = crate::calib::robust::median(&mut sigmas)?;
+    // the blur: given, or searched on a subset of the profiles, the median used for all
+    let sigma = match blur {
+        Some(s) => s,
+        None => {
+            let stride = (profiles.len() / BLUR_PROFILES).max(1);
+            let mut sigmas: Vec<f64> = profiles
+                .par_iter()
+                .step_by(stride)
+                .filter_map(|p| {
+                    let (lo, hi) = range(p)?;
+                    model.fit(&positions, &p.samples, lo, hi, None)
+                })
+                .map(|f| f.sigma)
+                .collect();
+            crate::calib::robust::median(&mut sigmas)?
+        }
+    };
     let fits: Vec<(&Profile, super::rim::RimFit)> = profiles
         .par_iter()
         .filter_map(|p| {
@@ -519,6 +550,7 @@ fn measure(
     let rms_px = outline.rms_residual_rad * 0.5 * (intr.fx + intr.fy);
     Some(Measured {
         outline,
+        sigma,
         support,
         rms_px,
         contrast: crate::calib::robust::median(&mut steps)?,

@@ -1,7 +1,7 @@
 //! Working on a large image at the scale the sphere needs: the outline is found on a
 //! box-downsampled luminance and refined at full resolution along profiles across it (`edges`),
 //! the highlight is looked for in a window around the sphere (`highlight`), so that the time no
-//! longer grows with the sensor's pixel count. Images up to `COARSE_WIDTH_PX` wide (every test
+//! longer grows with the sensor's pixel count. Images up to `WHOLE_WIDTH_PX` wide (every test
 //! image) are used whole.
 //!
 //! Conventions: as `calib::sphere`; a coarse pixel `(i, j)` averages the full pixels
@@ -13,18 +13,34 @@ use crate::calib::regions;
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 
-/// Width (pixels) from which the outline is searched on a downsampled image, and about the width
-/// it is downsampled to. The search over candidates (a rim fit on every profile of each, and
-/// the probes outside the best) costs as the sphere's circumference times its rim band, about
-/// the square of the width: on the 24 MP fixture it took 12 s at 1500 px and 3 s at 750 px
-/// (load average 9), with the same light direction to 1e-7, since the full-resolution profiles
-/// measure the outline again (docs/calibration.md).
-const COARSE_WIDTH_PX: usize = 750;
+/// Width (pixels) up to which an image is used whole (every test image is), and about the width
+/// a larger one is downsampled to for the outline's search. The search over candidates (a rim
+/// fit on every profile of each, and the probes outside the best) costs as the sphere's
+/// circumference times its rim band, about the square of the width: on the 24 MP fixture it
+/// took 12 s at 1500 px, 1.3 s at 750 px and 0.7 s at 500 px, with the same light direction,
+/// since the full-resolution profiles measure the outline again (docs/calibration.md).
+const WHOLE_WIDTH_PX: usize = 1000;
+const COARSE_WIDTH_PX: usize = 500;
+/// A sphere must span a few coarse pixels to be found (`min_radius_px`, at least 3): one too
+/// small for the coarse image (under 36 px of radius at 24 MP) is looked for again at about
+/// this width before the search gives up.
+const RETRY_WIDTH_PX: usize = 1500;
 
-/// The integer downsampling factor for a `w`x`h` image: 1 up to `COARSE_WIDTH_PX` (the image is
-/// used whole), else the factor that brings the larger side to about that width.
+/// The integer downsampling factor for a `w`x`h` image: 1 up to `WHOLE_WIDTH_PX` (the image is
+/// used whole), else the factor that brings the larger side to about `COARSE_WIDTH_PX`.
 pub(super) fn factor(w: usize, h: usize) -> usize {
-    regions::downsample_factor(w, h, COARSE_WIDTH_PX)
+    if w.max(h) <= WHOLE_WIDTH_PX {
+        1
+    } else {
+        regions::downsample_factor(w, h, COARSE_WIDTH_PX)
+    }
+}
+
+/// The factor of the second search, for a sphere too small for the first (`factor`); `None`
+/// when it would not be finer.
+pub(super) fn retry_factor(w: usize, h: usize) -> Option<usize> {
+    let f = regions::downsample_factor(w, h, RETRY_WIDTH_PX);
+    (f < factor(w, h)).then_some(f)
 }
 
 /// The camera of the image downsampled by `f` (as [`regions::Plane::box_down`]).
@@ -88,7 +104,13 @@ mod tests {
     #[test]
     fn a_coarse_camera_keeps_coordinates_proportional() {
         assert_eq!(factor(640, 480), 1);
-        assert_eq!(factor(6000, 4000), 8);
+        assert_eq!(factor(1000, 750), 1);
+        assert_eq!(factor(1600, 1200), 3);
+        assert_eq!(factor(6000, 4000), 12);
+        assert_eq!(retry_factor(6000, 4000), Some(4));
+        assert_eq!(retry_factor(1600, 1200), Some(2));
+        // an image used whole has no finer search to retry with
+        assert_eq!(retry_factor(1000, 750), None);
         // a coarse pixel centre maps to the full-resolution centre of its block
         let k = Intrinsics::pinhole(7, 5, 10.0, 10.0, 3.5, 2.5);
         let c = coarse_intrinsics(&k, 2);
