@@ -355,18 +355,6 @@ fn a_brighter_lamp_elsewhere_in_the_frame_is_ignored() {
     assert!(angle_deg(&cal.dir_camera, &l) < 0.5);
 }
 
-/// The mirror normal of a sphere for light `l`: `n = (l + v) / |l + v|` with `v` the view
-/// direction at the point of normal `n` (fixed point; perspective makes `v` depend on `n`).
-fn true_mirror_normal(scene: &SphereScene) -> Vector3<f64> {
-    let c = scene.centre;
-    let mut n = (scene.light_dir - c.normalize()).normalize();
-    for _ in 0..100 {
-        let v = -(c + n * scene.radius).normalize();
-        n = (scene.light_dir + v).normalize();
-    }
-    n
-}
-
 #[test]
 fn error_budget_outline_and_highlight_separately() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
@@ -387,7 +375,7 @@ fn error_budget_outline_and_highlight_separately() {
             &SphereOptions::default(),
         )
         .unwrap();
-        normal_err = normal_err.max(h.normal.angle(&true_mirror_normal(&scene)));
+        normal_err = normal_err.max(h.normal.angle(&scene.mirror_normal()));
     }
     let px = 1.0 / scene_focal();
     eprintln!(

@@ -65,38 +65,45 @@ pub fn schlick(cos: f64) -> f64 {
     0.04 + 0.96 * (1.0 - cos.clamp(0.0, 1.0)).powi(5)
 }
 
-/// Casts `ss x ss` rays per pixel and averages `shade(ray, x, y)`.
+/// Casts `ss x ss` rays per pixel and averages `shade(ray, x, y)` (rows in parallel).
 fn render(
     intr: &Intrinsics,
     ss: usize,
-    shade: impl Fn(&Vector3<f64>, f64, f64) -> [f64; 3],
+    shade: impl Fn(&Vector3<f64>, f64, f64) -> [f64; 3] + Sync,
 ) -> LinearImage {
+    use rayon::prelude::*;
     let mut img = LinearImage::new(intr.width, intr.height);
     let inv = 1.0 / (ss * ss) as f64;
-    for y in 0..intr.height {
-        for x in 0..intr.width {
-            let mut acc = [0.0; 3];
-            for j in 0..ss {
-                for i in 0..ss {
-                    let px = x as f64 + (i as f64 + 0.5) / ss as f64;
-                    let py = y as f64 + (j as f64 + 0.5) / ss as f64;
-                    // with lens distortion the pixel's ray goes through the camera model's
-                    // undistortion (itself tested by a round trip in geometry::camera)
-                    let ray = if intr.has_distortion() {
-                        intr.ray(px, py)
-                    } else {
-                        Vector3::new((px - intr.cx) / intr.fx, (py - intr.cy) / intr.fy, 1.0)
-                            .normalize()
-                    };
-                    let c = shade(&ray, px, py);
-                    for k in 0..3 {
-                        acc[k] += c[k] * inv;
+    let w = intr.width;
+    img.data_mut()
+        .par_chunks_mut(3 * w)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, out) in row.chunks_exact_mut(3).enumerate() {
+                let mut acc = [0.0; 3];
+                for j in 0..ss {
+                    for i in 0..ss {
+                        let px = x as f64 + (i as f64 + 0.5) / ss as f64;
+                        let py = y as f64 + (j as f64 + 0.5) / ss as f64;
+                        // with lens distortion the pixel's ray goes through the camera model's
+                        // undistortion (itself tested by a round trip in geometry::camera)
+                        let ray = if intr.has_distortion() {
+                            intr.ray(px, py)
+                        } else {
+                            Vector3::new((px - intr.cx) / intr.fx, (py - intr.cy) / intr.fy, 1.0)
+                                .normalize()
+                        };
+                        let c = shade(&ray, px, py);
+                        for k in 0..3 {
+                            acc[k] += c[k] * inv;
+                        }
                     }
                 }
+                for k in 0..3 {
+                    out[k] = acc[k] as f32;
+                }
             }
-            img.set(x, y, acc.map(|v| v as f32));
-        }
-    }
+        });
     img
 }
 
@@ -120,6 +127,10 @@ pub struct SphereScene {
     pub ambient: f64,
     /// A second, weaker light: direction and strength relative to the main one.
     pub second_light: Option<(Vector3<f64>, f64)>,
+    /// The lobe times `n.l / (n_h.l)` (a BRDF's radiance carries the light's cosine; equal to
+    /// the plain lobe at the mirror normal `n_h`); off, the lobe is radiance as it is, one cosine
+    /// off what the calibration assumes.
+    pub lobe_cosine: bool,
     /// Fresnel reflection of the backdrop (Schlick, F0 = 0.04) in both images: a real glossy
     /// sphere's rim fades into the backdrop at grazing angles, which shrinks its apparent outline.
     pub fresnel_rim: bool,
@@ -145,6 +156,7 @@ impl SphereScene {
             backdrop: 0.25,
             ambient: 0.3,
             second_light: None,
+            lobe_cosine: false,
             fresnel_rim: true,
             post: None,
             noise: Noise {
@@ -159,6 +171,18 @@ impl SphereScene {
     /// The direction from the sphere centre to the camera.
     pub fn view_axis(&self) -> Vector3<f64> {
         -self.centre.normalize()
+    }
+
+    /// The sphere's mirror normal for its light: `n = (l + v) / |l + v|` with `v` the view
+    /// direction at the point of normal `n` (fixed point; perspective makes `v` depend on `n`).
+    pub fn mirror_normal(&self) -> Vector3<f64> {
+        let c = self.centre;
+        let mut n = (self.light_dir - c.normalize()).normalize();
+        for _ in 0..100 {
+            let v = -(c + n * self.radius).normalize();
+            n = (self.light_dir + v).normalize();
+        }
+        n
     }
 
     /// True where the post covers pixel position `(px, py)` (behind the sphere).
@@ -196,7 +220,12 @@ impl SphereScene {
             let v = -ray;
             let lobe = |l: &Vector3<f64>| {
                 let h = (l + v).normalize();
-                self.specular * n.dot(&h).max(0.0).powf(self.exponent)
+                let cosine = if self.lobe_cosine {
+                    n.dot(l).max(0.0) / h.dot(l).max(1e-6)
+                } else {
+                    1.0
+                };
+                self.specular * n.dot(&h).max(0.0).powf(self.exponent) * cosine
             };
             let mut s =
                 self.diffuse_albedo / PI * n.dot(&self.light_dir).max(0.0) + lobe(&self.light_dir);

@@ -2,11 +2,11 @@
 //! entry point a capture session calls ([`calibrate_light`]).
 //!
 //! Conventions: as `calib` (camera axes, unit vectors towards the light). Uncertainties are
-//! standard (one sigma) angles. Several images (the sphere moved, or re-shot) are combined by an
-//! inverse-variance weighted mean of their unit vectors; the reported uncertainty is the larger
-//! of the standard error from their scatter and the first-order fit uncertainty, so one image
-//! still gets an honest (model-based) figure and several images cannot claim less than they
-//! scatter. Pure: no I/O.
+//! RMS angles to the truth (`calib::sphere::uncertainty`), like the spread of several images.
+//! Several images (the sphere moved, or re-shot) are combined by an inverse-variance weighted
+//! mean of their unit vectors; the reported uncertainty is the larger of the standard error from
+//! their scatter and the images' own (model-based) uncertainty, so one image still gets an
+//! honest figure and several images cannot claim less than they scatter. Pure: no I/O.
 
 use super::sphere::{self, SphereError, SphereLight, SphereOptions, SphereOutline};
 use crate::geometry::camera::Intrinsics;
@@ -66,7 +66,7 @@ pub struct LightCalibration {
     pub spread_deg: f64,
     /// `spread_deg / sqrt(n)`.
     pub std_error_deg: f64,
-    /// First-order uncertainty from the outline fits, combined over the images.
+    /// The images' own uncertainties (outline, highlight, lobe shape), combined.
     pub fit_uncertainty_deg: f64,
     pub per_image: Vec<SphereLight>,
 }
@@ -109,6 +109,7 @@ pub fn calibrate_light(
     let mut per_image = Vec::with_capacity(shots.len());
     for (index, shot) in shots.iter().enumerate() {
         let at = |source| LightError::Image { index, source };
+        let started = std::time::Instant::now();
         let outline = match shot.outline {
             OutlineInput::FromLightImage => sphere::detect_outline(shot.light, intr, opts),
             OutlineInput::Image(img) => sphere::detect_outline(img, intr, opts),
@@ -117,7 +118,10 @@ pub fn calibrate_light(
             }
         }
         .map_err(at)?;
-        per_image.push(sphere::light_from_sphere(shot.light, &outline, intr, opts).map_err(at)?);
+        let outline_secs = started.elapsed().as_secs_f64();
+        let mut one = sphere::light_from_sphere(shot.light, &outline, intr, opts).map_err(at)?;
+        one.outline_secs = outline_secs;
+        per_image.push(one);
     }
     Ok(combine(per_image))
 }

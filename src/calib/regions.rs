@@ -44,6 +44,55 @@ impl Plane {
         }
     }
 
+    /// The mean luminance of each `f`x`f` block of `img` (a partial block at the right or
+    /// bottom is dropped), without a full-resolution plane in between; `f = 1` is
+    /// [`Plane::luminance`].
+    pub fn luminance_box_down(img: &LinearImage, f: usize) -> Self {
+        let f = f.max(1);
+        let (w, h) = (img.width() / f, img.height() / f);
+        let mut data = vec![0f32; w * h];
+        let norm = 1.0 / (3 * f * f) as f32;
+        let full = img.width();
+        for (j, row) in data.chunks_mut(w.max(1)).enumerate().take(h) {
+            for y in j * f..(j + 1) * f {
+                let src = &img.data()[3 * y * full..3 * (y * full + w * f)];
+                for (i, v) in row.iter_mut().enumerate() {
+                    *v += src[3 * i * f..3 * (i + 1) * f].iter().sum::<f32>();
+                }
+            }
+            row.iter_mut().for_each(|v| *v *= norm);
+        }
+        Self {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
+    /// The mean of each `f`x`f` block (a partial block at the right or bottom is dropped): a
+    /// coarse pixel `(i, j)` averages `[f i, f i + f) x [f j, f j + f)`, so full-resolution
+    /// coordinates are `f` times coarse ones (pixel centres at half-integers in both).
+    pub fn box_down(&self, f: usize) -> Self {
+        let f = f.max(1);
+        let (w, h) = (self.width / f, self.height / f);
+        let mut data = vec![0f32; w * h];
+        let norm = 1.0 / (f * f) as f32;
+        for (j, row) in data.chunks_mut(w.max(1)).enumerate().take(h) {
+            for y in j * f..(j + 1) * f {
+                let src = &self.data[y * self.width..y * self.width + w * f];
+                for (i, v) in row.iter_mut().enumerate() {
+                    *v += src[i * f..(i + 1) * f].iter().sum::<f32>();
+                }
+            }
+            row.iter_mut().for_each(|v| *v *= norm);
+        }
+        Self {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
     pub fn at(&self, x: usize, y: usize) -> f32 {
         self.data[y * self.width + x]
     }
@@ -70,6 +119,17 @@ impl Plane {
             height: h,
             data: out,
         }
+    }
+}
+
+/// The integer downsampling factor that brings a `w`x`h` image's larger side to about
+/// `target_px`: 1 up to `target_px` (the image is used whole), else at least 2.
+pub fn downsample_factor(w: usize, h: usize, target_px: usize) -> usize {
+    let side = w.max(h);
+    if side <= target_px {
+        1
+    } else {
+        (side as f64 / target_px.max(1) as f64).round().max(2.0) as usize
     }
 }
 
@@ -134,9 +194,9 @@ pub fn quantile(values: &[f32], q: f64) -> Option<f32> {
     if v.is_empty() {
         return None;
     }
-    v.sort_by(f32::total_cmp);
+    // a selection, not a sort: linear in the pixel count
     let i = ((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
-    Some(v[i])
+    Some(*v.select_nth_unstable_by(i, f32::total_cmp).1)
 }
 
 /// One 8-connected component of a mask: pixel indices (`y * width + x`).
@@ -341,6 +401,41 @@ pub fn fit_circle(points: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
+
+    #[test]
+    fn box_down_averages_blocks_and_luminance_comes_down_the_same_way() {
+        let (w, h) = (7, 5);
+        let p = Plane {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .map(|i| ((i % w) + 10 * (i / w)) as f32)
+                .collect(),
+        };
+        let d = p.box_down(2);
+        assert_eq!((d.width, d.height), (3, 2));
+        // block (1, 1): x 2..4, y 2..4 -> mean x 2.5, mean y 2.5
+        assert!((d.at(1, 1) - (2.5 + 25.0)).abs() < 1e-5);
+        assert_eq!(p.box_down(1), p);
+        // an image whose channels are v, 2v, 3v: its luminance is 2v
+        let rgb: Vec<f32> = p.data.iter().flat_map(|&v| [v, 2.0 * v, 3.0 * v]).collect();
+        let img = LinearImage::from_rgb(w, h, rgb).unwrap();
+        let l = Plane::luminance_box_down(&img, 2);
+        assert_eq!((l.width, l.height), (3, 2));
+        for (a, b) in l.data.iter().zip(&d.data) {
+            assert!((a - 2.0 * b).abs() < 1e-4, "{a} {b}");
+        }
+        assert_eq!(Plane::luminance_box_down(&img, 1), Plane::luminance(&img));
+    }
+
+    #[test]
+    fn small_images_are_used_whole_and_large_ones_come_down_to_about_the_target() {
+        assert_eq!(downsample_factor(320, 240, 750), 1);
+        assert_eq!(downsample_factor(750, 500, 750), 1);
+        assert_eq!(downsample_factor(6000, 4000, 750), 8);
+        assert_eq!(downsample_factor(4000, 6000, 750), 8);
+        assert_eq!(downsample_factor(800, 600, 750), 2);
+    }
 
     #[test]
     fn circle_fit_recovers_exact_circle() {

@@ -4,17 +4,20 @@
 //! Conventions: `mad_sigma` is scaled by 1.4826 so it estimates the standard deviation of
 //! Gaussian data. Pure: no I/O.
 
-/// Median of `values` (reorders them); `None` when empty or when a value is NaN.
+/// Median of `values` (reorders them); `None` when empty or when a value is NaN. A selection,
+/// not a sort: linear in the number of values (millions of a 24 MP board's pixels).
 pub fn median(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() || values.iter().any(|v| v.is_nan()) {
         return None;
     }
-    values.sort_by(f64::total_cmp);
     let n = values.len();
+    let (lower, &mut upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
     Some(if n % 2 == 1 {
-        values[n / 2]
+        upper
     } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
+        // the largest of the lower half is the other middle value
+        let below = lower.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        0.5 * (below + upper)
     })
 }
 

@@ -3,11 +3,14 @@
 //! Conventions: as `calib::sphere`. Pure: no I/O.
 
 use super::mirror::reflect;
+use super::scale;
+use super::uncertainty;
 use super::{SphereError, SphereOptions, SphereOutline, check_size};
 use crate::calib::regions::{self, Plane};
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// The specular highlight on the sphere.
 #[derive(Clone, Debug, PartialEq)]
@@ -16,6 +19,11 @@ pub struct Highlight {
     pub centroid_px: [f64; 2],
     /// Sphere normal at the highlight (weighted mean in normal space).
     pub normal: Vector3<f64>,
+    /// RMS angle (radians) by which `normal` may be off from the highlight alone: its noise,
+    /// its sampling and its lobe's shape (`uncertainty`).
+    pub uncertainty_rad: f64,
+    /// The lobe's width (pixels, RMS along its narrower axis).
+    pub width_px: f64,
     /// Pixels in the highlight region, and how many of them are clipped.
     pub pixels: usize,
     pub saturated_pixels: usize,
@@ -33,6 +41,8 @@ pub struct Highlight {
 /// the clip level. Brighter things elsewhere in the frame (a lamp, a lit wall) are ignored; when
 /// nothing on the sphere stands out but a compact bright spot lies off it, the outline and the
 /// light image disagree: [`SphereError::HighlightOutsideSphere`].
+/// On a large image only a window around the sphere is searched (`scale`), so a bright spot
+/// far off the sphere is not reported as such.
 pub fn find_highlight(
     img: &LinearImage,
     outline: &SphereOutline,
@@ -40,6 +50,45 @@ pub fn find_highlight(
     opts: &SphereOptions,
 ) -> Result<Highlight, SphereError> {
     check_size(img, intr, "the light image")?;
+    let Some((crop, k, o, [x0, y0])) = scale::sphere_window(img, outline, intr) else {
+        return find_in(img, outline, intr, opts);
+    };
+    let (dx, dy) = (x0 as f64, y0 as f64);
+    match find_in(&crop, &o, &k, opts) {
+        Ok(mut hl) => {
+            hl.centroid_px[0] += dx;
+            hl.centroid_px[1] += dy;
+            Ok(hl)
+        }
+        Err(SphereError::HighlightAtRim {
+            x,
+            y,
+            normal_from_view_deg,
+        }) => Err(SphereError::HighlightAtRim {
+            x: x + dx,
+            y: y + dy,
+            normal_from_view_deg,
+        }),
+        Err(SphereError::HighlightOutsideSphere { x, y, .. }) => {
+            Err(SphereError::HighlightOutsideSphere {
+                x: x + dx,
+                y: y + dy,
+                cx: outline.centre_px[0],
+                cy: outline.centre_px[1],
+                radius_px: outline.radius_px,
+            })
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// [`find_highlight`] in the image as given.
+fn find_in(
+    img: &LinearImage,
+    outline: &SphereOutline,
+    intr: &Intrinsics,
+    opts: &SphereOptions,
+) -> Result<Highlight, SphereError> {
     let (w, h) = (img.width(), img.height());
     let sat = opts.saturation;
     let lum = Plane::luminance(img);
@@ -49,16 +98,20 @@ pub fn find_highlight(
     // the sphere's own pixels, two pixels in from the rim (rim pixels mix with the backdrop)
     let f = 0.5 * (intr.fx + intr.fy);
     let cos_inner = (outline.angular_radius_rad - 2.0 / f).max(0.0).cos();
+    // each pixel's ray against the sphere's centre direction, once (rows in parallel)
+    let cos_c: Vec<f64> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            intr.ray((i % w) as f64 + 0.5, (i / w) as f64 + 0.5)
+                .dot(&outline.centre_dir)
+        })
+        .collect();
     let mut inside = Vec::new();
     let mut peak_inside = f32::MIN;
-    for y in 0..h {
-        for x in 0..w {
-            let ray = intr.ray(x as f64 + 0.5, y as f64 + 0.5);
-            if ray.dot(&outline.centre_dir) > cos_inner {
-                let v = eff[y * w + x];
-                inside.push(v as f64);
-                peak_inside = peak_inside.max(v);
-            }
+    for (&c, &v) in cos_c.iter().zip(&eff) {
+        if c > cos_inner {
+            inside.push(v as f64);
+            peak_inside = peak_inside.max(v);
         }
     }
     let mut sorted = inside.clone();
@@ -109,9 +162,8 @@ pub fn find_highlight(
     // on the sphere: centred on it, and mostly on it (a ring of backdrop around the sphere, joined
     // through a bright Fresnel rim, is centred on it too)
     let on_sphere = |c: &regions::Component, x: f64, y: f64| {
-        let pixel_on = |i: &&usize| {
-            outline.contains_pixel(intr, (**i % w) as f64 + 0.5, (**i / w) as f64 + 0.5)
-        };
+        let cos_a = outline.angular_radius_rad.cos();
+        let pixel_on = |i: &&usize| cos_c[**i] > cos_a;
         outline.contains_pixel(intr, x, y)
             && 2 * c.pixels.iter().filter(pixel_on).count() >= c.pixels.len()
     };
@@ -130,8 +182,8 @@ pub fn find_highlight(
     // pixel weighted by its excess. The tails carry the sub-pixel position, and any weight that
     // is a function of the brightness alone (clipping included) keeps the mean on the mirror
     // normal of an isotropic lobe.
-    let background = radial_background(&eff, outline, intr, w, h);
-    let excess = |i: usize| background[i].map(|b| f64::from(eff[i]) - b);
+    let background = RadialBackground::new(&eff, &cos_c, outline);
+    let excess = |i: usize| background.at(i).map(|b| f64::from(eff[i]) - b);
     let peak_excess = best
         .pixels
         .iter()
@@ -143,10 +195,10 @@ pub fn find_highlight(
     // A highlight on the rim is cut by the limb and seen edge-on: a pixel there spans degrees
     // of normal, and its lobe's centre cannot be found.
     let rim_gap = RIM_BAND_PX / f;
-    let on_rim = best.pixels.iter().any(|&i| {
-        let ray = intr.ray((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
-        ray.dot(&outline.centre_dir).clamp(-1.0, 1.0).acos() > outline.angular_radius_rad - rim_gap
-    });
+    let on_rim = best
+        .pixels
+        .iter()
+        .any(|&i| cos_c[i].clamp(-1.0, 1.0).acos() > outline.angular_radius_rad - rim_gap);
     if on_rim {
         return Err(at_rim(outline, intr, best_xy.0, best_xy.1));
     }
@@ -195,7 +247,27 @@ pub fn find_highlight(
         .filter(|p| p.5)
         .map(|p| p.4 / cos_l(p))
         .fold(f64::INFINITY, f64::min);
-    let n_sum = mean_normal(&|p| (p.4 / cos_l(p)).min(cap));
+    let weight = |p: &LobePixel| (p.4 / cos_l(p)).min(cap);
+    let n_sum = mean_normal(&weight);
+    let normal = n_sum.normalize();
+    // how far that mean may be off (`uncertainty`): each pixel's weight and its noise (none
+    // where the cap holds it), the view at the highlight, a pixel's span of normal there
+    let samples: Vec<uncertainty::LobePixel> = px
+        .iter()
+        .filter(|p| p.3 > 0.0)
+        .map(|p| uncertainty::LobePixel {
+            x: p.0,
+            y: p.1,
+            normal: p.2,
+            weight: weight(p) * p.3,
+            weight_sigma: noise / cos_l(p) * p.3,
+            capped: p.4 / cos_l(p) >= cap,
+        })
+        .collect();
+    let view = -(outline.centre_in_radii() + normal).normalize();
+    let normal_per_px = 1.0 / (outline.radius_px.max(1.0) * normal.dot(&view).max(0.05));
+    let (uncertainty_rad, width_px) =
+        uncertainty::highlight_rms_rad(&samples, &normal, &view, normal_per_px);
     let top = best
         .pixels
         .iter()
@@ -208,7 +280,9 @@ pub fn find_highlight(
         .count();
     Ok(Highlight {
         centroid_px: [x, y],
-        normal: n_sum.normalize(),
+        normal,
+        uncertainty_rad,
+        width_px,
         pixels: lobe.len(),
         saturated_pixels: saturated,
         peak: peak_region,
@@ -241,48 +315,53 @@ const LOBE_FRACTION: f64 = 0.02;
 /// quantile of the pixels at the same distance from the outline's centre. What a glossy sphere
 /// shows besides the highlight (the mirrored backdrop brightening towards the rim, a dim diffuse
 /// base) changes mostly with that distance, and a highlight covers only part of each ring.
-fn radial_background(
-    eff: &[f32],
-    outline: &SphereOutline,
-    intr: &Intrinsics,
-    w: usize,
-    h: usize,
-) -> Vec<Option<f64>> {
-    const MIN_PER_RING: usize = 16;
-    let cos_a = outline.angular_radius_rad.cos();
-    let rings = outline.radius_px.ceil().max(1.0) as usize;
-    // ring index of each sphere pixel by the angle of its ray from the centre direction
-    let mut ring_of = vec![None; w * h];
-    let mut members: Vec<Vec<f64>> = vec![Vec::new(); rings];
-    for y in 0..h {
-        for x in 0..w {
-            let ray = intr.ray(x as f64 + 0.5, y as f64 + 0.5);
-            let c = ray.dot(&outline.centre_dir);
+struct RadialBackground {
+    /// Ring of each pixel (`u32::MAX` off the sphere) and each ring's level.
+    ring_of: Vec<u32>,
+    level: Vec<Option<f64>>,
+}
+
+impl RadialBackground {
+    /// From the effective luminance and each pixel's ray cosine to the centre direction.
+    fn new(eff: &[f32], cos_c: &[f64], outline: &SphereOutline) -> Self {
+        const MIN_PER_RING: usize = 16;
+        let cos_a = outline.angular_radius_rad.cos();
+        let rings = outline.radius_px.ceil().max(1.0) as usize;
+        // ring index of each sphere pixel by the angle of its ray from the centre direction
+        let mut ring_of = vec![u32::MAX; eff.len()];
+        let mut members: Vec<Vec<f64>> = vec![Vec::new(); rings];
+        for (i, &c) in cos_c.iter().enumerate() {
             if c <= cos_a {
                 continue;
             }
             let frac = c.clamp(-1.0, 1.0).acos() / outline.angular_radius_rad;
             let r = ((frac * rings as f64) as usize).min(rings - 1);
-            ring_of[y * w + x] = Some(r);
-            members[r].push(f64::from(eff[y * w + x]));
+            ring_of[i] = r as u32;
+            members[r].push(f64::from(eff[i]));
         }
-    }
-    // rings near the centre hold few pixels: pool them outwards until each has enough
-    let mut level = vec![None; rings];
-    let mut pool: Vec<f64> = Vec::new();
-    let mut pending = Vec::new();
-    for (r, m) in members.iter().enumerate() {
-        pool.extend_from_slice(m);
-        pending.push(r);
-        if pool.len() >= MIN_PER_RING || r + 1 == rings {
-            let q = low_quantile(&mut pool);
-            for p in pending.drain(..) {
-                level[p] = q;
+        // rings near the centre hold few pixels: pool them outwards until each has enough
+        let mut level = vec![None; rings];
+        let mut pool: Vec<f64> = Vec::new();
+        let mut pending = Vec::new();
+        for (r, m) in members.iter().enumerate() {
+            pool.extend_from_slice(m);
+            pending.push(r);
+            if pool.len() >= MIN_PER_RING || r + 1 == rings {
+                let q = low_quantile(&mut pool);
+                for p in pending.drain(..) {
+                    level[p] = q;
+                }
+                pool.clear();
             }
-            pool.clear();
         }
+        Self { ring_of, level }
     }
-    ring_of.iter().map(|r| r.and_then(|r| level[r])).collect()
+
+    /// The level at pixel `i`; `None` off the sphere.
+    fn at(&self, i: usize) -> Option<f64> {
+        let r = *self.ring_of.get(i)?;
+        self.level.get(r as usize).copied().flatten()
+    }
 }
 
 /// The first quartile: robust to bright outliers covering up to three quarters of the values.
@@ -290,8 +369,8 @@ fn low_quantile(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
-    values.sort_by(f64::total_cmp);
-    Some(values[(values.len() - 1) / 4])
+    let i = (values.len() - 1) / 4;
+    Some(*values.select_nth_unstable_by(i, f64::total_cmp).1)
 }
 
 /// Connected regions of `eff >= thr`: component, weighted centroid (pixel coordinates) and

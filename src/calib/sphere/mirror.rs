@@ -5,6 +5,7 @@
 //! light, unit vectors in camera axes. Pure: no I/O.
 
 use super::highlight::find_highlight;
+use super::uncertainty;
 use super::{Highlight, SphereError, SphereOptions, SphereOutline};
 use crate::geometry::camera::Intrinsics;
 use crate::render::image::LinearImage;
@@ -25,9 +26,14 @@ pub struct SphereLight {
     pub view: Vector3<f64>,
     pub outline: SphereOutline,
     pub highlight: Highlight,
-    /// First-order standard uncertainty of `dir_camera` (radians): twice the normal's, since
-    /// mirroring doubles a normal error.
+    /// How far `dir_camera` may be off: the RMS angle (radians) to the truth from the outline,
+    /// the highlight's sampling and noise, and its lobe's shape (`uncertainty`, which says what
+    /// each part covers); exceeded twice over in about 2 % of cases.
     pub uncertainty_rad: f64,
+    /// Wall time (seconds) of finding the outline (set by `calib::light`, which finds it; 0
+    /// when the caller gave it) and the highlight: where a calibration's time goes.
+    pub outline_secs: f64,
+    pub highlight_secs: f64,
     /// What the caller should tell the user (e.g. a highlight that looks clipped while no clip
     /// level was given).
     pub warnings: Vec<String>,
@@ -40,14 +46,14 @@ pub fn light_from_sphere(
     intr: &Intrinsics,
     opts: &SphereOptions,
 ) -> Result<SphereLight, SphereError> {
+    let started = std::time::Instant::now();
     let highlight = find_highlight(light_image, outline, intr, opts)?;
+    let highlight_secs = started.elapsed().as_secs_f64();
     let n = highlight.normal;
     let p = outline.centre_in_radii() + n;
     let v = -p.normalize();
     let l = reflect(&n, &v).normalize();
-    // the highlight centroid is trusted to a tenth of a pixel
-    let sigma_h = 0.1 / outline.radius_px.max(1.0);
-    let sigma_n = (outline.normal_uncertainty_rad(intr).powi(2) + sigma_h.powi(2)).sqrt();
+    let uncertainty_rad = uncertainty::light_rms_rad(outline, &n, highlight.uncertainty_rad, intr);
     let mut warnings = Vec::new();
     if opts.saturation.is_none() && highlight.flat_top_pixels >= FLAT_TOP_WARN {
         warnings.push(format!(
@@ -62,7 +68,9 @@ pub fn light_from_sphere(
         view: v,
         outline: outline.clone(),
         highlight,
-        uncertainty_rad: 2.0 * sigma_n,
+        uncertainty_rad,
+        outline_secs: 0.0,
+        highlight_secs,
         warnings,
     })
 }

@@ -37,7 +37,9 @@ mod highlight;
 mod mirror;
 mod outline;
 mod rim;
+mod scale;
 mod seed;
+mod uncertainty;
 
 pub use edges::detect_outline;
 pub use highlight::{Highlight, find_highlight};

@@ -142,24 +142,6 @@ impl SphereOutline {
         o.source = OutlineSource::UserCircle;
         Ok(o)
     }
-
-    /// First-order standard uncertainty (radians) of a sphere normal read off this outline: a
-    /// centre-direction error `dc` shifts the sphere by `dc / alpha` of its own radius. A user
-    /// circle is trusted to half a pixel.
-    pub fn normal_uncertainty_rad(&self, intr: &Intrinsics) -> f64 {
-        let f = 0.5 * (intr.fx + intr.fy);
-        let per_point = match self.source {
-            OutlineSource::Detected => self.rms_residual_rad.max(0.02 / f),
-            OutlineSource::UserCircle => 0.5 / f,
-        };
-        let n = match self.source {
-            OutlineSource::Detected => self.edge_points.max(1) as f64,
-            OutlineSource::UserCircle => 1.0,
-        };
-        let sigma_centre = per_point * (2.0 / n).sqrt();
-        let sigma_radius = per_point / n.sqrt();
-        (sigma_centre.powi(2) + sigma_radius.powi(2)).sqrt() / self.angular_radius_rad
-    }
 }
 
 /// Total-least-squares plane through the ray tips: `(d, cos_alpha)` with `d` pointing forward.

@@ -42,7 +42,8 @@ pub(super) const OUTSIDE_PX: f64 = 4.0;
 
 /// Table step of the blurred shapes (pixels).
 const TABLE_STEP: f64 = 0.02;
-/// Depth range of the tables: from `-TABLE_OUT` (outside) to `TABLE_IN` (inside).
+/// Depth range of the raw shape: from `-TABLE_OUT` (outside) to `TABLE_IN` (inside), deeper for a
+/// large sphere whose band runs further in.
 const TABLE_OUT: f64 = 12.0;
 const TABLE_IN: f64 = 40.0;
 
@@ -50,6 +51,9 @@ const TABLE_IN: f64 = 40.0;
 pub(super) struct RimModel {
     /// Depth of the band where the model holds (pixels inside the outline).
     pub inside_px: f64,
+    /// Per sigma, the blurred shape on the grid `depth = i TABLE_STEP - TABLE_OUT` from index
+    /// `first` on: the depths the fits read.
+    first: usize,
     tables: Vec<Vec<f64>>,
 }
 
@@ -71,9 +75,22 @@ impl RimModel {
     /// of that normal-incidence reflectance (below 0.5), else (`None`) a step.
     pub fn new(fresnel_f0: Option<f64>, radius_px: f64) -> Self {
         let r = radius_px.max(4.0);
-        let n = ((TABLE_OUT + TABLE_IN) / TABLE_STEP).round() as usize + 1;
+        let inside_px = if fresnel_f0.is_some() {
+            (r * (1.0 - 20f64.to_radians().cos())).max(2.0)
+        } else {
+            3.0
+        };
+        // the shape on the table's grid, deep enough that the blur of the band's deepest
+        // samples reads the shape itself (a large sphere's band runs past TABLE_IN)
+        let blur_reach = 4.0 * SIGMAS[SIGMAS.len() - 1] + 1.0;
+        let table_in = TABLE_IN.max(inside_px + blur_reach);
+        let n = ((TABLE_OUT + table_in) / TABLE_STEP).round() as usize + 1;
         let depth = |i: usize| i as f64 * TABLE_STEP - TABLE_OUT;
         let raw: Vec<f64> = (0..n).map(|i| shape(fresnel_f0, r, depth(i))).collect();
+        // only the entries the fits read are blurred: depths from -OUTSIDE_PX to the band's
+        // depth, two steps spare each side
+        let lo = (((TABLE_OUT - OUTSIDE_PX) / TABLE_STEP).floor() as usize).saturating_sub(2);
+        let hi = (((TABLE_OUT + inside_px) / TABLE_STEP).ceil() as usize + 2).min(n - 1);
         let tables = SIGMAS
             .iter()
             .map(|&sigma| {
@@ -82,7 +99,7 @@ impl RimModel {
                     .map(|k| (-0.5 * (k as f64 * TABLE_STEP / sigma).powi(2)).exp())
                     .collect();
                 let total: f64 = weights.iter().sum();
-                (0..n as i64)
+                (lo as i64..=hi as i64)
                     .map(|i| {
                         let mut acc = 0.0;
                         for (j, w) in (-half..=half).zip(&weights) {
@@ -95,21 +112,22 @@ impl RimModel {
                     .collect()
             })
             .collect();
-        let inside_px = if fresnel_f0.is_some() {
-            (r * (1.0 - 20f64.to_radians().cos())).max(2.0)
-        } else {
-            3.0
-        };
-        Self { inside_px, tables }
+        Self {
+            inside_px,
+            first: lo,
+            tables,
+        }
     }
 
     /// The blurred shape at `depth` (pixels inside the outline; negative outside).
     fn blurred(&self, sigma_index: usize, depth: f64) -> f64 {
         let t = &self.tables[sigma_index];
-        let x = ((depth + TABLE_OUT) / TABLE_STEP).clamp(0.0, (t.len() - 1) as f64);
-        let i = (x.floor() as usize).min(t.len() - 2);
+        let (lo, hi) = (self.first, self.first + t.len() - 1);
+        let x = ((depth + TABLE_OUT) / TABLE_STEP).clamp(lo as f64, hi as f64);
+        // x >= 0: truncation is the floor (and needs no call into libm)
+        let i = (x as usize).min(hi - 1);
         let f = x - i as f64;
-        t[i] * (1.0 - f) + t[i + 1] * f
+        t[i - lo] * (1.0 - f) + t[i + 1 - lo] * f
     }
 
     /// Sum of squared residuals of the best linear fit (`D`, `B`, trend) with the outline at
@@ -121,25 +139,39 @@ impl RimModel {
         sigma_index: usize,
         edge: f64,
     ) -> Option<(f64, f64, f64, usize)> {
-        let mut ata = Matrix3::<f64>::zeros();
+        // the six distinct entries of A^T A, A^T p and p.p, summed over the window
+        let (mut a00, mut a01, mut a02, mut a11, mut a12, mut a22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let mut atb = Vector3::<f64>::zeros();
         let mut rows = 0;
         let mut sum_pp = 0.0;
         // the blur spreads what lies beyond the band (the room the rim mirrors further in) over
         // about two sigmas into it: those samples are left out
         let inside = (self.inside_px - 2.0 * SIGMAS[sigma_index]).max(2.0);
-        for (&s, &p) in positions.iter().zip(samples) {
+        // positions ascend: only the window (one sample wider each side, the test decides) is
+        // visited
+        let first = positions
+            .partition_point(|&s| s < edge - inside)
+            .saturating_sub(1);
+        let last =
+            (positions.partition_point(|&s| s <= edge + OUTSIDE_PX) + 1).min(positions.len());
+        for (&s, &p) in positions[first..last].iter().zip(&samples[first..last]) {
             let depth = edge - s;
             if depth > inside || depth < -OUTSIDE_PX {
                 continue;
             }
             let b = self.blurred(sigma_index, depth);
-            let row = Vector3::new(1.0 - b, b, s - edge);
-            ata += row * row.transpose();
-            atb += row * p;
+            let (r0, r1, r2) = (1.0 - b, b, s - edge);
+            a00 += r0 * r0;
+            a01 += r0 * r1;
+            a02 += r0 * r2;
+            a11 += r1 * r1;
+            a12 += r1 * r2;
+            a22 += r2 * r2;
+            atb += Vector3::new(r0 * p, r1 * p, r2 * p);
             sum_pp += p * p;
             rows += 1;
         }
+        let ata = Matrix3::new(a00, a01, a02, a01, a11, a12, a02, a12, a22);
         if rows < 8 {
             return None;
         }
