@@ -47,7 +47,7 @@ pub fn every_variant_is_mirrored(f: Family, m: HeldOutMetric, r: ChoiceRule, s: 
         Family::Lambert | Family::LambertGgx | Family::Basis | Family::Hybrid => {}
     }
     match m {
-        HeldOutMetric::Linear | HeldOutMetric::Log => {}
+        HeldOutMetric::Linear | HeldOutMetric::Log | HeldOutMetric::Both => {}
     }
     match r {
         ChoiceRule::OneStandardError | ChoiceRule::Paired => {}
@@ -71,6 +71,7 @@ enum FamilyMirror {
 enum HeldOutMetricMirror {
     Linear,
     Log,
+    Both,
 }
 
 #[derive(Deserialize)]
