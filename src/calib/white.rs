@@ -323,7 +323,7 @@ fn sample_stride(n: usize) -> usize {
 
 /// True when pixel `i` of a `w`-wide image lies on the lattice of step `s`.
 fn on_lattice(i: usize, w: usize, s: usize) -> bool {
-    s == 1 || ((i % w) % s == 0 && (i / w) % s == 0)
+    s == 1 || ((i % w).is_multiple_of(s) && (i / w).is_multiple_of(s))
 }
 
 fn minmax(it: impl Iterator<Item = usize>) -> (usize, usize) {
