@@ -2,12 +2,12 @@
 //!
 //! Conventions: as `calib::sphere`. Pure: no I/O.
 
-use super::mirror::reflect;
 use super::scale;
 use super::uncertainty;
 use super::{SphereError, SphereOptions, SphereOutline, check_size};
 use crate::calib::regions::{self, Plane};
 use crate::geometry::camera::Intrinsics;
+use crate::geometry::reflect;
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
 use rayon::prelude::*;

@@ -8,13 +8,9 @@ use super::highlight::find_highlight;
 use super::uncertainty;
 use super::{Highlight, SphereError, SphereOptions, SphereOutline};
 use crate::geometry::camera::Intrinsics;
+use crate::geometry::reflect;
 use crate::render::image::LinearImage;
 use nalgebra::Vector3;
-
-/// Mirror `v` about `n`: `2 (n.v) n - v`.
-pub fn reflect(n: &Vector3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
-    n * (2.0 * n.dot(v)) - v
-}
 
 /// The light direction measured from one sphere image.
 #[derive(Clone, Debug, PartialEq)]
@@ -77,18 +73,3 @@ pub fn light_from_sphere(
 
 /// Pixels sharing the highlight's top value from which a plateau is worth a warning.
 const FLAT_TOP_WARN: usize = 4;
-
-#[cfg(test)]
-#[allow(clippy::unwrap_used)] // tests: a panic is the failure report
-mod tests {
-    use super::*;
-    #[test]
-    fn reflection_is_the_mirror_direction() {
-        let n = Vector3::new(0.0, 0.0, -1.0);
-        let v = Vector3::new(0.6, 0.0, -0.8);
-        let l = reflect(&n, &v);
-        assert!((l - Vector3::new(-0.6, 0.0, -0.8)).norm() < 1e-12);
-        // half vector of l and v is n
-        assert!(((l + v).normalize() - n).norm() < 1e-12);
-    }
-}

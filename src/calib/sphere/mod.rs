@@ -41,9 +41,10 @@ mod scale;
 mod seed;
 mod uncertainty;
 
+pub use crate::geometry::reflect;
 pub use edges::detect_outline;
 pub use highlight::{Highlight, find_highlight};
-pub use mirror::{SphereLight, light_from_sphere, reflect};
+pub use mirror::{SphereLight, light_from_sphere};
 pub use outline::{OutlineSource, SphereOutline};
 
 use crate::geometry::camera::Intrinsics;

@@ -24,9 +24,9 @@
 //! The mirroring doubles the normal's error in the light direction. Conventions: as
 //! `calib::sphere`. Pure: no I/O.
 
-use super::mirror::reflect;
 use super::{OutlineSource, SphereOutline};
 use crate::geometry::camera::Intrinsics;
+use crate::geometry::reflect;
 use nalgebra::Vector3;
 
 /// What the highlight centroid is trusted to on the pixel grid, per axis, for a lobe a pixel
