@@ -1,4 +1,5 @@
-//! Capture: plans (what to shoot), the session folder (manifest, journal, images), the session
+//! Capture: plans (what to shoot), the session folder's format (`session_format`: file names,
+//! version, records) and its writer (`session`: manifest, journal, images), the session
 //! runner (guided or unattended, resumable) and verification.
 //!
 //! Depends on the device traits only (`crate::devices`), never on a concrete driver, so the
@@ -10,6 +11,7 @@ pub mod exr;
 pub mod plan;
 pub mod runner;
 pub mod session;
+pub mod session_format;
 pub mod verify;
 
 pub use error::CaptureError;

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use super::error::CaptureError;
 use super::plan::parse_plan;
-use super::session::{
+use super::session_format::{
     JOURNAL_FILE, MANIFEST_FILE, PLAN_FILE, SessionHeader, ShotRecord, current_records,
     read_header, read_journal, read_manifest, sha256_hex,
 };
@@ -153,7 +153,7 @@ pub struct VerifyReport {
     /// Planned shots not yet taken (an interrupted capture; resume it).
     pub not_taken: Vec<String>,
     /// Shots taken again by a resume, with why (their damaged files are in `set-aside/`).
-    pub retaken: Vec<(String, super::session::Retake)>,
+    pub retaken: Vec<(String, super::session_format::Retake)>,
 }
 
 impl VerifyReport {
