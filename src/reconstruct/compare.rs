@@ -169,7 +169,8 @@ pub fn compare_image(
 mod tests {
     use super::*;
     use crate::brdf::analytic::Lambert;
-    use nalgebra::{Point3, Vector3};
+    use crate::reconstruct::observation::Seen;
+    use nalgebra::Vector3;
 
     #[test]
     fn a_perfect_fit_shows_no_error_and_a_wrong_one_shows_red() {
@@ -188,14 +189,9 @@ mod tests {
                 photo.set(x, y, radiance.map(|v| v as f32));
                 obs.push(
                     Observation::new(
-                        3,
-                        x as u32,
-                        y as u32,
-                        Point3::origin(),
-                        Vector3::z(),
+                        Seen::pixel(3, x as u32, y as u32, Vector3::z()),
                         l,
                         Vector3::z(),
-                        0.0,
                         radiance,
                         [2.0; 3],
                     )

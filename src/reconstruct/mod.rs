@@ -29,6 +29,7 @@ pub mod core;
 pub mod job;
 pub mod ladder;
 pub mod nielsen;
+pub mod observation;
 pub mod observe;
 pub mod output;
 pub mod pipeline;

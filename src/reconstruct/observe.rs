@@ -12,9 +12,9 @@
 //!
 //! Pure: the surface samples come from the rasteriser, the image and mask from the loader.
 
+pub use super::observation::{Observation, Seen, to_local};
 use super::reduce::Reduction;
-use crate::brdf::coords::{HalfDiff, merl_index};
-use crate::render::frame::ShadingFrame;
+
 use crate::render::image::LinearImage;
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -32,113 +32,6 @@ pub struct SurfacePixel {
     pub mean_curvature: f64,
     /// Whether the light reaches this point (shadow ray not blocked).
     pub lit: bool,
-}
-
-/// One usable pixel.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Observation {
-    /// Index of the light image in the job.
-    pub image: usize,
-    pub x: u32,
-    pub y: u32,
-    pub position: Point3<f64>,
-    pub normal: Vector3<f64>,
-    pub light: Vector3<f64>,
-    pub view: Vector3<f64>,
-    pub mean_curvature: f64,
-    /// Pixel value I (linear), RGB.
-    pub radiance: [f64; 3],
-    pub irradiance: [f64; 3],
-    /// r = I / (E cos theta_i), RGB.
-    pub reflectance: [f64; 3],
-    pub cos_theta_i: f64,
-    pub cos_theta_o: f64,
-    /// n . h, the quantity ordered by the monotonicity assumption.
-    pub n_dot_h: f64,
-    pub angles: HalfDiff,
-    /// Flat MERL index of (theta_h, theta_d, phi_d).
-    pub bin: usize,
-}
-
-/// `(wi, wo)` in the local shading frame of `n` (normal = +z; `render::frame`, shared with
-/// the renderer so observation and rendering agree).
-pub fn to_local(
-    n: &Vector3<f64>,
-    l: &Vector3<f64>,
-    v: &Vector3<f64>,
-) -> (Vector3<f64>, Vector3<f64>) {
-    let frame = ShadingFrame::new(*n);
-    (frame.to_local(l), frame.to_local(v))
-}
-
-impl Observation {
-    /// Builds an observation; `None` when the geometry is below either horizon.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        image: usize,
-        x: u32,
-        y: u32,
-        position: Point3<f64>,
-        normal: Vector3<f64>,
-        light: Vector3<f64>,
-        view: Vector3<f64>,
-        mean_curvature: f64,
-        radiance: [f64; 3],
-        irradiance: [f64; 3],
-    ) -> Option<Self> {
-        let cos_theta_i = normal.dot(&light);
-        let cos_theta_o = normal.dot(&view);
-        if !(cos_theta_i > 0.0 && cos_theta_o > 0.0) {
-            return None;
-        }
-        let h = (light + view).try_normalize(1e-12)?;
-        let (wi, wo) = to_local(&normal, &light, &view);
-        let reflectance = [0, 1, 2].map(|c| radiance[c] / (irradiance[c] * cos_theta_i));
-        Some(Self {
-            image,
-            x,
-            y,
-            position,
-            normal,
-            light,
-            view,
-            mean_curvature,
-            radiance,
-            irradiance,
-            reflectance,
-            cos_theta_i,
-            cos_theta_o,
-            n_dot_h: normal.dot(&h),
-            angles: HalfDiff::from_directions(&wi, &wo),
-            bin: merl_index(&wi, &wo),
-        })
-    }
-
-    /// The half vector h = (l + v) / |l + v|.
-    pub fn half(&self) -> Vector3<f64> {
-        (self.light + self.view).normalize()
-    }
-
-    /// Mean reflectance over the channels (the "luminance" compared by the monotonicity check).
-    pub fn luminance(&self) -> f64 {
-        self.reflectance.iter().sum::<f64>() / 3.0
-    }
-
-    /// The same pixel with another normal (assumption 3 sets n = h); `None` below a horizon.
-    pub fn with_normal(&self, normal: Vector3<f64>) -> Option<Self> {
-        Self::new(
-            self.image,
-            self.x,
-            self.y,
-            self.position,
-            normal,
-            self.light,
-            self.view,
-            self.mean_curvature,
-            self.radiance,
-            self.irradiance,
-        )
-    }
 }
 
 /// Thresholds for keeping a pixel.
@@ -309,14 +202,16 @@ pub fn check_pixel(
         return Err(Dropped::Black);
     }
     Observation::new(
-        input.image_index,
-        s.x,
-        s.y,
-        s.position,
-        normal,
+        Seen {
+            image: input.image_index,
+            x: s.x,
+            y: s.y,
+            position: s.position,
+            normal,
+            mean_curvature: s.mean_curvature,
+        },
         input.light_world,
         view,
-        s.mean_curvature,
         rgb,
         input.irradiance,
     )
@@ -352,60 +247,6 @@ pub fn observe_view(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn reflectance_and_angles_of_a_known_configuration() {
-        // Normal +z, light 60 deg from it in the xz plane, viewer straight above.
-        let n = Vector3::z();
-        let l = Vector3::new(60f64.to_radians().sin(), 0.0, 60f64.to_radians().cos());
-        let v = Vector3::z();
-        let o = Observation::new(
-            0,
-            1,
-            2,
-            Point3::origin(),
-            n,
-            l,
-            v,
-            0.0,
-            [0.5, 1.0, 1.5],
-            [2.0; 3],
-        )
-        .unwrap();
-        // r = I / (E cos 60) = I
-        for c in 0..3 {
-            assert!((o.reflectance[c] - [0.5, 1.0, 1.5][c]).abs() < 1e-12);
-        }
-        assert!((o.angles.theta_h - 30f64.to_radians()).abs() < 1e-12);
-        assert!((o.angles.theta_d - 30f64.to_radians()).abs() < 1e-12);
-        assert!((o.n_dot_h - 30f64.to_radians().cos()).abs() < 1e-12);
-        // The result does not depend on the world orientation (isotropy + local frame).
-        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0);
-        let o2 = Observation::new(
-            0,
-            1,
-            2,
-            Point3::origin(),
-            rot * n,
-            rot * l,
-            rot * v,
-            0.0,
-            [0.5, 1.0, 1.5],
-            [2.0; 3],
-        )
-        .unwrap();
-        assert_eq!(o.bin, o2.bin);
-        assert!((o.angles.theta_d - o2.angles.theta_d).abs() < 1e-9);
-        // Below the horizon: none.
-        assert!(
-            Observation::new(0, 0, 0, Point3::origin(), n, -l, v, 0.0, [1.0; 3], [1.0; 3])
-                .is_none()
-        );
-        // n = h puts the pixel in theta_h bin 0.
-        let oh = o.with_normal(o.half()).unwrap();
-        assert!(oh.angles.theta_h < 1e-7);
-        assert!((oh.n_dot_h - 1.0).abs() < 1e-12);
-    }
 
     #[test]
     fn drops_are_counted_by_reason() {

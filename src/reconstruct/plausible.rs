@@ -329,7 +329,7 @@ mod tests {
 
     #[test]
     fn unobserved_regions_shrink_to_the_prior_and_observed_ones_keep_the_model() {
-        use crate::reconstruct::observe::Observation;
+        use crate::reconstruct::observation::{Observation, Seen};
         // Pixels only at theta_d ~ 10 degrees (one light near the camera).
         let l = Vector3::new(0.17, 0.0, 0.985).normalize();
         let v = Vector3::z();
@@ -338,18 +338,7 @@ mod tests {
                 let a = i as f64 * 2.399;
                 let r = 0.9 * ((i as f64 + 0.5) / 300.0).sqrt();
                 let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
-                Observation::new(
-                    0,
-                    i,
-                    0,
-                    nalgebra::Point3::origin(),
-                    n,
-                    l,
-                    v,
-                    0.0,
-                    [0.1; 3],
-                    [1.0; 3],
-                )
+                Observation::new(Seen::pixel(0, i, 0, n), l, v, [0.1; 3], [1.0; 3])
             })
             .collect();
         let used: Vec<&Observation> = obs.iter().collect();

@@ -91,7 +91,7 @@ pub mod synthetic {
         count: usize,
         scale: [f64; 3],
     ) -> Vec<crate::reconstruct::observe::Observation> {
-        use nalgebra::{Point3, Vector3};
+        use nalgebra::Vector3;
         let l = Vector3::new(0.5, 0.0, 1.0).normalize();
         let v = Vector3::z();
         (0..count)
@@ -99,15 +99,10 @@ pub mod synthetic {
                 let a = i as f64 * 2.399;
                 let r = 0.6 * ((i as f64 + 0.5) / count as f64).sqrt();
                 let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
-                let mut o = crate::reconstruct::observe::Observation::new(
-                    0,
-                    i as u32,
-                    0,
-                    Point3::origin(),
-                    n,
+                let mut o = crate::reconstruct::observation::Observation::new(
+                    crate::reconstruct::observation::Seen::pixel(0, i as u32, 0, n),
                     l,
                     v,
-                    0.0,
                     [1.0; 3],
                     [1.0; 3],
                 )?;

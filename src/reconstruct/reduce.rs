@@ -20,7 +20,7 @@
 //! `cap` are thinned, and the set is nearly the full one. Every image keeps pixels, so the
 //! held-out validation and the eq. 3 choice still see every image. Pure.
 
-use super::observe::Observation;
+use super::observation::Observation;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
@@ -199,18 +199,14 @@ pub fn reduce(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Point3, Vector3};
+    use crate::reconstruct::observation::Seen;
+    use nalgebra::Vector3;
 
     fn obs(x: u32, y: u32, light: Vector3<f64>) -> Observation {
         Observation::new(
-            0,
-            x,
-            y,
-            Point3::origin(),
-            Vector3::z(),
+            Seen::pixel(0, x, y, Vector3::z()),
             light,
             Vector3::z(),
-            0.0,
             [1.0; 3],
             [1.0; 3],
         )

@@ -204,6 +204,7 @@ impl MonotonicSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reconstruct::observation::Seen;
     use nalgebra::{Point3, Vector3};
 
     /// A pixel lit at `light_deg` from the normal in the xz plane, seen from above, with the given
@@ -215,14 +216,16 @@ mod tests {
             light_deg.to_radians().cos(),
         );
         Observation::new(
-            0,
-            0,
-            0,
-            Point3::origin(),
-            Vector3::z(),
+            Seen {
+                image: 0,
+                x: 0,
+                y: 0,
+                position: Point3::origin(),
+                normal: Vector3::z(),
+                mean_curvature: curvature,
+            },
             l,
             Vector3::z(),
-            curvature,
             [value; 3],
             [1.0; 3],
         )
