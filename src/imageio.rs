@@ -1,7 +1,9 @@
 //! Reading and writing linear images.
 //!
 //! Formats:
-//! - EXR (exr crate): RGB, written as f32 or f16, read from any sample type (alpha ignored).
+//! - EXR (exr crate): RGB, written as f32 or f16, read from any sample type (alpha ignored); to
+//!   and from bytes in memory too ([`encode_exr`], [`decode_exr`]: the capture checksums the
+//!   bytes it writes). The one EXR codec of the tool.
 //! - 16-bit PNG and 16-bit TIFF (image crate), declared **linear**: a stored value `q` means
 //!   radiance `q / 65535 * scale`. 8-bit files are refused on a linear read: they are almost
 //!   always gamma-encoded, and guessing would corrupt the reflectance; read as [`Transfer::Srgb`]
@@ -178,81 +180,101 @@ pub fn srgb_decode(c: f32) -> f32 {
     }
 }
 
+/// Decodes the first RGB(A) layer of an EXR stream as f32 (alpha ignored).
+fn decode_exr_from(
+    reader: impl std::io::Read + Seek + Send,
+) -> Result<LinearImage, exr::error::Error> {
+    use exr::prelude::*;
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| {
+                (
+                    res.width(),
+                    res.height(),
+                    vec![0.0f32; res.width() * res.height() * 3],
+                )
+            },
+            |(w, _, data): &mut (usize, usize, Vec<f32>),
+             pos,
+             (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = (pos.y() * *w + pos.x()) * 3;
+                data[i] = r;
+                data[i + 1] = g;
+                data[i + 2] = b;
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(reader)?;
+    let (w, h, data) = img.layer_data.channel_data.pixels;
+    LinearImage::from_rgb(w, h, data).ok_or(exr::error::Error::Invalid(
+        "pixel count does not match the size".into(),
+    ))
+}
+
+/// Decodes EXR bytes held in memory (the first RGB(A) layer, as [`read_exr`] reads a file).
+pub fn decode_exr(bytes: &[u8]) -> Result<LinearImage, exr::error::Error> {
+    decode_exr_from(std::io::Cursor::new(bytes))
+}
+
 /// Reads the first RGB(A) layer of an EXR file as f32.
 pub fn read_exr(path: &Path) -> Result<LinearImage, ImageIoError> {
-    use exr::prelude::*;
-    // Existence first, so a missing file is a read error rather than a decode error.
-    std::fs::metadata(path).map_err(|source| ImageIoError::Read {
+    let file = std::fs::File::open(path).map_err(|source| ImageIoError::Read {
         path: path.to_path_buf(),
         source,
     })?;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| {
-            (
-                res.width(),
-                res.height(),
-                vec![0.0f32; res.width() * res.height() * 3],
-            )
-        },
-        |(w, _, data): &mut (usize, usize, Vec<f32>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = (pos.y() * *w + pos.x()) * 3;
-            data[i] = r;
-            data[i + 1] = g;
-            data[i + 2] = b;
-        },
-    )
-    .map_err(|e| ImageIoError::Decode {
+    decode_exr_from(std::io::BufReader::new(file)).map_err(|e| ImageIoError::Decode {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })?;
-    let (w, h, data) = img.layer_data.channel_data.pixels;
-    LinearImage::from_rgb(w, h, data).ok_or_else(|| ImageIoError::Decode {
-        path: path.to_path_buf(),
-        message: "pixel count does not match the size".into(),
     })
 }
 
-/// Writes an RGB EXR (no alpha), atomically. `F16` halves the size but holds 11 significant
-/// bits and overflows to infinity above 65504: scale radiance first if it can be that large.
+/// Encodes an RGB EXR (no alpha) in memory, with the exr crate's default lossless compression
+/// (RLE). The session encodes in memory so that it can checksum exactly the bytes it writes.
+/// `F16` halves the size but holds 11 significant bits and overflows to infinity above 65504:
+/// scale radiance first if it can be that large.
+pub fn encode_exr(
+    img: &LinearImage,
+    precision: ExrPrecision,
+) -> Result<Vec<u8>, exr::error::Error> {
+    use exr::prelude::*;
+    let (w, h) = (img.width(), img.height());
+    let mut cursor = std::io::Cursor::new(Vec::new());
+    match precision {
+        ExrPrecision::F32 => {
+            let ch = SpecificChannels::rgb(|Vec2(x, y)| {
+                let [r, g, b] = img.get(x, y);
+                (r, g, b)
+            });
+            Image::from_channels((w, h), ch)
+                .write()
+                .to_buffered(&mut cursor)?
+        }
+        ExrPrecision::F16 => {
+            let ch = SpecificChannels::rgb(|Vec2(x, y)| {
+                let [r, g, b] = img.get(x, y);
+                (f16::from_f32(r), f16::from_f32(g), f16::from_f32(b))
+            });
+            Image::from_channels((w, h), ch)
+                .write()
+                .to_buffered(&mut cursor)?
+        }
+    }
+    Ok(cursor.into_inner())
+}
+
+/// Writes an RGB EXR (no alpha), atomically ([`encode_exr`], then `atomic::write_atomic`).
 pub fn write_exr(
     path: &Path,
     img: &LinearImage,
     precision: ExrPrecision,
 ) -> Result<(), ImageIoError> {
-    use exr::prelude::*;
-    let w = img.width();
-    let h = img.height();
-    let werr = |message: String| ImageIoError::Write {
+    let encoded = encode_exr(img, precision).map_err(|e| ImageIoError::Write {
         path: path.to_path_buf(),
-        source: std::io::Error::other(message),
-    };
-    let mut encoded: Vec<u8> = Vec::new();
-    {
-        let mut cursor = std::io::Cursor::new(&mut encoded);
-        let res = match precision {
-            ExrPrecision::F32 => {
-                let ch = SpecificChannels::rgb(|Vec2(x, y)| {
-                    let [r, g, b] = img.get(x, y);
-                    (r, g, b)
-                });
-                Image::from_channels((w, h), ch)
-                    .write()
-                    .to_buffered(&mut cursor)
-            }
-            ExrPrecision::F16 => {
-                let ch = SpecificChannels::rgb(|Vec2(x, y)| {
-                    let [r, g, b] = img.get(x, y);
-                    (f16::from_f32(r), f16::from_f32(g), f16::from_f32(b))
-                });
-                Image::from_channels((w, h), ch)
-                    .write()
-                    .to_buffered(&mut cursor)
-            }
-        };
-        res.map_err(|e| werr(e.to_string()))?;
-        let _ = cursor.stream_position();
-    }
+        source: std::io::Error::other(e.to_string()),
+    })?;
     write_atomic(path, &encoded).map_err(|source| ImageIoError::Write {
         path: path.to_path_buf(),
         source,
@@ -455,6 +477,23 @@ mod tests {
             .map(|i| max * i as f32 / (w * h * 3) as f32)
             .collect();
         LinearImage::from_rgb(w, h, data).unwrap()
+    }
+
+    #[test]
+    fn exr_bytes_round_trip_exactly_and_junk_is_refused() {
+        let mut img = LinearImage::new(7, 5);
+        for y in 0..5 {
+            for x in 0..7 {
+                img.set(
+                    x,
+                    y,
+                    [x as f32 * 0.1, y as f32 * 3.5, 1e-6 + (x * y) as f32],
+                );
+            }
+        }
+        let bytes = encode_exr(&img, ExrPrecision::F32).unwrap();
+        assert_eq!(decode_exr(&bytes).unwrap(), img);
+        assert!(decode_exr(b"not an exr").is_err());
     }
 
     #[test]

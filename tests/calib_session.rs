@@ -4,7 +4,7 @@
 //! scored against the simulator's truth. Twelve seeded random light directions, three per
 //! capture (the simulated rig has three channels), at 320x240 (sphere radius 37 px).
 
-use brdf_rig::capture::exr::decode_exr;
+use brdf_rig::imageio::decode_exr;
 use rand::{Rng, SeedableRng};
 
 use crate::capture_util::{fast_profile, run, s, text};

@@ -3,9 +3,9 @@
 
 use std::collections::HashSet;
 
-use brdf_rig::capture::exr::decode_exr;
 use brdf_rig::capture::session::{Manifest, read_journal};
 use brdf_rig::capture::{ShotKind, verify_session};
+use brdf_rig::imageio::decode_exr;
 
 use crate::capture_util::{capture_unattended, fast_profile, run, s, text, tiny_plan};
 

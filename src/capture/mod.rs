@@ -7,7 +7,6 @@
 
 pub mod camera_config;
 pub mod error;
-pub mod exr;
 pub mod plan;
 pub mod runner;
 pub mod session;

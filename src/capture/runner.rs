@@ -20,10 +20,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::error::CaptureError;
-use super::exr::encode_exr;
 use super::plan::{LabGeometry, PlannedShot, ShotKind, Stage, Target};
 use super::session::{Session, ShotRecord, now_utc};
 use crate::devices::{Camera, DeviceError, Light, ShotSettings, Turntable};
+use crate::imageio::{ExrPrecision, encode_exr};
 use crate::render::image::LinearImage;
 
 /// Whoever sets up what the rig cannot: the room light, what stands on the turntable.
@@ -369,9 +369,9 @@ fn take_shots(
         };
         hook(KillPhase::BeforeImage);
         let ts = Instant::now();
-        let bytes = encode_exr(&image).map_err(|reason| CaptureError::Encode {
+        let bytes = encode_exr(&image, ExrPrecision::F32).map_err(|e| CaptureError::Encode {
             file: shot.file.clone(),
-            reason,
+            reason: e.to_string(),
         })?;
         let (len, sha) = session.write_image(&shot.id, &shot.file, &bytes)?;
         hook(KillPhase::AfterImage);
@@ -623,7 +623,7 @@ mod tests {
             assert_eq!(rec.id, shot.id);
             let bytes = std::fs::read(dir.join(&rec.file)).unwrap();
             assert_eq!(crate::capture::session::sha256_hex(&bytes), rec.sha256);
-            let img = crate::capture::exr::decode_exr(&bytes).unwrap();
+            let img = crate::imageio::decode_exr(&bytes).unwrap();
             let [a, ch, e] = img.get(0, 0);
             assert_eq!(a as f64, rec.angle_deg as f32 as f64);
             if shot.kind != ShotKind::Sphere {
