@@ -231,7 +231,7 @@ fn reconstruct_recovers_the_independent_lambertian() {
             .arg("--nbrdf-dir")
             .arg(&nbrdf)
             .env(
-                "BRDF_RIG_BASIS_CACHE",
+                "BRDF_RIG_CACHE",
                 std::env::temp_dir().join("brdf-rig-test-basis"),
             )
             .output()

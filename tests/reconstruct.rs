@@ -209,7 +209,7 @@ pub fn run_cli(job: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
         .arg(out)
         .args(extra)
         .env(
-            "BRDF_RIG_BASIS_CACHE",
+            "BRDF_RIG_CACHE",
             std::env::temp_dir().join("brdf-rig-test-basis"),
         )
         .output()

@@ -65,8 +65,8 @@ pub struct Args {
     /// Folder of the neural MERL fits the basis is built from.
     #[arg(long, env = "BRDF_RIG_NBRDF_DIR")]
     pub nbrdf_dir: Option<PathBuf>,
-    /// Basis cache folder (built on first use).
-    #[arg(long, env = "BRDF_RIG_BASIS_CACHE")]
+    /// Basis cache folder, built on first use (default: $BRDF_RIG_CACHE or ~/.cache/brdf-rig).
+    #[arg(long)]
     pub basis_cache: Option<PathBuf>,
     /// Pixel values at or above this are clipped (dropped), > 0; default: 1.0 for 16-bit files,
     /// the white level for camera RAW, none for EXR.
@@ -198,6 +198,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.basis.n_components = args.basis_components;
     if let Some(d) = args.nbrdf_dir {
         settings.nbrdf_dir = d;
+    }
+    if std::env::var_os("BRDF_RIG_BASIS_CACHE").is_some() && args.basis_cache.is_none() {
+        eprintln!(
+            "warning: BRDF_RIG_BASIS_CACHE is no longer read; the basis cache folder is \
+             $BRDF_RIG_CACHE (or --basis-cache)"
+        );
     }
     settings.basis_cache = args.basis_cache;
     settings.saturation = args.saturation;
