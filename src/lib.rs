@@ -24,3 +24,4 @@ pub mod report;
 pub mod rig_factory;
 pub mod serve;
 pub mod sim;
+pub mod stats;

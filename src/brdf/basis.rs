@@ -237,16 +237,6 @@ pub struct Basis {
     pub(super) k: usize,
 }
 
-fn median_of(values: &mut [f64]) -> f64 {
-    let n = values.len();
-    values.sort_by(f64::total_cmp);
-    if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    }
-}
-
 impl Basis {
     /// Builds the basis from named materials, leaving out `settings.exclude`.
     pub fn build(
@@ -301,7 +291,7 @@ impl Basis {
             .par_chunks_mut(cols)
             .map(|row| {
                 let mut tmp: Vec<f64> = row.iter().map(|&x| f64::from(x)).collect();
-                let med = median_of(&mut tmp);
+                let med = crate::stats::median(&mut tmp).unwrap_or(f64::NAN);
                 let mut sum = 0.0;
                 for x in row.iter_mut() {
                     let mapped = ((f64::from(*x) + MAP_EPS) / (med + MAP_EPS)).ln();

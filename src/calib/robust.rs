@@ -1,25 +1,12 @@
 //! Robust statistics shared by the calibration steps: median, MAD-based sigma and a mean that
 //! rejects outliers (dust, hot pixels, glints) before averaging.
 //!
+//! The median itself is `crate::stats::median`, shared with the reconstruction.
+//!
 //! Conventions: `mad_sigma` is scaled by 1.4826 so it estimates the standard deviation of
 //! Gaussian data. Pure: no I/O.
 
-/// Median of `values` (reorders them); `None` when empty or when a value is NaN. A selection,
-/// not a sort: linear in the number of values (millions of a 24 MP board's pixels).
-pub fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() || values.iter().any(|v| v.is_nan()) {
-        return None;
-    }
-    let n = values.len();
-    let (lower, &mut upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
-    Some(if n % 2 == 1 {
-        upper
-    } else {
-        // the largest of the lower half is the other middle value
-        let below = lower.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (below + upper)
-    })
-}
+use crate::stats::median;
 
 /// 1.4826 times the median absolute deviation from `centre`: a standard deviation that a few
 /// outliers cannot inflate.
@@ -185,14 +172,6 @@ mod tests {
             .collect();
         let r = robust_surface_centre(&flat, 3.5).unwrap();
         assert!((r.mean - 0.25).abs() < 1e-12);
-    }
-
-    #[test]
-    fn median_odd_even_and_nan() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), Some(2.5));
-        assert_eq!(median(&mut []), None);
-        assert_eq!(median(&mut [1.0, f64::NAN]), None);
     }
 
     #[test]

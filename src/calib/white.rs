@@ -454,8 +454,8 @@ fn stands_out(
         .map(|&i| (full(i + 1) - full(i)) as f64)
         .collect();
     let (Some(level), Some(surround)) = (
-        super::robust::median(&mut inside),
-        super::robust::median(&mut outside),
+        crate::stats::median(&mut inside),
+        crate::stats::median(&mut outside),
     ) else {
         // the board fills the frame: nothing to compare with
         return Ok(());

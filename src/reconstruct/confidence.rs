@@ -52,7 +52,7 @@ fn render_disagreement_of(reference: &[[f64; 3]], others: &[&dyn Candidate]) -> 
         .map(|c| compare(&reference, &probe.render(&CandidateValues(*c))).environment)
         .filter(|d| d.is_finite())
         .collect();
-    crate::calib::robust::median(&mut diffs)
+    crate::stats::median(&mut diffs)
 }
 
 /// How much fits disagree as images see them: the median relative difference of `others`'

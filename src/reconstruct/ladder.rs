@@ -446,9 +446,7 @@ fn median_radiance(obs: &[Observation]) -> f64 {
         .map(|o| o.radiance.iter().sum::<f64>() / 3.0)
         .filter(|x| x.is_finite())
         .collect();
-    crate::calib::robust::median(&mut v)
-        .unwrap_or(1.0)
-        .max(1e-12)
+    crate::stats::median(&mut v).unwrap_or(1.0).max(1e-12)
 }
 
 fn score(c: &dyn Candidate, held: &[Observation]) -> FoldScore {

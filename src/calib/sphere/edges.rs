@@ -496,7 +496,7 @@ fn measure(
                 })
                 .map(|f| f.sigma)
                 .collect();
-            crate::calib::robust::median(&mut sigmas)?
+            crate::stats::median(&mut sigmas)?
         }
     };
     let fits: Vec<(&Profile, super::rim::RimFit)> = profiles
@@ -510,9 +510,9 @@ fn measure(
         .collect();
     // the sphere is darker (or brighter) than its surround all round: the majority decides
     let mut contrasts: Vec<f64> = fits.iter().map(|(_, f)| f.outside - f.inside).collect();
-    let contrast = crate::calib::robust::median(&mut contrasts)?;
+    let contrast = crate::stats::median(&mut contrasts)?;
     let mut rms: Vec<f64> = fits.iter().map(|(_, f)| f.rms).collect();
-    let typical_rms = crate::calib::robust::median(&mut rms)?;
+    let typical_rms = crate::stats::median(&mut rms)?;
     let kept: Vec<&(&Profile, super::rim::RimFit)> = fits
         .iter()
         .filter(|(p, f)| {
@@ -553,7 +553,7 @@ fn measure(
         sigma,
         support,
         rms_px,
-        contrast: crate::calib::robust::median(&mut steps)?,
+        contrast: crate::stats::median(&mut steps)?,
     })
 }
 

@@ -115,10 +115,9 @@ fn find_in(
         }
     }
     let mut sorted = inside.clone();
-    let level =
-        crate::calib::robust::median(&mut sorted).ok_or_else(|| SphereError::NoHighlight {
-            reason: "the sphere covers no pixel".into(),
-        })?;
+    let level = crate::stats::median(&mut sorted).ok_or_else(|| SphereError::NoHighlight {
+        reason: "the sphere covers no pixel".into(),
+    })?;
     let sigma = crate::calib::robust::mad_sigma(&inside, level).unwrap_or(0.0);
     let floor = level + (10.0 * sigma).max(0.05 * level.abs()).max(1e-9);
     if (peak_inside as f64) <= floor {

@@ -64,7 +64,7 @@ impl SphereOutline {
         for _ in 0..3 {
             let res: Vec<f64> = kept.iter().map(|r| r.dot(&fit.0) - fit.1).collect();
             let mut sorted = res.clone();
-            let med = crate::calib::robust::median(&mut sorted)?;
+            let med = crate::stats::median(&mut sorted)?;
             let sigma = crate::calib::robust::mad_sigma(&res, med)?;
             let tol = (4.0 * sigma).max(1e-12);
             let next: Vec<Vector3<f64>> = kept
