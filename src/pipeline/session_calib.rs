@@ -180,19 +180,17 @@ fn merge(dir: &Path, shots: &[&ShotRecord]) -> Result<MergedHdr, SessionCalibErr
     Ok(merged)
 }
 
-/// Calibrates a session and writes `hdr/`, `calibration.json` and `job.toml` into it.
-pub fn calibrate_session(
-    dir: &Path,
-    opts: &SessionCalibOptions,
-    mut progress: impl FnMut(&str),
-) -> Result<SessionCalibration, SessionCalibError> {
-    let manifest = manifest(dir)?;
-    if manifest.status != "complete" {
-        progress(&format!(
-            "warning: the session is `{}`; calibrating the shots it has (resume the capture to finish it)",
-            manifest.status
-        ));
-    }
+/// What a session calibration needs besides the session's images: the photogrammetry model and
+/// mesh, the camera's intrinsics and the white board's albedo.
+struct Inputs {
+    cameras: PathBuf,
+    mesh: PathBuf,
+    model: colmap::ColmapModel,
+    intr: Intrinsics,
+    albedo: f64,
+}
+
+fn inputs(dir: &Path, opts: &SessionCalibOptions) -> Result<Inputs, SessionCalibError> {
     let missing = |what: &str| SessionCalibError::Session {
         dir: dir.into(),
         reason: format!("{what} (a simulated session has its own under sim/)"),
@@ -219,157 +217,177 @@ pub fn calibrate_session(
     let albedo = opts
         .white_albedo
         .ok_or_else(|| missing("the white reference's albedo is unknown: give it with --albedo"))?;
+    Ok(Inputs {
+        cameras,
+        mesh,
+        model,
+        intr,
+        albedo,
+    })
+}
 
-    let mut brackets: Brackets = BTreeMap::new();
-    for s in &manifest.shots {
-        brackets
-            .entry((kind_key(s.kind), s.view, s.channel))
-            .or_default()
-            .push(s);
-    }
-    verify_images(dir, &manifest)?;
-    let hdr_dir = dir.join("hdr");
-    let _lock = lock_and_clean(dir, &hdr_dir)?;
-    std::fs::create_dir_all(&hdr_dir).map_err(|e| SessionCalibError::File {
-        path: hdr_dir.clone(),
-        reason: e.to_string(),
-    })?;
+/// The merged sphere and white-reference brackets, per light channel.
+struct CalibrationShots {
+    sphere: BTreeMap<usize, MergedHdr>,
+    white: BTreeMap<usize, MergedHdr>,
+}
 
-    // Sphere and white board per channel.
+fn merge_calibration_shots(
+    dir: &Path,
+    brackets: &Brackets<'_>,
+    progress: &mut impl FnMut(&str),
+) -> Result<CalibrationShots, SessionCalibError> {
     let sphere_key = kind_key(ShotKind::Sphere);
     let white_key = kind_key(ShotKind::White);
-    let mut sphere_imgs: BTreeMap<usize, MergedHdr> = BTreeMap::new();
-    let mut white_imgs: BTreeMap<usize, MergedHdr> = BTreeMap::new();
-    for ((k, _view, ch), shots) in &brackets {
+    let mut sphere = BTreeMap::new();
+    let mut white = BTreeMap::new();
+    for ((k, _view, ch), shots) in brackets {
         let Some(ch) = ch else { continue };
         if *k == sphere_key {
             progress(&format!("merging the sphere bracket of channel {ch}"));
-            sphere_imgs.insert(*ch, merge(dir, shots)?);
+            sphere.insert(*ch, merge(dir, shots)?);
         } else if *k == white_key {
             progress(&format!(
                 "merging the white-reference bracket of channel {ch}"
             ));
-            white_imgs.insert(*ch, merge(dir, shots)?);
+            white.insert(*ch, merge(dir, shots)?);
         }
     }
-    if sphere_imgs.is_empty() {
+    if sphere.is_empty() {
         return Err(SessionCalibError::Session {
             dir: dir.into(),
             reason: "no sphere shots: the plan must have [calibration] sphere = true".into(),
         });
     }
-    // The black sphere in a dark room shows only its lit side, so its outline is found in the
-    // brightest-of image over every channel's shot (lit from several sides) when there are
-    // several, which keeps the outline fit away from the terminator.
-    let outline_img = union_max(sphere_imgs.values().map(|m| &m.image));
+    Ok(CalibrationShots { sphere, white })
+}
 
-    let axis = turntable_axis_camera(&manifest, &model);
-    if axis.is_none() {
-        progress(
-            "warning: fewer than two ambient views at different angles in the photogrammetry \
-             model: the white reference is assumed to face the bisector of light and camera",
-        );
-    }
-    let mut channels = Vec::new();
-    for (&ch, sphere) in &sphere_imgs {
-        // The clip level is the merged bracket's, never guessed from the pixels: the outline
-        // image (a per-pixel maximum over the channels) clips no lower than its least one.
-        let clip_min = sphere_imgs
-            .values()
-            .filter_map(|m| m.clip.value)
-            .fold(f32::INFINITY, f32::min);
-        let sphere_opts = SphereOptions {
-            saturation: sphere.clip.value.map(|v| v.min(clip_min)),
-            ..SphereOptions::default()
-        };
-        let img = &sphere.image;
-        let outline = match &outline_img {
-            Some(o) => OutlineInput::Image(o),
-            None => OutlineInput::FromLightImage,
-        };
-        let light = calibrate_light(
-            &[SphereShot {
-                light: img,
-                outline,
-            }],
-            &intr,
-            &sphere_opts,
-        )
-        .map_err(|e| SessionCalibError::Channel {
+/// One channel's light direction (from its sphere image, the outline found in `outline_img`
+/// when given) and irradiance (from its white-reference image, whose normal is turned about
+/// the turntable `axis` by the white shot's measured angle `white_angle`), scored against the
+/// truth when it is known.
+#[allow(clippy::too_many_arguments)]
+fn calibrate_channel(
+    ch: usize,
+    shots: &CalibrationShots,
+    outline_img: Option<&LinearImage>,
+    white_angle: Option<f64>,
+    axis: Option<nalgebra::Unit<Vector3<f64>>>,
+    inputs: &Inputs,
+    truth: Option<&LightTruth>,
+    progress: &mut impl FnMut(&str),
+) -> Result<ChannelCalibration, SessionCalibError> {
+    let sphere = shots
+        .sphere
+        .get(&ch)
+        .ok_or_else(|| SessionCalibError::Channel {
             channel: ch,
-            reason: format!("light direction from the sphere: {e}"),
+            reason: "no sphere shot for this channel".into(),
         })?;
-        let l = light.dir_camera;
-        let white = white_imgs
-            .get(&ch)
-            .ok_or_else(|| SessionCalibError::Channel {
-                channel: ch,
-                reason: "no white-reference shot for this channel".into(),
-            })?;
-        let white_angle = brackets
-            .get(&(white_key, None, Some(ch)))
-            .and_then(|shots| shots.first())
-            .map(|s| s.measured_angle_deg);
-        let normal = match (axis, white_angle) {
-            (Some(axis), Some(a)) => {
-                nalgebra::UnitQuaternion::from_axis_angle(&axis, a.to_radians())
-                    * Vector3::new(0.0, 0.0, -1.0)
-            }
-            _ => (l + Vector3::new(0.0, 0.0, -1.0)).normalize(),
-        };
-        let irr = calibrate_irradiance(
-            &white.image,
-            [albedo; 3],
-            &l,
-            Some(&normal),
-            &BoardRegion::Detect,
-            &WhiteOptions {
-                saturation: white.clip.value,
-                ..WhiteOptions::default()
-            },
-        )
-        .map_err(|e| SessionCalibError::Channel {
+    // The clip level is the merged bracket's, never guessed from the pixels: the outline
+    // image (a per-pixel maximum over the channels) clips no lower than its least one.
+    let clip_min = shots
+        .sphere
+        .values()
+        .filter_map(|m| m.clip.value)
+        .fold(f32::INFINITY, f32::min);
+    let sphere_opts = SphereOptions {
+        saturation: sphere.clip.value.map(|v| v.min(clip_min)),
+        ..SphereOptions::default()
+    };
+    let outline = match outline_img {
+        Some(o) => OutlineInput::Image(o),
+        None => OutlineInput::FromLightImage,
+    };
+    let light = calibrate_light(
+        &[SphereShot {
+            light: &sphere.image,
+            outline,
+        }],
+        &inputs.intr,
+        &sphere_opts,
+    )
+    .map_err(|e| SessionCalibError::Channel {
+        channel: ch,
+        reason: format!("light direction from the sphere: {e}"),
+    })?;
+    let l = light.dir_camera;
+    let white = shots
+        .white
+        .get(&ch)
+        .ok_or_else(|| SessionCalibError::Channel {
             channel: ch,
-            reason: format!("irradiance from the white reference: {e}"),
+            reason: "no white-reference shot for this channel".into(),
         })?;
-        let (mut dir_err, mut irr_err) = (None, None);
-        if let Some(&(t_dir, t_irr)) = opts.truth.as_ref().and_then(|t| t.channels.get(&ch)) {
-            dir_err = Some(l.angle(&t_dir).to_degrees());
-            let mean = irr.irradiance.iter().sum::<f64>() / 3.0;
-            irr_err = Some((mean - t_irr).abs() / t_irr);
+    let normal = match (axis, white_angle) {
+        (Some(axis), Some(a)) => {
+            nalgebra::UnitQuaternion::from_axis_angle(&axis, a.to_radians())
+                * Vector3::new(0.0, 0.0, -1.0)
         }
-        progress(&format!(
-            "channel {ch}: light ({:.4}, {:.4}, {:.4}) +- {:.2} deg, irradiance ({:.4}, {:.4}, {:.4}); \
-             clip level of the sphere image {}, of the white image {}",
-            l.x,
-            l.y,
-            l.z,
-            light.uncertainty_deg,
-            irr.irradiance[0],
-            irr.irradiance[1],
-            irr.irradiance[2],
-            sphere.clip,
-            white.clip
-        ));
-        channels.push(ChannelCalibration {
-            channel: ch,
-            light: light.summary(),
-            irradiance: irr.irradiance,
-            irradiance_std_error: irr.std_error,
-            flat_field_spread: irr.flat_field.spread,
-            sphere_clip: sphere.clip,
-            white_clip: white.clip,
-            warnings: irr.warnings.clone(),
-            truth_dir_error_deg: dir_err,
-            truth_irradiance_error: irr_err,
-        });
+        _ => (l + Vector3::new(0.0, 0.0, -1.0)).normalize(),
+    };
+    let irr = calibrate_irradiance(
+        &white.image,
+        [inputs.albedo; 3],
+        &l,
+        Some(&normal),
+        &BoardRegion::Detect,
+        &WhiteOptions {
+            saturation: white.clip.value,
+            ..WhiteOptions::default()
+        },
+    )
+    .map_err(|e| SessionCalibError::Channel {
+        channel: ch,
+        reason: format!("irradiance from the white reference: {e}"),
+    })?;
+    let (mut dir_err, mut irr_err) = (None, None);
+    if let Some(&(t_dir, t_irr)) = truth.and_then(|t| t.channels.get(&ch)) {
+        dir_err = Some(l.angle(&t_dir).to_degrees());
+        let mean = irr.irradiance.iter().sum::<f64>() / 3.0;
+        irr_err = Some((mean - t_irr).abs() / t_irr);
     }
+    progress(&format!(
+        "channel {ch}: light ({:.4}, {:.4}, {:.4}) +- {:.2} deg, irradiance ({:.4}, {:.4}, {:.4}); \
+         clip level of the sphere image {}, of the white image {}",
+        l.x,
+        l.y,
+        l.z,
+        light.uncertainty_deg,
+        irr.irradiance[0],
+        irr.irradiance[1],
+        irr.irradiance[2],
+        sphere.clip,
+        white.clip
+    ));
+    Ok(ChannelCalibration {
+        channel: ch,
+        light: light.summary(),
+        irradiance: irr.irradiance,
+        irradiance_std_error: irr.std_error,
+        flat_field_spread: irr.flat_field.spread,
+        sphere_clip: sphere.clip,
+        white_clip: white.clip,
+        warnings: irr.warnings.clone(),
+        truth_dir_error_deg: dir_err,
+        truth_irradiance_error: irr_err,
+    })
+}
 
-    // Single-light images: merge, write, and list in the job.
-    let ambient_names = ambient_names(&manifest);
+/// Merges each single-light bracket, writes it to `hdr_dir` and lists it for the job with its
+/// channel's calibration.
+fn write_light_images(
+    dir: &Path,
+    hdr_dir: &Path,
+    manifest: &Manifest,
+    brackets: &Brackets<'_>,
+    channels: &[ChannelCalibration],
+    inputs: &Inputs,
+) -> Result<Vec<LightImageSpec>, SessionCalibError> {
+    let ambient_names = ambient_names(manifest);
     let mut light_images = Vec::new();
     let single = kind_key(ShotKind::SingleLight);
-    for ((k, view, ch), shots) in &brackets {
+    for ((k, view, ch), shots) in brackets {
         if *k != single {
             continue;
         }
@@ -390,9 +408,9 @@ pub fn calibrate_session(
                     dir: dir.into(),
                     reason: format!("view {view} has single-light shots but no ambient image"),
                 })?;
-        if model.view(&camera).is_none() {
+        if inputs.model.view(&camera).is_none() {
             return Err(SessionCalibError::File {
-                path: cameras.clone(),
+                path: inputs.cameras.clone(),
                 reason: format!("the COLMAP model has no image named {camera:?}"),
             });
         }
@@ -417,13 +435,23 @@ pub fn calibrate_session(
             reason: "no single-light shots to reconstruct from".into(),
         });
     }
+    Ok(light_images)
+}
+
+/// Writes `job.toml` and then `calibration.json` (atomically, each).
+fn write_job_and_calibration(
+    dir: &Path,
+    inputs: Inputs,
+    light_images: Vec<LightImageSpec>,
+    channels: Vec<ChannelCalibration>,
+) -> Result<SessionCalibration, SessionCalibError> {
     let n_light = light_images.len();
     let job_name = Path::new(JOB_FILE);
     let job_path = dir.join(job_name);
     let job = Job {
         source: job_path.clone(),
-        mesh,
-        cameras,
+        mesh: inputs.mesh,
+        cameras: inputs.cameras,
         light_images,
         warnings: Vec::new(),
     };
@@ -448,6 +476,71 @@ pub fn calibrate_session(
         reason: e.to_string(),
     })?;
     Ok(out)
+}
+
+/// Calibrates a session and writes `hdr/`, `calibration.json` and `job.toml` into it: reads
+/// the inputs, checks every image, merges the calibration brackets, calibrates each channel,
+/// writes the single-light images and then the job and the calibration.
+pub fn calibrate_session(
+    dir: &Path,
+    opts: &SessionCalibOptions,
+    mut progress: impl FnMut(&str),
+) -> Result<SessionCalibration, SessionCalibError> {
+    let manifest = manifest(dir)?;
+    if manifest.status != "complete" {
+        progress(&format!(
+            "warning: the session is `{}`; calibrating the shots it has (resume the capture to finish it)",
+            manifest.status
+        ));
+    }
+    let inputs = inputs(dir, opts)?;
+    let mut brackets: Brackets = BTreeMap::new();
+    for s in &manifest.shots {
+        brackets
+            .entry((kind_key(s.kind), s.view, s.channel))
+            .or_default()
+            .push(s);
+    }
+    verify_images(dir, &manifest)?;
+    let hdr_dir = dir.join("hdr");
+    let _lock = lock_and_clean(dir, &hdr_dir)?;
+    std::fs::create_dir_all(&hdr_dir).map_err(|e| SessionCalibError::File {
+        path: hdr_dir.clone(),
+        reason: e.to_string(),
+    })?;
+
+    let shots = merge_calibration_shots(dir, &brackets, &mut progress)?;
+    // The black sphere in a dark room shows only its lit side, so its outline is found in the
+    // brightest-of image over every channel's shot (lit from several sides) when there are
+    // several, which keeps the outline fit away from the terminator.
+    let outline_img = union_max(shots.sphere.values().map(|m| &m.image));
+    let axis = turntable_axis_camera(&manifest, &inputs.model);
+    if axis.is_none() {
+        progress(
+            "warning: fewer than two ambient views at different angles in the photogrammetry \
+             model: the white reference is assumed to face the bisector of light and camera",
+        );
+    }
+    let white_key = kind_key(ShotKind::White);
+    let mut channels = Vec::new();
+    for &ch in shots.sphere.keys() {
+        let white_angle = brackets
+            .get(&(white_key, None, Some(ch)))
+            .and_then(|s| s.first())
+            .map(|s| s.measured_angle_deg);
+        channels.push(calibrate_channel(
+            ch,
+            &shots,
+            outline_img.as_ref(),
+            white_angle,
+            axis,
+            &inputs,
+            opts.truth.as_ref(),
+            &mut progress,
+        )?);
+    }
+    let light_images = write_light_images(dir, &hdr_dir, &manifest, &brackets, &channels, &inputs)?;
+    write_job_and_calibration(dir, inputs, light_images, channels)
 }
 
 /// The turntable's axis in camera axes, from the photogrammetry poses of the ambient views: the
