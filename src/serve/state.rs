@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::capture::plan::{CapturePlan, LabGeometry, load_plan, parse_plan};
-use crate::capture::session::{
-    JOURNAL_FILE, MANIFEST_FILE, PLAN_FILE, SESSION_FILE, SessionHeader,
+use crate::capture::session_format::{
+    JOURNAL_FILE, PLAN_FILE, current_records, read_header, read_journal, read_manifest,
 };
 use crate::capture::{ShotKind, VerifyReport};
 
@@ -238,19 +238,18 @@ impl SessionInfo {
     /// Reads one session folder's header, journal length and manifest status; `None` when it
     /// is not a session.
     pub fn read(dir: &Path) -> Option<SessionInfo> {
-        let header: SessionHeader =
-            serde_json::from_slice(&std::fs::read(dir.join(SESSION_FILE)).ok()?).ok()?;
+        // Through the session format's own readers (typed, version-checked): a folder of
+        // another format version is not listed.
+        let header = read_header(dir).ok()?;
         if !dir.join(PLAN_FILE).is_file() {
             return None;
         }
-        let journaled = std::fs::read_to_string(dir.join(JOURNAL_FILE))
-            .map(|t| t.lines().filter(|l| !l.trim().is_empty()).count())
+        let journaled = read_journal(&dir.join(JOURNAL_FILE))
+            .map(|(records, _)| current_records(records).0.len())
             .unwrap_or(0);
-        let status = std::fs::read(dir.join(MANIFEST_FILE))
-            .ok()
-            .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
-            .and_then(|v| v.get("status")?.as_str().map(str::to_string))
-            .unwrap_or_else(|| "unknown".into());
+        let status = read_manifest(dir)
+            .map(|m| m.status)
+            .unwrap_or_else(|_| "unknown".into());
         Some(SessionInfo {
             name: dir.file_name()?.to_string_lossy().into_owned(),
             plan: header.plan_name.clone(),
