@@ -14,7 +14,7 @@ use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
 use brdf_rig::brdf::coords::MerlBin;
 use brdf_rig::brdf::metrics::compare_values;
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
-use brdf_rig::brdf::ridge::{Observation, RidgeSettings, reconstruct};
+use brdf_rig::brdf::ridge::{BasisSample, RidgeSettings, reconstruct};
 use brdf_rig::brdf::sampling::{SamplingSettings, select_samples_with};
 use brdf_rig::brdf::{BinValues, Brdf};
 use std::time::Instant;
@@ -50,7 +50,7 @@ fn main() -> anyhow::Result<()> {
     for target in &targets {
         let settings = BasisSettings {
             stride,
-            n_components: 64,
+            basis_components: 64,
             exclude: if keep_target {
                 vec![]
             } else {
@@ -72,10 +72,10 @@ fn main() -> anyhow::Result<()> {
             .1;
         let bins = basis.grid().bins().to_vec();
         let truth = net.values_at(&bins);
-        let all: Vec<Observation> = truth
+        let all: Vec<BasisSample> = truth
             .iter()
             .enumerate()
-            .map(|(row, &rgb)| Observation { row, rgb })
+            .map(|(row, &rgb)| BasisSample { row, rgb })
             .collect();
         println!("all bins observed:   k  relative  cos-weighted  near-specular");
         for k in [5, 10, 20, 30, 40] {
@@ -83,7 +83,7 @@ fn main() -> anyhow::Result<()> {
                 &basis,
                 &all,
                 &RidgeSettings {
-                    n_components: k,
+                    k,
                     eta: 40.0,
                 },
             )?;
@@ -158,9 +158,9 @@ fn main() -> anyhow::Result<()> {
                 &fixed,
                 &SamplingSettings::default(),
             )?;
-            let obs: Vec<Observation> = s
+            let obs: Vec<BasisSample> = s
                 .iter()
-                .map(|&row| Observation {
+                .map(|&row| BasisSample {
                     row,
                     rgb: truth[row],
                 })

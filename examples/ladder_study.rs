@@ -83,7 +83,7 @@ fn main() -> anyhow::Result<()> {
         let net = find_material(&materials, name)?;
         let bs = BasisSettings {
             stride: GridStride::default(),
-            n_components: 64,
+            basis_components: 64,
             exclude: vec![name.clone()],
         };
         let (basis, _) = load_or_build(&bs, &materials, &default_cache_dir())?;

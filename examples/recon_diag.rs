@@ -46,7 +46,7 @@ fn main() -> anyhow::Result<()> {
     )?;
     let bs = BasisSettings {
         stride: GridStride::default(),
-        n_components: 64,
+        basis_components: 64,
         exclude: vec![material.clone()],
     };
     let (basis, _) = load_or_build(&bs, &materials, &default_cache_dir())?;

@@ -11,7 +11,7 @@ use brdf_rig::brdf::basis_cache::{CacheStatus, load_or_build};
 use brdf_rig::brdf::coords::MerlBin;
 use brdf_rig::brdf::metrics::{ErrorReport, compare_values};
 use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
-use brdf_rig::brdf::ridge::{Observation, RidgeSettings, reconstruct};
+use brdf_rig::brdf::ridge::{BasisSample, RidgeSettings, reconstruct};
 use brdf_rig::brdf::sampling::{SamplingSettings, condition_number, select_samples};
 use std::process::Command;
 
@@ -151,7 +151,7 @@ fn leave_one_out_small() {
                 theta_d: 6,
                 phi_d: 12,
             },
-            n_components: 40,
+            basis_components: 40,
             exclude: vec![target.to_string()],
         };
         let (basis, status) = load_or_build(&settings, &subset, cache.path()).expect("basis");
@@ -169,23 +169,15 @@ fn leave_one_out_small() {
 
         // Every bin observed: k = 5, 10, 20. The mapped residual cannot grow with k (each extra
         // component removes a non-negative share of it); the error at k = 20 must beat the mean.
-        let obs: Vec<Observation> = truth
+        let obs: Vec<BasisSample> = truth
             .iter()
             .enumerate()
-            .map(|(row, &rgb)| Observation { row, rgb })
+            .map(|(row, &rgb)| BasisSample { row, rgb })
             .collect();
         let mut last = f64::INFINITY;
         let mut e20 = None;
         for k in [5, 10, 20] {
-            let rec = reconstruct(
-                &basis,
-                &obs,
-                &RidgeSettings {
-                    n_components: k,
-                    eta: 40.0,
-                },
-            )
-            .expect("ridge");
+            let rec = reconstruct(&basis, &obs, &RidgeSettings { k, eta: 40.0 }).expect("ridge");
             let r = mapped_residual(&basis, &truth, rec.values());
             assert!(
                 r <= last * (1.0 + 1e-9),
@@ -223,9 +215,9 @@ fn leave_one_out_small() {
                 assert!(s.iter().all(|r| c.contains(r)));
             }
             assert!(condition_number(&basis, &s, 20).is_finite());
-            let obs: Vec<Observation> = s
+            let obs: Vec<BasisSample> = s
                 .iter()
-                .map(|&row| Observation {
+                .map(|&row| BasisSample {
                     row,
                     rgb: truth[row],
                 })

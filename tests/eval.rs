@@ -41,7 +41,7 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
         height: 72,
         basis: BasisSettings {
             stride,
-            n_components: 40,
+            basis_components: 40,
             exclude: Vec::new(),
         },
         basis_stride: [1, 4, 6],

@@ -62,7 +62,7 @@ pub fn reduced_basis(target: &str, materials: &[(String, Nbrdf)]) -> Basis {
             theta_d: 4,
             phi_d: 6,
         },
-        n_components: 40,
+        basis_components: 40,
         exclude: vec![target.to_string()],
     };
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");

@@ -57,7 +57,7 @@ impl Default for GridStride {
 pub struct BasisSettings {
     pub stride: GridStride,
     /// Components kept (at most the number of columns).
-    pub n_components: usize,
+    pub basis_components: usize,
     /// Materials left out: always the material being evaluated (leave-one-out).
     pub exclude: Vec<String>,
 }
@@ -68,7 +68,7 @@ impl Default for BasisSettings {
     fn default() -> Self {
         Self {
             stride: GridStride::default(),
-            n_components: 64,
+            basis_components: 64,
             exclude: Vec::new(),
         }
     }
@@ -243,7 +243,7 @@ impl Basis {
         settings: &BasisSettings,
         materials: &[(&str, &dyn BinValues)],
     ) -> Result<Self, BasisError> {
-        if settings.n_components == 0 {
+        if settings.basis_components == 0 {
             return Err(BasisError::NoComponents);
         }
         for name in &settings.exclude {
@@ -323,7 +323,7 @@ impl Basis {
             .iter()
             .map(|&j| eig.eigenvalues[j].max(0.0).sqrt())
             .collect();
-        let k = settings.n_components.min(cols);
+        let k = settings.basis_components.min(cols);
         let v_k = DMatrix::from_fn(cols, k, |i, j| eig.eigenvectors[(i, order[j])]);
 
         // Q = M V_k, by blocks of rows.
@@ -401,7 +401,7 @@ impl Basis {
     }
 
     /// Components stored.
-    pub fn n_components(&self) -> usize {
+    pub fn basis_components(&self) -> usize {
         self.k
     }
 
@@ -527,7 +527,7 @@ mod tests {
                 theta_d: 6,
                 phi_d: 12,
             },
-            n_components: 12,
+            basis_components: 12,
             exclude: vec![],
         }
     }
@@ -612,9 +612,9 @@ mod tests {
         // With every component, a material of the basis is in the span: reproduced up to the
         // f32 storage of Q.
         let mut all = coarse();
-        all.n_components = 64;
+        all.basis_components = 64;
         let basis = Basis::build(&all, &refs(&t)).expect("build");
-        assert_eq!(basis.n_components(), 18);
+        assert_eq!(basis.basis_components(), 18);
         let (_, toy) = &t[2];
         let truth = toy.values_at(basis.grid().bins());
         let rec = basis.synthesize(&basis.project(&truth, 18));
@@ -636,12 +636,12 @@ mod tests {
         let basis = Basis::build(&s, &refs(&t)).expect("build");
         assert!(!basis.materials().iter().any(|m| m == "toy3"));
         assert_eq!(basis.materials().len(), 5);
-        s.n_components = 0;
+        s.basis_components = 0;
         assert!(matches!(
             Basis::build(&s, &refs(&t)),
             Err(BasisError::NoComponents)
         ));
-        s.n_components = 12;
+        s.basis_components = 12;
         s.exclude = vec!["nope".into()];
         assert!(matches!(
             Basis::build(&s, &refs(&t)),

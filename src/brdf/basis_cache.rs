@@ -81,7 +81,7 @@ pub fn cache_key(settings: &BasisSettings, materials: &[(String, Nbrdf)]) -> [u8
     h.update(MAGIC);
     h.update(VERSION.to_le_bytes());
     let s = settings.stride;
-    for v in [s.theta_h, s.theta_d, s.phi_d, settings.n_components] {
+    for v in [s.theta_h, s.theta_d, s.phi_d, settings.basis_components] {
         h.update((v as u64).to_le_bytes());
     }
     let mut excluded = settings.exclude.clone();
@@ -333,7 +333,7 @@ mod tests {
                 theta_d: 10,
                 phi_d: 20,
             },
-            n_components: 8,
+            basis_components: 8,
             exclude: vec!["teflon".into()],
         }
     }
@@ -375,7 +375,7 @@ mod tests {
         s2.exclude = vec!["pink-fabric".into()];
         assert_ne!(cache_key(&s2, &mats), k0);
         let mut s3 = s.clone();
-        s3.n_components = 9;
+        s3.basis_components = 9;
         assert_ne!(cache_key(&s3, &mats), k0);
         let mut s4 = s.clone();
         s4.stride.phi_d = 10;

@@ -21,12 +21,12 @@ pub const DEFAULT_ETA: f64 = 40.0;
 
 /// One measured value: f_r (1/sr, RGB) at a basis row.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Observation {
+pub struct BasisSample {
     pub row: usize,
     pub rgb: [f64; 3],
 }
 
-impl Observation {
+impl BasisSample {
     /// An observation of f_r for the directions `(wi, wo)` (local frame), placed at the basis
     /// row of its MERL bin; `None` below the horizon or where the basis has no row.
     pub fn from_directions(
@@ -46,14 +46,14 @@ impl Observation {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RidgeSettings {
     /// Components at most (`k`); `min(|S|, k)` are used.
-    pub n_components: usize,
+    pub k: usize,
     pub eta: f64,
 }
 
 impl Default for RidgeSettings {
     fn default() -> Self {
         Self {
-            n_components: 20,
+            k: 20,
             eta: DEFAULT_ETA,
         }
     }
@@ -84,7 +84,7 @@ pub struct Reconstruction {
 /// Reconstructs per channel by ridge regression on the first `min(|S|, k)` components.
 pub fn reconstruct(
     basis: &Basis,
-    observations: &[Observation],
+    observations: &[BasisSample],
     settings: &RidgeSettings,
 ) -> Result<Reconstruction, RidgeError> {
     let coefficients = solve(basis, observations, settings)?;
@@ -100,7 +100,7 @@ pub fn reconstruct(
 /// (`Basis::synthesize_row`).
 pub fn solve(
     basis: &Basis,
-    observations: &[Observation],
+    observations: &[BasisSample],
     settings: &RidgeSettings,
 ) -> Result<[Vec<f64>; 3], RidgeError> {
     if observations.is_empty() {
@@ -117,8 +117,8 @@ pub fn solve(
     }
     let n = observations
         .len()
-        .min(settings.n_components)
-        .min(basis.n_components());
+        .min(settings.k)
+        .min(basis.basis_components());
     let a = DMatrix::from_fn(observations.len(), n, |i, j| {
         basis.q(observations[i].row, j)
     });
@@ -219,7 +219,7 @@ mod tests {
                 theta_d: 6,
                 phi_d: 12,
             },
-            n_components: k,
+            basis_components: k,
             exclude: vec![],
         };
         Basis::build(&s, &refs).expect("build")
@@ -238,15 +238,12 @@ mod tests {
         ]);
         let b = basis(&n, 8);
         let truth = n[1].1.values_at(b.grid().bins());
-        let obs: Vec<Observation> = truth
+        let obs: Vec<BasisSample> = truth
             .iter()
             .enumerate()
-            .map(|(row, &rgb)| Observation { row, rgb })
+            .map(|(row, &rgb)| BasisSample { row, rgb })
             .collect();
-        let settings = RidgeSettings {
-            n_components: 8,
-            eta: 40.0,
-        };
+        let settings = RidgeSettings { k: 8, eta: 40.0 };
         let rec = reconstruct(&b, &obs, &settings).expect("ridge");
         let proj = b.project(&truth, 8);
         for ch in 0..3 {
@@ -263,10 +260,7 @@ mod tests {
         // A material of the basis (5 materials, 15 columns, rank <= 14) with 14 components
         // and a tiny eta is reproduced almost exactly from all rows.
         let b = basis(&n, 14);
-        let settings = RidgeSettings {
-            n_components: 14,
-            eta: 1e-9,
-        };
+        let settings = RidgeSettings { k: 14, eta: 1e-9 };
         let rec = reconstruct(&b, &obs, &settings).expect("ridge");
         for (t, r) in truth.iter().zip(rec.values()) {
             for ch in 0..3 {
@@ -280,9 +274,9 @@ mod tests {
         let n = nets(&["blue-acrylic", "gold-paint", "pink-fabric"]);
         let b = basis(&n, 4);
         let truth = n[0].1.values_at(b.grid().bins());
-        let obs: Vec<Observation> = (0..b.n_rows())
+        let obs: Vec<BasisSample> = (0..b.n_rows())
             .step_by(50)
-            .map(|row| Observation {
+            .map(|row| BasisSample {
                 row,
                 rgb: truth[row],
             })
@@ -305,13 +299,13 @@ mod tests {
             .expect("bin")
             .centre()
             .to_directions();
-        let o = Observation::from_directions(&b, &wi, &wo, [1.0; 3]).expect("row");
+        let o = BasisSample::from_directions(&b, &wi, &wo, [1.0; 3]).expect("row");
         assert_eq!(o.row, 123);
         use crate::brdf::Brdf;
         assert_eq!(rec.eval_local(&wi, &wo), rec.values()[123]);
         let below = nalgebra::Vector3::new(0.0, 0.6, -0.8);
-        assert!(Observation::from_directions(&b, &below, &wo, [1.0; 3]).is_none());
-        let bad = [Observation {
+        assert!(BasisSample::from_directions(&b, &below, &wo, [1.0; 3]).is_none());
+        let bad = [BasisSample {
             row: b.n_rows(),
             rgb: [0.0; 3],
         }];

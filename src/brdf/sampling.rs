@@ -21,7 +21,7 @@ use std::collections::HashSet;
 #[derive(Clone, Debug, PartialEq)]
 pub struct SamplingSettings {
     /// Components considered (`k`); columns used are `min(|S|, k)`.
-    pub n_components: usize,
+    pub k: usize,
     /// Random candidates tried for each new sample.
     pub n_random: usize,
     /// Passes of coordinate descent after each addition (stops early without improvement).
@@ -32,7 +32,7 @@ pub struct SamplingSettings {
 impl Default for SamplingSettings {
     fn default() -> Self {
         Self {
-            n_components: 20,
+            k: 20,
             n_random: 500,
             descent_passes: 4,
             seed: 0x5eed,
@@ -52,7 +52,7 @@ pub enum SamplingError {
 
 /// The condition number of `Q[rows, 0:n]` (2-norm); infinite when rank deficient.
 pub fn condition_number(basis: &Basis, rows: &[usize], n: usize) -> f64 {
-    let n = n.min(basis.n_components());
+    let n = n.min(basis.basis_components());
     if rows.is_empty() || n == 0 {
         return f64::INFINITY;
     }
@@ -115,7 +115,7 @@ pub fn select_samples_with(
         });
     }
     let allowed: HashSet<usize> = pool.iter().copied().collect();
-    let k = settings.n_components.min(basis.n_components()).max(1);
+    let k = settings.k.min(basis.basis_components()).max(1);
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
 
     let norm = |r: usize| -> f64 {
@@ -238,7 +238,7 @@ mod tests {
                 theta_d: 6,
                 phi_d: 12,
             },
-            n_components: 12,
+            basis_components: 12,
             exclude: vec![],
         };
         Basis::build(&settings, &refs).expect("build")
@@ -260,7 +260,7 @@ mod tests {
     fn optimised_samples_beat_random_ones_and_respect_candidates() {
         let basis = small_basis();
         let settings = SamplingSettings {
-            n_components: 10,
+            k: 10,
             n_random: 200,
             descent_passes: 3,
             seed: 7,

@@ -249,7 +249,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         height: c.height,
         basis: BasisSettings {
             stride: c.stride,
-            n_components: a.common.basis_components,
+            basis_components: a.common.basis_components,
             exclude: Vec::new(),
         },
         basis_stride: [c.stride.theta_h, c.stride.theta_d, c.stride.phi_d],

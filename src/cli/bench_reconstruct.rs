@@ -92,7 +92,7 @@ fn stride(v: &[usize]) -> GridStride {
 fn settings_for(a: &BenchReconstructArgs, target: &str) -> Settings {
     let mut s = Settings::default();
     s.basis.stride = stride(&a.basis_stride);
-    s.basis.n_components = a.basis_components;
+    s.basis.basis_components = a.basis_components;
     s.basis.exclude = vec![target.to_string()];
     s
 }

@@ -169,7 +169,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.trials.samples = args.samples;
     settings.core.trials.subset_fraction = args.subset;
     settings.core.trials.seed = args.seed;
-    settings.core.fixed_components = args.components;
+    settings.core.fixed_k = args.components;
     settings.core.fixed_eta = args.eta;
     settings.core.choose = args.choose;
     settings.core.model = args.model;
@@ -195,7 +195,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             phi_d: p,
         };
     }
-    settings.basis.n_components = args.basis_components;
+    settings.basis.basis_components = args.basis_components;
     if let Some(d) = args.nbrdf_dir {
         settings.nbrdf_dir = d;
     }

@@ -98,7 +98,7 @@ impl<'a> Runner<'a> {
         if !self.bases.contains_key(&bkey) {
             let bs = BasisSettings {
                 stride: s.stride,
-                n_components: s.components,
+                basis_components: s.components,
                 exclude: vec![s.material.clone()],
             };
             let (b, _) = basis_cache::load_or_build(&bs, self.materials, &self.cache_dir)?;
@@ -225,7 +225,7 @@ fn speed_settings_one(base: &Setting) -> Vec<Setting> {
     }
     for k in [5, 10, 20, 40] {
         push("components k", k as f64, format!("k = {k}"), &|s| {
-            s.core.fixed_components = Some(k)
+            s.core.fixed_k = Some(k)
         });
     }
     for (stride, label) in [

@@ -53,9 +53,11 @@ pub struct CoreSettings {
     pub reliable: ReliableSettings,
     pub trials: TrialSettings,
     pub components: ComponentSettings,
-    /// Use this k instead of choosing one by validation.
-    pub fixed_components: Option<usize>,
-    /// Ridge weight used with `fixed_components` (validation chooses its own otherwise).
+    /// Use this k (the number of basis components a fit uses) instead of choosing one by
+    /// validation. Read from files written before it was renamed, too.
+    #[serde(alias = "fixed_components")]
+    pub fixed_k: Option<usize>,
+    /// Ridge weight used with `fixed_k` (validation chooses its own otherwise).
     pub fixed_eta: f64,
     /// Where the result is called medium or low confidence.
     pub confidence: ConfidenceSettings,
@@ -78,7 +80,7 @@ impl Default for CoreSettings {
             reliable: ReliableSettings::default(),
             trials: TrialSettings::default(),
             components: ComponentSettings::default(),
-            fixed_components: None,
+            fixed_k: None,
             fixed_eta: crate::brdf::ridge::DEFAULT_ETA,
             confidence: ConfidenceSettings::default(),
             choose: TrialChoice::Similarity,
@@ -205,7 +207,7 @@ pub fn reconstruct_observations(
     // The model ladder: every family scored on held-out images (or blocks).
     let t = Instant::now();
     let images = observations.iter().map(|o| o.image + 1).max().unwrap_or(0);
-    let mut ladder = match settings.fixed_components {
+    let mut ladder = match settings.fixed_k {
         Some(_) => None,
         None => {
             progress("model ladder (held-out images or blocks)");
@@ -231,7 +233,7 @@ pub fn reconstruct_observations(
     timings.push(("ladder".to_string(), t.elapsed().as_secs_f64()));
 
     // The family to report.
-    let (family, reason) = match (settings.model, settings.fixed_components, &ladder) {
+    let (family, reason) = match (settings.model, settings.fixed_k, &ladder) {
         (ModelSelection::Only(f), _, _) => (f, format!("{f} was asked for (--model)")),
         (_, Some(k), _) => (
             Family::Basis,
@@ -481,7 +483,7 @@ fn component_choice(
     ladder: Option<&Ladder>,
     reliable: &super::reliable::Reliable,
 ) -> ComponentChoice {
-    if let Some(k) = settings.fixed_components {
+    if let Some(k) = settings.fixed_k {
         return ComponentChoice {
             k: k.min(prior.max_components()).max(1),
             eta: settings.fixed_eta,
@@ -577,7 +579,7 @@ mod tests {
         let obs = scene();
         let mut settings = CoreSettings {
             choose,
-            fixed_components: Some(3),
+            fixed_k: Some(3),
             ..CoreSettings::default()
         };
         settings.trials.trials = 6;

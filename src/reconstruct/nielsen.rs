@@ -50,7 +50,7 @@ impl Candidate for Fitted {
 
 impl Prior for NielsenPrior<'_> {
     fn max_components(&self) -> usize {
-        self.basis.n_components()
+        self.basis.basis_components()
     }
 
     fn row_of(&self, bin: usize) -> Option<usize> {
@@ -69,7 +69,7 @@ impl Prior for NielsenPrior<'_> {
         pool.sort_unstable();
         pool.dedup();
         let settings = SamplingSettings {
-            n_components: k.max(1),
+            k: k.max(1),
             n_random: self.settings.n_random,
             descent_passes: self.settings.descent_passes,
             seed,
@@ -111,23 +111,17 @@ impl NielsenPrior<'_> {
         samples: &[Sample],
         k: usize,
         eta: f64,
-    ) -> (Vec<ridge::Observation>, RidgeSettings) {
+    ) -> (Vec<ridge::BasisSample>, RidgeSettings) {
         let obs = samples
             .iter()
             .filter_map(|s| {
-                self.row_of(s.bin).map(|row| ridge::Observation {
+                self.row_of(s.bin).map(|row| ridge::BasisSample {
                     row,
                     rgb: s.reflectance,
                 })
             })
             .collect();
-        (
-            obs,
-            RidgeSettings {
-                n_components: k,
-                eta,
-            },
-        )
+        (obs, RidgeSettings { k, eta })
     }
 }
 

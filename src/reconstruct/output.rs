@@ -67,7 +67,7 @@ pub(super) fn report_of(
             excluded: basis.settings().exclude.clone(),
             stride: [s.theta_h, s.theta_d, s.phi_d],
             rows: basis.n_rows(),
-            components: basis.n_components(),
+            components: basis.basis_components(),
             cache: None,
             note: PROVENANCE.to_string(),
         },
