@@ -79,14 +79,7 @@ fn main() -> anyhow::Result<()> {
             .collect();
         println!("all bins observed:   k  relative  cos-weighted  near-specular");
         for k in [5, 10, 20, 30, 40] {
-            let rec = reconstruct(
-                &basis,
-                &all,
-                &RidgeSettings {
-                    k,
-                    eta: 40.0,
-                },
-            )?;
+            let rec = reconstruct(&basis, &all, &RidgeSettings { k, eta: 40.0 })?;
             let e = compare_values(&bins, &truth, rec.values());
             println!(
                 "                   {k:3}  {:8.4}  {:12.4}  {:13.4}",

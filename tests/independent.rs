@@ -11,7 +11,7 @@
 
 use crate::util;
 use brdf_rig::brdf::merl::MerlTable;
-use brdf_rig::reconstruct::pipeline::prepare;
+use brdf_rig::reconstruct::prepare::prepare;
 use brdf_rig::reconstruct::{Job, Settings};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};

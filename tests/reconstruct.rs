@@ -332,21 +332,21 @@ fn normal_refinement_recovers_turned_normals_from_the_rendered_images() {
     };
     let job = write_scene(dir.path(), &mesh, &mesh, truth, &spec).unwrap();
     let settings = Settings::default();
-    let mut scene = brdf_rig::reconstruct::pipeline::load_scene(&job, &settings).unwrap();
+    let mut scene = brdf_rig::reconstruct::prepare::load_scene(&job, &settings).unwrap();
     assert!(
         scene
             .mesh
             .set_vertex_normals(turned_normals(&mesh, 8.0, 11))
     );
-    let observed = brdf_rig::reconstruct::pipeline::observe_scene(&scene, &settings.observe);
-    let mut prepared = brdf_rig::reconstruct::pipeline::Prepared {
+    let observed = brdf_rig::reconstruct::prepare::observe_scene(&scene, &settings.observe);
+    let mut prepared = brdf_rig::reconstruct::prepare::Prepared {
         scene,
         observed,
         refinement: None,
         timings: Vec::new(),
     };
     let before = prepared.scene.mesh.vertex_normals().to_vec();
-    let seen = brdf_rig::reconstruct::pipeline::refine_prepared(
+    let seen = brdf_rig::reconstruct::prepare::refine_prepared(
         &mut prepared,
         None,
         &settings.observe,
@@ -361,7 +361,7 @@ fn normal_refinement_recovers_turned_normals_from_the_rendered_images() {
     };
     let (b, a) = (e(&before), e(prepared.scene.mesh.vertex_normals()));
     // The error as the images see it: the normal each pixel gets (its face's corners blended).
-    let px = brdf_rig::reconstruct::pipeline::refine_pixels(&prepared.scene, &settings.observe);
+    let px = brdf_rig::reconstruct::prepare::refine_pixels(&prepared.scene, &settings.observe);
     let pe = |n: &[Vector3<f64>]| {
         brdf_rig::reconstruct::refine::pixel_normal_error_deg(
             prepared.scene.mesh.faces(),

@@ -243,7 +243,7 @@ fn finding_3_calibrate_refuses_a_damaged_image() {
 /// One light image of a small reconstruction job replaced, and what `prepare` says of it.
 fn image_warnings(job: &brdf_rig::reconstruct::Job) -> Vec<String> {
     let settings = brdf_rig::reconstruct::Settings::default();
-    match brdf_rig::reconstruct::pipeline::prepare(job, &settings, &mut |_| {}) {
+    match brdf_rig::reconstruct::prepare::prepare(job, &settings, &mut |_| {}) {
         Ok(p) => p.scene.warnings,
         Err(e) => vec![format!("error: {e}")],
     }

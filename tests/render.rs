@@ -7,16 +7,16 @@ use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::camera::{Intrinsics, Pose};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::raster::{Rasteriser, rasterise};
-use brdf_rig::render::analytic::{SceneObject, render_analytic};
 use brdf_rig::render::board::{Board, render_board};
 use brdf_rig::render::light::{DirectionalLight, UniformEnvironment};
+use brdf_rig::render::raytraced::{SceneObject, render_analytic};
 use brdf_rig::render::shade::{ShadeOptions, render_mesh, shade, shade_fragment};
 use brdf_rig::render::sphere::{Sphere, render_sphere};
 use nalgebra::{Point3, Vector3};
 use std::f64::consts::PI;
 
 /// Lambertian BRDF `albedo / pi` (the simulator's).
-use brdf_rig::sim::render::Lambertian as Lambert;
+use brdf_rig::sim::imaging::Lambertian as Lambert;
 
 /// A probe "BRDF" that reports the local cosines it was given, to check the shading frame:
 /// R = cos(theta_o), G = 1, B = |wi x wo| (the sine of the angle between them).

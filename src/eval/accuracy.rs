@@ -16,7 +16,7 @@ use crate::reconstruct::core::CoreSettings;
 use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::NielsenSettings;
 use crate::reconstruct::observe::ObserveSettings;
-use crate::reconstruct::pipeline::observe_scene;
+use crate::reconstruct::prepare::observe_scene;
 use crate::reconstruct::refine::RefineSettings;
 use crate::reconstruct::reliable::ReliableSettings;
 use crate::reconstruct::synthetic::SceneSpec;

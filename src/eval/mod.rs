@@ -33,7 +33,7 @@ use crate::reconstruct::core::{CoreError, CoreSettings, reconstruct_observations
 use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observe::{Observation, ObserveSettings};
-use crate::reconstruct::pipeline::{
+use crate::reconstruct::prepare::{
     Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene,
     observe_scene_and_pixels, refine_prepared,
 };

@@ -20,7 +20,7 @@ use crate::capture::{CaptureError, CapturePlan, Operator, Session, Stage};
 use crate::devices::Camera;
 use crate::profile::Profile;
 use crate::sim::SimHandle;
-use crate::sim::render::ObjectScene;
+use crate::sim::imaging::ObjectScene;
 use crate::sim::scene::{SceneConfig, StageState};
 
 /// Name of the copy of the profile kept in the session folder (a resume uses it).

@@ -12,10 +12,10 @@
 //! - [`trials`]: random trials, chosen by cosine similarity with the captured images;
 //! - [`refine`]: optional: the mesh's normals refined from the images before all of the above.
 //!
-//! [`core`] chains the pure steps on observations; [`pipeline`] loads a job's files and
+//! [`core`] chains the pure steps on observations; [`prepare`] loads a job's files and
 //! observes them; [`run`] runs everything on a job; [`output`] fills the report and writes the
 //! results; [`report_file`] owns the format of `report.json` (read back by the HTML report);
-//! [`synthetic`] writes simulated scenes. Only `pipeline`, `output`, `report_file` and
+//! [`synthetic`] writes simulated scenes. Only `prepare`, `output`, `report_file` and
 //! `synthetic` touch files.
 //!
 //! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
@@ -32,8 +32,8 @@ pub mod nielsen;
 pub mod observation;
 pub mod observe;
 pub mod output;
-pub mod pipeline;
 pub mod plausible;
+pub mod prepare;
 pub mod prior;
 pub mod read_back;
 pub mod reduce;
@@ -48,5 +48,5 @@ pub mod trials;
 pub use core::{CoreOutput, CoreSettings, reconstruct_observations};
 pub use job::{Job, JobError, LightImageSpec};
 pub use output::Output;
-pub use pipeline::{ReconstructError, Settings};
+pub use prepare::{ReconstructError, Settings};
 pub use run::{reconstruct, reconstruct_with_basis};

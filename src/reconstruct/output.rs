@@ -10,7 +10,7 @@
 use super::compare::Comparison;
 use super::core::CoreOutput;
 use super::job::Job;
-use super::pipeline::{Observed, Scene, Settings};
+use super::prepare::{Observed, Scene, Settings};
 use super::report_file::{
     self, BRDF_FILE, BasisReport, ComparisonReport, REPORT_FORMAT_VERSION, Report, SettingsReport,
     StageTiming, comparison_file,

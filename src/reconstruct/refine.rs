@@ -31,7 +31,7 @@
 //! unmodelled lobe) have a bounded pull. A pixel's normal is the barycentric blend of its face's
 //! vertex normals, as the rasteriser makes it, so a refined mesh renders as it was scored.
 //!
-//! Pure: pixels come from `pipeline::refine_pixels`; no I/O.
+//! Pure: pixels come from `prepare::refine_pixels`; no I/O.
 
 use super::observe::Observation;
 use crate::render::frame::ShadingFrame;

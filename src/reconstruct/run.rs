@@ -1,5 +1,5 @@
 //! A whole reconstruction, from a job to its [`Output`]: load and observe the job
-//! (`pipeline`), the basis (cache or build), the pure core, the photo/re-render comparison
+//! (`prepare`), the basis (cache or build), the pure core, the photo/re-render comparison
 //! per light image, and the report (`output::report_of`). Writes nothing; `output::write` does.
 
 use super::compare::{Comparison, compare_image};
@@ -8,7 +8,7 @@ use super::job::Job;
 use super::nielsen::NielsenPrior;
 use super::observe::Observation;
 use super::output::{Output, report_of};
-use super::pipeline::{Observed, Prepared, ReconstructError, Scene, Settings, load_basis, prepare};
+use super::prepare::{Observed, Prepared, ReconstructError, Scene, Settings, load_basis, prepare};
 use crate::brdf::basis::Basis;
 use crate::brdf::basis_cache::CacheStatus;
 use crate::brdf::merl::MerlTable;

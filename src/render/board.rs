@@ -1,10 +1,10 @@
 //! A planar rectangular board (the white reference target): a one-sided quad given by its
 //! centre and two orthogonal half-extent axes, facing `half_u x half_v`. Rendering goes through
-//! `render::analytic`. Pure.
+//! `render::raytraced`. Pure.
 
-use super::analytic::{AnalyticShape, SceneObject, render_analytic};
 use super::image::LinearImage;
 use super::light::DirectionalLight;
+use super::raytraced::{AnalyticShape, SceneObject, render_analytic};
 use crate::brdf::Brdf;
 use crate::geometry::camera::{Intrinsics, Pose};
 use nalgebra::{Point3, Vector3};

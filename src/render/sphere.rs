@@ -1,9 +1,9 @@
 //! An analytic sphere (ray-sphere intersection, no mesh): BRDF previews and the glossy black
-//! calibration sphere. Rendering goes through `render::analytic`. Pure.
+//! calibration sphere. Rendering goes through `render::raytraced`. Pure.
 
-use super::analytic::{AnalyticShape, SceneObject, render_analytic};
 use super::image::LinearImage;
 use super::light::DirectionalLight;
+use super::raytraced::{AnalyticShape, SceneObject, render_analytic};
 use crate::brdf::Brdf;
 use crate::geometry::camera::{Intrinsics, Pose};
 use nalgebra::{Point3, Vector3};

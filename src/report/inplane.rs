@@ -169,7 +169,7 @@ mod tests {
     use crate::brdf::merl::MerlTable;
     use std::f64::consts::PI;
 
-    use crate::sim::render::Lambertian as Lambert;
+    use crate::sim::imaging::Lambertian as Lambert;
 
     /// A narrow lobe around the half vector: peaks exactly where h = n.
     struct Lobe;

@@ -6,8 +6,8 @@
 
 pub mod camera;
 pub mod firmware;
+pub mod imaging;
 pub mod motion;
-pub mod render;
 pub mod runner;
 pub mod scene;
 pub mod truth;

@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use super::render::ObjectScene;
+use super::imaging::ObjectScene;
 use super::scene::{SceneConfig, SimCameraRig};
 use crate::capture::plan::{CapturePlan, LabGeometry, ShotKind};
 use crate::format::{FormatError, Versioned, version_1};

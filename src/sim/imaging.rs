@@ -10,7 +10,7 @@
 //! camera. Both sit at the turntable centre. The room light lights only the object (calibration
 //! shots are taken with the room light off).
 //!
-//! The targets are imaged as a real camera images them (`render::analytic::CameraOptics`): each
+//! The targets are imaged as a real camera images them (`render::raytraced::CameraOptics`): each
 //! pixel integrates over its area (`scene.pixel_samples` rays per side) after a Gaussian lens blur
 //! (`scene.psf_sigma_px`). The highlight is about a pixel wide at 160x120; sampled at pixel
 //! centres only it would snap to the pixel grid, which no camera does. The object itself is still
@@ -27,10 +27,10 @@ use crate::capture::plan::Target;
 use crate::geometry::bvh::Bvh;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io::load_mesh;
-use crate::render::analytic::{CameraOptics, SceneObject, render_analytic_with};
 use crate::render::board::Board;
 use crate::render::image::LinearImage;
 use crate::render::light::{DirectionalLight, UniformEnvironment};
+use crate::render::raytraced::{CameraOptics, SceneObject, render_analytic_with};
 use crate::render::shade::{ShadeOptions, render_mesh};
 use crate::render::sphere::Sphere;
 
