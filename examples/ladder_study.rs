@@ -24,7 +24,7 @@ use brdf_rig::reconstruct::observe::{Observation, ObserveSettings};
 use brdf_rig::reconstruct::plausible::{PlausibleSettings, make_plausible};
 use brdf_rig::reconstruct::prior::Candidate;
 use brdf_rig::reconstruct::reliable::select_reliable;
-use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
+use brdf_rig::sim::job_scene::{SceneSpec, write_scene};
 use std::path::PathBuf;
 
 fn list(arg: Option<&String>, default: &[&str]) -> Vec<String> {

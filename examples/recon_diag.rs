@@ -21,7 +21,7 @@ use brdf_rig::reconstruct::core::{CoreSettings, reconstruct_observations};
 use brdf_rig::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use brdf_rig::reconstruct::observe::{ObserveSettings, to_local};
 use brdf_rig::reconstruct::prior::{Prior, Sample};
-use brdf_rig::reconstruct::synthetic::SceneSpec;
+use brdf_rig::sim::job_scene::SceneSpec;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -16,7 +16,7 @@ use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::geometry::sfm_like::SfmLikeParams;
 use brdf_rig::reconstruct::observe::ObserveSettings;
 use brdf_rig::reconstruct::refine::RefineSettings;
-use brdf_rig::reconstruct::synthetic::SceneSpec;
+use brdf_rig::sim::job_scene::SceneSpec;
 use std::time::Instant;
 
 fn variant(spec: &str) -> anyhow::Result<RefineSettings> {

@@ -12,7 +12,7 @@ use brdf_rig::reconstruct::Settings;
 use brdf_rig::reconstruct::observe::{ObserveSettings, SurfacePixel, ViewInput, observe_view};
 use brdf_rig::reconstruct::prepare::{load_scene, observe_scene, prepare};
 use brdf_rig::reconstruct::reduce::Reduction;
-use brdf_rig::reconstruct::synthetic::{SceneSpec, write_scene};
+use brdf_rig::sim::job_scene::{SceneSpec, write_scene};
 use std::collections::HashMap;
 
 #[test]

@@ -19,7 +19,7 @@ use crate::reconstruct::observe::ObserveSettings;
 use crate::reconstruct::prepare::observe_scene;
 use crate::reconstruct::refine::RefineSettings;
 use crate::reconstruct::reliable::ReliableSettings;
-use crate::reconstruct::synthetic::SceneSpec;
+use crate::sim::job_scene::SceneSpec;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

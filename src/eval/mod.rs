@@ -9,7 +9,7 @@
 //!
 //! Conventions: errors are those of `brdf::metrics` (docs/error-metrics.md), computed over every
 //! `bin_step`-th MERL bin (bins below the horizon skipped); the target material is always left
-//! out of the basis (`BasisSettings::exclude`). A scene is written once (`reconstruct::synthetic`)
+//! out of the basis (`BasisSettings::exclude`). A scene is written once (`sim::job_scene`)
 //! and loaded once; perturbations (image noise, clipping, light-direction error) are applied in
 //! memory to the loaded images and light directions before observation, so every variant of a
 //! scene sees the same pixels. An I/O edge: writes scene folders.
@@ -40,11 +40,11 @@ use crate::reconstruct::prepare::{
 use crate::reconstruct::refine::{
     RefineReport, RefineSettings, normal_error_deg, pixel_normal_error_deg,
 };
-use crate::reconstruct::synthetic::{SceneSpec, write_scene};
 use crate::reconstruct::{Job, prior::Candidate};
 use crate::render::probe::{
     ProbeRenders, ProbeSettings, RenderedErrors, SphereProbe, compare as compare_rendered,
 };
+use crate::sim::job_scene::{SceneSpec, write_scene};
 use nalgebra::{Rotation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -15,7 +15,7 @@ use crate::reconstruct::Job;
 use crate::reconstruct::core::CoreSettings;
 use crate::reconstruct::nielsen::NielsenSettings;
 use crate::reconstruct::observe::ObserveSettings;
-use crate::reconstruct::synthetic::SceneSpec;
+use crate::sim::job_scene::SceneSpec;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

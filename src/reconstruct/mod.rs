@@ -14,9 +14,9 @@
 //!
 //! [`core`] chains the pure steps on observations; [`prepare`] loads a job's files and
 //! observes them; [`run`] runs everything on a job; [`output`] fills the report and writes the
-//! results; [`report_file`] owns the format of `report.json` (read back by the HTML report);
-//! [`synthetic`] writes simulated scenes. Only `prepare`, `output`, `report_file` and
-//! `synthetic` touch files.
+//! results; [`report_file`] owns the format of `report.json` (read back by the HTML report).
+//! Only `prepare`, `output` and `report_file` touch files. Simulated job folders are written
+//! by `sim::job_scene`, outside the method.
 //!
 //! Entry points: [`reconstruct`] (job + settings, builds or reads the cached basis),
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
@@ -42,7 +42,6 @@ pub mod reliable;
 pub mod report_file;
 pub mod run;
 pub mod sweep;
-pub mod synthetic;
 pub mod trials;
 
 pub use core::{CoreOutput, CoreSettings, reconstruct_observations};

@@ -7,6 +7,7 @@
 pub mod camera;
 pub mod firmware;
 pub mod imaging;
+pub mod job_scene;
 pub mod motion;
 pub mod runner;
 pub mod scene;

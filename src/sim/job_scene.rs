@@ -1,7 +1,8 @@
 //! Simulated reconstruction scenes: a mesh rendered with a known BRDF from a ring of cameras,
 //! each with its own single directional light, written as a job folder (SfM-like mesh, COLMAP
 //! text model, linear EXR images, `job.toml`). Used by the tests, the benchmark and the
-//! accuracy study; an I/O edge (writes files).
+//! accuracy study; an I/O edge (writes files). Unlike `sim::truth` (what a simulated turntable
+//! session knows), this is a camera ring around the object, written as a job for `reconstruct`.
 //!
 //! Geometry: cameras on a ring around the mesh's bounding-box centre, world up = +y, at
 //! `elevation_deg` above the ring plane, alternately above and below; the mesh fills about 80 %
@@ -11,7 +12,6 @@
 //! alternately left and right. A turntable rig with one fixed light has a single `alpha`; this
 //! scene spreads it on purpose (METHOD.md section 1: the basis needs several `theta_d`).
 
-use super::job::{Job, LightImageSpec};
 use crate::brdf::Brdf;
 use crate::geometry::bvh::Bvh;
 use crate::geometry::camera::{Intrinsics, Pose};
@@ -19,6 +19,7 @@ use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapMode
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io::{PlyEncoding, write_ply};
 use crate::imageio::{self, ExrPrecision};
+use crate::reconstruct::job::{JOB_FILE, Job, LightImageSpec};
 use crate::render::light::DirectionalLight;
 use crate::render::shade::{ShadeOptions, render_mesh};
 use nalgebra::{Point3, Vector3};
@@ -168,7 +169,7 @@ pub fn write_scene(
     )
     .map_err(|e| io(&e))?;
     let job = Job {
-        source: dir.join(super::job::JOB_FILE),
+        source: dir.join(JOB_FILE),
         mesh: dir.join("mesh.ply"),
         cameras: dir.join("sparse"),
         light_images,
