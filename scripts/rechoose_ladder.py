@@ -2,7 +2,10 @@
 and in log held-out error, and a GGX peak only when it lowers both) would have chosen on a stored
 accuracy grid, and the rendered error it would have got.
 
-Usage: python3 scripts/rechoose_ladder.py docs/eval/refined/accuracy.json
+Usage: python3 scripts/rechoose_ladder.py docs/eval/refined/accuracy.json [--pareto]
+
+With --pareto, the `pareto` choice instead (`--held-out pareto`: the richer of the linear and
+the log choice unless its mean error is worse in the space that chose the simpler one).
 
 Reads each scene's ladder rungs (fold errors, both spaces) and each family's own fit against the
 truth (`alternatives`, from `bench accuracy`). An estimate, not a re-run: a re-chosen basis rung
@@ -10,7 +13,7 @@ at another k is scored with the basis fit at the originally chosen k, and the tr
 disagreement guard is applied only where the stored reason names it.
 """
 import json, math, sys
-d = json.load(open(sys.argv[1]))
+d = json.load(open([a for a in sys.argv[1:] if not a.startswith('--')][0]))
 def within(c, b, lin):
     fc = c['fold_errors'] if lin else c['fold_errors_log']
     fb = b['fold_errors'] if lin else b['fold_errors_log']
@@ -32,6 +35,18 @@ def both(rungs):
     if a is None: return b
     if b is None: return a
     return a if key(rungs[a])<=key(rungs[b]) else b
+def pareto(rungs):
+    # the richer of the two choices unless its mean error is worse in the space that chose
+    # the simpler one (`--held-out pareto`)
+    a=choose(rungs,True); b=choose(rungs,False)
+    if a is None: return b
+    if b is None: return a
+    if a == b: return a
+    s_, r_, lin = (a,b,True) if key(rungs[a])<=key(rungs[b]) else (b,a,False)
+    inf=float('inf')
+    er = err(rungs[r_],lin); es = err(rungs[s_],lin)
+    return r_ if (er if er is not None else inf) <= (es if es is not None else inf) else s_
+RULE = pareto if '--pareto' in sys.argv else both
 old_r=[]; new_r=[]; changed=0
 rows=[]
 for sc in d['scenes']:
@@ -43,7 +58,7 @@ for sc in d['scenes']:
     alts = {f:e['environment'] for f,e in ok['alternatives']}
     oldfam = ok['model']['family']; oldenv = ok['chosen']['environment']
     alts[oldfam]=oldenv
-    c = both(rungs); fam = rungs[c]['family']
+    c = RULE(rungs); fam = rungs[c]['family']
     if fam=='basis' and hyb:
         h=hyb[0]; b=[r for r in rungs if r['family']=='basis' and r['k']==h['k'] and r['eta']==h['eta']]
         if b:
@@ -52,7 +67,7 @@ for sc in d['scenes']:
             if better(True) and better(False): fam='hybrid'
     if fam in ('basis','hybrid') and 'disagree' in lad['reason'] + ok['model']['reason']:
         an=[r for r in rungs if r['family'] in ('lambert','lambert-ggx')]
-        fam = an[both(an)]['family']
+        fam = an[RULE(an)]['family']
     newenv = alts.get(fam, oldenv)
     if fam!=oldfam: changed+=1
     old_r.append(base/oldenv); new_r.append(base/newenv)

@@ -46,7 +46,8 @@ pub struct BenchExternalArgs {
     #[arg(long, value_parser = clap::value_parser!(f64))]
     pub prior_ratio: Option<f64>,
     /// Study knob: the held-out error the ladder's choice reads: `both` (the default: a richer
-    /// model must win beyond noise in each), `log` or `linear`.
+    /// model must win beyond noise in each), `pareto` (the richer of the linear and the log choice
+    /// unless it does worse in the other space), `log` or `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
 }
@@ -56,7 +57,8 @@ fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
         "log" => Ok(HeldOutMetric::Log),
         "linear" => Ok(HeldOutMetric::Linear),
         "both" => Ok(HeldOutMetric::Both),
-        _ => Err(format!("{s:?}: expected log, linear or both")),
+        "pareto" => Ok(HeldOutMetric::Pareto),
+        _ => Err(format!("{s:?}: expected log, linear, both or pareto")),
     }
 }
 
@@ -117,6 +119,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             Some(HeldOutMetric::Log) => " --held-out log",
             Some(HeldOutMetric::Linear) => " --held-out linear",
             Some(HeldOutMetric::Both) => " --held-out both",
+            Some(HeldOutMetric::Pareto) => " --held-out pareto",
         },
         a.out.display()
     );

@@ -125,6 +125,12 @@ pub enum HeldOutMetric {
     /// choice. A rung better in log space but worse linearly (or the reverse) is not needed by
     /// the scene.
     Both,
+    /// The linear and the log choice; where they differ, the richer of the two unless its mean
+    /// held-out error is worse than the simpler's in the space that chose the simpler. Unlike
+    /// `Both`, a space whose folds cannot tell the rungs apart (the linear errors of a shiny
+    /// material, dominated by its highlights) does not veto what the other space sees clearly;
+    /// a space that sees the richer rung do worse still does (study option, issue 11).
+    Pareto,
 }
 
 /// When a simpler rung counts as "within noise" of the best.
@@ -750,7 +756,9 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         let keep = match settings.metric {
             HeldOutMetric::Linear => better(h, b),
             HeldOutMetric::Log => better(&h.as_log(), &b.as_log()),
-            HeldOutMetric::Both => better(h, b) && better(&h.as_log(), &b.as_log()),
+            HeldOutMetric::Both | HeldOutMetric::Pareto => {
+                better(h, b) && better(&h.as_log(), &b.as_log())
+            }
         };
         rungs.push(hybrid);
         if keep {
@@ -878,6 +886,56 @@ pub fn choose_by(rungs: &[Rung], settings: &LadderSettings) -> Option<(usize, St
         HeldOutMetric::Linear => choose(rungs, settings.rule),
         HeldOutMetric::Log => {
             choose(&log, settings.rule).map(|(i, r)| (i, format!("{r} (log-space errors)")))
+        }
+        HeldOutMetric::Pareto => {
+            let lin = choose(rungs, settings.rule);
+            let lg = choose(&log, settings.rule);
+            match (lin, lg) {
+                (Some((a, _)), Some((b, rb))) if a == b => Some((
+                    a,
+                    format!("{rb} (log-space errors; the same by linear errors)"),
+                )),
+                (Some((a, ra)), Some((b, rb))) => {
+                    // s: the simpler choice and the space that chose it; r: the richer one
+                    let a_simpler = simpler_first(&rungs[a], &rungs[b]).is_le();
+                    let (s, r, s_errs, s_space, r_reason) = if a_simpler {
+                        (a, b, rungs, "linear", format!("{rb} (log-space errors)"))
+                    } else {
+                        (b, a, &log[..], "log-space", format!("{ra} (linear errors)"))
+                    };
+                    // a rung without an error in that space counts as worse
+                    let er = s_errs[r].error.unwrap_or(f64::INFINITY);
+                    let es = s_errs[s].error.unwrap_or(f64::INFINITY);
+                    if er <= es {
+                        Some((
+                            r,
+                            format!(
+                                "{r_reason}; the {s_space} errors would take {}, but {} is no \
+                                 worse there ({:.4} against {:.4})",
+                                rungs[s].label(),
+                                rungs[r].label(),
+                                er,
+                                es
+                            ),
+                        ))
+                    } else {
+                        let s_reason = if a_simpler { ra } else { rb };
+                        Some((
+                            s,
+                            format!(
+                                "{s_reason} ({s_space} errors; {} does worse there: {:.4} \
+                                 against {:.4})",
+                                rungs[r].label(),
+                                er,
+                                es
+                            ),
+                        ))
+                    }
+                }
+                (Some((a, ra)), None) => Some((a, format!("{ra} (linear errors)"))),
+                (None, Some((b, rb))) => Some((b, format!("{rb} (log-space errors)"))),
+                (None, None) => None,
+            }
         }
         HeldOutMetric::Both => {
             let lin = choose(rungs, settings.rule);
@@ -1136,8 +1194,32 @@ mod tests {
             &[0.10, 0.11, 0.09, 0.10, 0.12],
             &[0.055, 0.054, 0.056, 0.055, 0.054],
         );
-        let rungs = vec![ggx, basis];
+        let rungs = vec![ggx.clone(), basis];
         assert_eq!(choose_by(&rungs, &with(HeldOutMetric::Both)).unwrap().0, 1);
+        // Pareto: the basis wins clearly in log space while the linear folds cannot separate
+        // the two (noisy, the basis's mean a little lower): `Both` keeps the simpler rung,
+        // `Pareto` the basis; with the basis's linear mean higher, both keep the simpler.
+        let noisy = rung(
+            Family::Basis,
+            30,
+            &[0.08, 0.18, 0.09, 0.16, 0.10],
+            &[0.035, 0.034, 0.036, 0.035, 0.034],
+        );
+        let rungs = vec![ggx.clone(), noisy];
+        assert_eq!(choose_by(&rungs, &with(HeldOutMetric::Both)).unwrap().0, 0);
+        let (i, reason) = choose_by(&rungs, &with(HeldOutMetric::Pareto)).unwrap();
+        assert_eq!(i, 1, "{reason}");
+        assert!(reason.contains("no worse"), "{reason}");
+        let worse = rung(
+            Family::Basis,
+            30,
+            &[0.10, 0.20, 0.11, 0.18, 0.12],
+            &[0.035, 0.034, 0.036, 0.035, 0.034],
+        );
+        let rungs = vec![ggx, worse];
+        let (i, reason) = choose_by(&rungs, &with(HeldOutMetric::Pareto)).unwrap();
+        assert_eq!(i, 0, "{reason}");
+        assert!(reason.contains("does worse"), "{reason}");
     }
 
     #[test]

@@ -47,7 +47,10 @@ pub fn every_variant_is_mirrored(f: Family, m: HeldOutMetric, r: ChoiceRule, s: 
         Family::Lambert | Family::LambertGgx | Family::Basis | Family::Hybrid => {}
     }
     match m {
-        HeldOutMetric::Linear | HeldOutMetric::Log | HeldOutMetric::Both => {}
+        HeldOutMetric::Linear
+        | HeldOutMetric::Log
+        | HeldOutMetric::Both
+        | HeldOutMetric::Pareto => {}
     }
     match r {
         ChoiceRule::OneStandardError | ChoiceRule::Paired => {}
@@ -72,6 +75,7 @@ enum HeldOutMetricMirror {
     Linear,
     Log,
     Both,
+    Pareto,
 }
 
 #[derive(Deserialize)]
