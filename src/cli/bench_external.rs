@@ -45,9 +45,9 @@ pub struct BenchExternalArgs {
     /// no pixel was observed (`PlausibleSettings::prior_ratio_limit`; default: the library's).
     #[arg(long, value_parser = clap::value_parser!(f64))]
     pub prior_ratio: Option<f64>,
-    /// Study knob: the held-out error the ladder's choice reads: `both` (the default: a richer
-    /// model must win beyond noise in each), `pareto` (the richer of the linear and the log choice
-    /// unless it does worse in the other space), `log` or `linear`.
+    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default: the
+    /// richer of the linear and the log choice unless it does worse in the other space), `both`
+    /// (a richer model must win beyond noise in each), `log` or `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
 }
