@@ -52,6 +52,10 @@ pub struct EvalCommon {
     /// Where the simulated scenes are written (default: a temporary folder, removed after).
     #[arg(long)]
     pub scratch: Option<PathBuf>,
+    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default), `both`,
+    /// `log` or `linear` (as `bench external --held-out`).
+    #[arg(long, value_parser = super::bench_external::parse_metric)]
+    pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
 }
 
 #[derive(Args, Debug)]
@@ -168,6 +172,9 @@ impl EvalCommon {
         let mut core = CoreSettings::default();
         core.trials.trials = self.trials;
         core.trials.samples = self.samples;
+        if let Some(m) = self.held_out {
+            core.ladder.metric = m;
+        }
         let scratch = match &self.scratch {
             Some(p) => {
                 std::fs::create_dir_all(p).with_context(|| format!("creating {}", p.display()))?;
@@ -202,7 +209,9 @@ impl EvalCommon {
             self.basis_stride,
             self.basis_components,
             self.bin_step
-        )
+        ) + &self.held_out.map_or(String::new(), |m| {
+            format!(" --held-out {}", super::bench_external::metric_name(m))
+        })
     }
 }
 

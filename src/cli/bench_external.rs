@@ -52,7 +52,17 @@ pub struct BenchExternalArgs {
     pub held_out: Option<HeldOutMetric>,
 }
 
-fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
+/// The `--held-out` word for a metric (what [`parse_metric`] reads).
+pub(crate) fn metric_name(m: HeldOutMetric) -> &'static str {
+    match m {
+        HeldOutMetric::Log => "log",
+        HeldOutMetric::Linear => "linear",
+        HeldOutMetric::Both => "both",
+        HeldOutMetric::Pareto => "pareto",
+    }
+}
+
+pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
     match s {
         "log" => Ok(HeldOutMetric::Log),
         "linear" => Ok(HeldOutMetric::Linear),
@@ -114,13 +124,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         },
         a.prior_ratio
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
-        match a.held_out {
-            None => "",
-            Some(HeldOutMetric::Log) => " --held-out log",
-            Some(HeldOutMetric::Linear) => " --held-out linear",
-            Some(HeldOutMetric::Both) => " --held-out both",
-            Some(HeldOutMetric::Pareto) => " --held-out pareto",
-        },
+        a.held_out
+            .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
         a.out.display()
     );
     let machine = brdf_rig::eval::host::machine();
