@@ -4,6 +4,8 @@ accuracy grid, and the rendered error it would have got.
 
 Usage: python3 scripts/rechoose_ladder.py docs/eval/refined/accuracy.json [--pareto]
 
+With --median, a rung's score is the median over its folds instead of the mean (a study of a
+held-out error robust to one bad fold; not in the code).
 With --pareto, the `pareto` choice instead (`--held-out pareto`: the richer of the linear and
 the log choice unless its mean error is worse in the space that chose the simpler one).
 
@@ -22,7 +24,12 @@ def within(c, b, lin):
     n=len(dd); m=sum(dd)/n
     sd = math.sqrt(sum((x-m)**2 for x in dd)/(n-1)) if n>1 else 0
     return m <= sd/math.sqrt(n)
-def err(r, lin): return r['error'] if lin else r['error_log']
+def err(r, lin):
+    if MEDIAN:
+        f = [x for x in (r['fold_errors'] if lin else r['fold_errors_log']) if x is not None]
+        return sorted(f)[len(f)//2] if len(f) % 2 else (sum(sorted(f)[len(f)//2-1:len(f)//2+1])/2 if f else None)
+    return r['error'] if lin else r['error_log']
+MEDIAN = '--median' in sys.argv
 def key(r): return (r['parameters'], -(r['eta'] or 0))
 def choose(rungs, lin):
     ok=[(i,r) for i,r in enumerate(rungs) if err(r,lin) is not None]
