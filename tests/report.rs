@@ -167,6 +167,9 @@ fn example_report(job: PathBuf) -> Report {
         fold_errors_log: vec![Some(error)],
         error_log: Some(error),
         standard_error_log: Some(0.01),
+        fold_errors_patch: vec![Some(error)],
+        error_patch: Some(error),
+        standard_error_patch: Some(0.01),
         image_errors: vec![Some(error), None],
     };
     let core = CoreSettings::default();

@@ -52,8 +52,8 @@ pub struct EvalCommon {
     /// Where the simulated scenes are written (default: a temporary folder, removed after).
     #[arg(long)]
     pub scratch: Option<PathBuf>,
-    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default), `both`,
-    /// `log` or `linear` (as `bench external --held-out`).
+    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default),
+    /// `pareto-patches`, `patches`, `both`, `log` or `linear` (as `bench external --held-out`).
     #[arg(long, value_parser = super::bench_external::parse_metric)]
     pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
 }

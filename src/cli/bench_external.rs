@@ -46,8 +46,9 @@ pub struct BenchExternalArgs {
     #[arg(long, value_parser = clap::value_parser!(f64))]
     pub prior_ratio: Option<f64>,
     /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default: the
-    /// richer of the linear and the log choice unless it does worse in the other space), `both`
-    /// (a richer model must win beyond noise in each), `log` or `linear`.
+    /// richer of the linear and the log choice unless it does worse in the other space),
+    /// `pareto-patches` (the same with patch sums in place of pixels), `patches`, `both` (a
+    /// richer model must win beyond noise in each), `log` or `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
 }
@@ -59,6 +60,8 @@ pub(crate) fn metric_name(m: HeldOutMetric) -> &'static str {
         HeldOutMetric::Linear => "linear",
         HeldOutMetric::Both => "both",
         HeldOutMetric::Pareto => "pareto",
+        HeldOutMetric::Patches => "patches",
+        HeldOutMetric::ParetoPatches => "pareto-patches",
     }
 }
 
@@ -68,7 +71,11 @@ pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
         "linear" => Ok(HeldOutMetric::Linear),
         "both" => Ok(HeldOutMetric::Both),
         "pareto" => Ok(HeldOutMetric::Pareto),
-        _ => Err(format!("{s:?}: expected log, linear, both or pareto")),
+        "patches" => Ok(HeldOutMetric::Patches),
+        "pareto-patches" => Ok(HeldOutMetric::ParetoPatches),
+        _ => Err(format!(
+            "{s:?}: expected log, linear, both, pareto, patches or pareto-patches"
+        )),
     }
 }
 

@@ -50,7 +50,9 @@ pub fn every_variant_is_mirrored(f: Family, m: HeldOutMetric, r: ChoiceRule, s: 
         HeldOutMetric::Linear
         | HeldOutMetric::Log
         | HeldOutMetric::Both
-        | HeldOutMetric::Pareto => {}
+        | HeldOutMetric::Pareto
+        | HeldOutMetric::Patches
+        | HeldOutMetric::ParetoPatches => {}
     }
     match r {
         ChoiceRule::OneStandardError | ChoiceRule::Paired => {}
@@ -76,6 +78,8 @@ enum HeldOutMetricMirror {
     Log,
     Both,
     Pareto,
+    Patches,
+    ParetoPatches,
 }
 
 #[derive(Deserialize)]
@@ -97,6 +101,8 @@ struct LadderSettingsMirror {
     hybrid: bool,
     rule: ChoiceRule,
     metric: HeldOutMetric,
+    #[serde(default)]
+    patch_px: Option<usize>,
     max_trial_disagreement: f64,
 }
 
@@ -120,6 +126,12 @@ struct RungMirror {
     fold_errors_log: Vec<Option<f64>>,
     error_log: Option<f64>,
     standard_error_log: Option<f64>,
+    #[serde(default)]
+    fold_errors_patch: Vec<Option<f64>>,
+    #[serde(default)]
+    error_patch: Option<f64>,
+    #[serde(default)]
+    standard_error_patch: Option<f64>,
     image_errors: Vec<Option<f64>>,
 }
 
@@ -211,6 +223,9 @@ mod tests {
             fold_errors_log: vec![Some(0.1), None],
             error_log: Some(0.1),
             standard_error_log: Some(0.01),
+            fold_errors_patch: Vec::new(),
+            error_patch: None,
+            standard_error_patch: None,
             image_errors: vec![None, Some(0.3)],
         };
         for scheme in [
