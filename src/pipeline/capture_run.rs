@@ -90,7 +90,7 @@ pub enum CaptureRunError {
         source: Box<DeviceError>,
     },
     #[error("the plan does not fit the rig: {0}")]
-    PlanDoesNotFit(String),
+    PlanDoesNotFit(crate::capture::plan::PlanError),
     #[error("BRDF_RIG_TEST_KILL_AT={value}: expected N:phase")]
     KillHookNumber {
         value: String,
@@ -225,7 +225,7 @@ pub fn execute(
     {
         use crate::devices::Light;
         plan.check_rig(rig.light.channel_count())
-            .map_err(|e| CaptureRunError::PlanDoesNotFit(e.to_string()))?;
+            .map_err(CaptureRunError::PlanDoesNotFit)?;
     }
     let stage = StageState::default();
     let mut camera = kit.open_camera(
