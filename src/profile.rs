@@ -241,6 +241,17 @@ impl Profile {
         parse_section(&self.source, &self.origin, key)
     }
 
+    /// The profile a rig command uses: the file given, else the built-in rig with a real board's
+    /// timing when only a port is given ([`Profile::real_board_defaults`]), else the built-in
+    /// simulated rig.
+    pub fn chosen(file: Option<&Path>, port: Option<&Path>) -> Result<Profile, ProfileError> {
+        match (file, port) {
+            (Some(p), _) => Profile::load(p),
+            (None, Some(port)) => Profile::real_board_defaults(port),
+            (None, None) => Profile::simulated(),
+        }
+    }
+
     pub fn load(path: &Path) -> Result<Profile, ProfileError> {
         let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
             path: path.to_owned(),

@@ -320,5 +320,5 @@ fn the_file_reader_resolves_use_trees_and_relative_paths() {
     assert!(of("report::gather").contains(&name("reconstruct::report_file")));
     assert!(of("report::gather").contains(&name("report")));
     // the binary's files name the library's through `brdf_rig::`
-    assert!(of("cli::bench_reconstruct").contains(&name("eval")));
+    assert!(of("cli::bench_reconstruct").contains(&name("eval::bench::reconstruct")));
 }

@@ -117,7 +117,7 @@ pub fn load_or_build(
                     "warning: basis cache {} is corrupt ({reason}); rebuilding it",
                     path.display()
                 );
-                corrupt = Some(reason);
+                corrupt = Some(reason.to_string());
             }
         },
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
@@ -193,6 +193,35 @@ fn encode(b: &Basis, key: &[u8; 32]) -> Vec<u8> {
     out
 }
 
+/// Why a cache file cannot be used (it is rebuilt; the reason is reported).
+#[derive(Debug, thiserror::Error)]
+enum DecodeError {
+    #[error("size overflow")]
+    Overflow,
+    #[error("file too short")]
+    TooShort,
+    #[error("checksum mismatch")]
+    Checksum,
+    #[error("not a basis cache file")]
+    Magic,
+    #[error("format version {0}, expected {VERSION}")]
+    Version(u32),
+    #[error("key does not match the settings and materials")]
+    Key,
+    #[error("material name not UTF-8")]
+    Name,
+    #[error("stride differs from the settings")]
+    Stride,
+    #[error("row count differs from the grid")]
+    Rows,
+    #[error("bins differ from the grid")]
+    Bins,
+    #[error("trailing bytes")]
+    Trailing,
+    #[error("{0}")]
+    Invalid(BasisError),
+}
+
 /// A cursor that fails with a reason instead of panicking on short input.
 struct Reader<'a> {
     bytes: &'a [u8],
@@ -200,24 +229,24 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
-        let end = self.pos.checked_add(n).ok_or("size overflow")?;
-        let s = self.bytes.get(self.pos..end).ok_or("file too short")?;
+    fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
+        let end = self.pos.checked_add(n).ok_or(DecodeError::Overflow)?;
+        let s = self.bytes.get(self.pos..end).ok_or(DecodeError::TooShort)?;
         self.pos = end;
         Ok(s)
     }
-    fn u32(&mut self) -> Result<u32, String> {
+    fn u32(&mut self) -> Result<u32, DecodeError> {
         let mut b = [0u8; 4];
         b.copy_from_slice(self.take(4)?);
         Ok(u32::from_le_bytes(b))
     }
-    fn u64(&mut self) -> Result<usize, String> {
+    fn u64(&mut self) -> Result<usize, DecodeError> {
         let mut b = [0u8; 8];
         b.copy_from_slice(self.take(8)?);
-        usize::try_from(u64::from_le_bytes(b)).map_err(|_| "size overflow".to_string())
+        usize::try_from(u64::from_le_bytes(b)).map_err(|_| DecodeError::Overflow)
     }
-    fn f64s(&mut self, n: usize) -> Result<Vec<f64>, String> {
-        let raw = self.take(n.checked_mul(8).ok_or("size overflow")?)?;
+    fn f64s(&mut self, n: usize) -> Result<Vec<f64>, DecodeError> {
+        let raw = self.take(n.checked_mul(8).ok_or(DecodeError::Overflow)?)?;
         Ok(raw
             .chunks_exact(8)
             .map(|c| {
@@ -229,28 +258,28 @@ impl<'a> Reader<'a> {
     }
 }
 
-fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basis, String> {
+fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basis, DecodeError> {
     if bytes.len() < MAGIC.len() + 4 + 32 + 32 {
-        return Err("file too short".into());
+        return Err(DecodeError::TooShort);
     }
     let (body, sum) = bytes.split_at(bytes.len() - 32);
     let want: [u8; 32] = Sha256::digest(body).into();
     if sum != want {
-        return Err("checksum mismatch".into());
+        return Err(DecodeError::Checksum);
     }
     let mut r = Reader {
         bytes: body,
         pos: 0,
     };
     if r.take(MAGIC.len())? != MAGIC {
-        return Err("not a basis cache file".into());
+        return Err(DecodeError::Magic);
     }
     let version = r.u32()?;
     if version != VERSION {
-        return Err(format!("format version {version}, expected {VERSION}"));
+        return Err(DecodeError::Version(version));
     }
     if r.take(32)? != key {
-        return Err("key does not match the settings and materials".into());
+        return Err(DecodeError::Key);
     }
     let rows = r.u64()?;
     let k = r.u64()?;
@@ -258,7 +287,7 @@ fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basi
     let mut materials = Vec::new();
     for _ in 0..n_mat {
         let len = r.u32()? as usize;
-        let name = std::str::from_utf8(r.take(len)?).map_err(|_| "material name not UTF-8")?;
+        let name = std::str::from_utf8(r.take(len)?).map_err(|_| DecodeError::Name)?;
         materials.push(name.to_string());
     }
     let stride = GridStride {
@@ -267,24 +296,24 @@ fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basi
         phi_d: r.u32()? as usize,
     };
     if stride != settings.stride {
-        return Err("stride differs from the settings".into());
+        return Err(DecodeError::Stride);
     }
-    let grid = BasisGrid::new(stride).map_err(|e| e.to_string())?;
+    let grid = BasisGrid::new(stride).map_err(DecodeError::Invalid)?;
     if grid.n_rows() != rows {
-        return Err("row count differs from the grid".into());
+        return Err(DecodeError::Rows);
     }
     for &bin in grid.bins() {
         if r.u32()? as usize != bin {
-            return Err("bins differ from the grid".into());
+            return Err(DecodeError::Bins);
         }
     }
     let cos_map = r.f64s(rows)?;
     let median = r.f64s(rows)?;
     let mean = r.f64s(rows)?;
-    let singular_values = r.f64s(n_mat.checked_mul(3).ok_or("size overflow")?)?;
-    let nq = rows.checked_mul(k).ok_or("size overflow")?;
+    let singular_values = r.f64s(n_mat.checked_mul(3).ok_or(DecodeError::Overflow)?)?;
+    let nq = rows.checked_mul(k).ok_or(DecodeError::Overflow)?;
     let q: Vec<f32> = r
-        .take(nq.checked_mul(4).ok_or("size overflow")?)?
+        .take(nq.checked_mul(4).ok_or(DecodeError::Overflow)?)?
         .chunks_exact(4)
         .map(|c| {
             let mut b = [0u8; 4];
@@ -293,7 +322,7 @@ fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basi
         })
         .collect();
     if r.pos != body.len() {
-        return Err("trailing bytes".into());
+        return Err(DecodeError::Trailing);
     }
     let basis = Basis {
         settings: settings.clone(),
@@ -306,7 +335,7 @@ fn decode(bytes: &[u8], key: &[u8; 32], settings: &BasisSettings) -> Result<Basi
         q,
         k,
     };
-    basis.validate().map_err(|e| e.to_string())?;
+    basis.validate().map_err(DecodeError::Invalid)?;
     Ok(basis)
 }
 

@@ -271,9 +271,9 @@ pub fn parse_plan(text: &str, origin: &str) -> Result<CapturePlan, CaptureError>
             ),
         });
     }
-    plan.validate().map_err(|reason| CaptureError::Plan {
+    plan.validate().map_err(|e| CaptureError::Plan {
         origin: origin.to_string(),
-        reason,
+        reason: e.to_string(),
     })?;
     Ok(plan)
 }
@@ -286,15 +286,60 @@ pub fn default_plan() -> CapturePlan {
         .expect("the embedded default plan is valid")
 }
 
-fn check_exposures(field: &str, values: &[f64]) -> Result<(), String> {
+/// What is wrong with a plan, named by its field (`single_light.views[2]`); the file is named
+/// by the caller ([`CaptureError::Plan`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    #[error("{field}: at least one exposure is needed")]
+    NoExposure { field: &'static str },
+    #[error("{field}[{index}] = {value}: an exposure must be in (0, 60] seconds")]
+    Exposure {
+        field: &'static str,
+        index: usize,
+        value: f64,
+    },
+    #[error("camera.width/height = {width}x{height}: must be between 8 and 20000 pixels")]
+    ImageSize { width: usize, height: usize },
+    #[error("camera.gain = {0}: must be positive")]
+    Gain(f64),
+    #[error("ambient.views = {0}: must be between 1 and 3600")]
+    Views(usize),
+    #[error("ambient.start_deg: must be a finite angle")]
+    StartAngle,
+    #[error("single_light: give either `every` or `views`, not both")]
+    EveryAndViews,
+    #[error("single_light.every = 0: must be at least 1")]
+    EveryZero,
+    #[error(
+        "single_light.views[{index}] = {view}: there are only {views} ambient views (0..{last})"
+    )]
+    View {
+        index: usize,
+        view: usize,
+        views: usize,
+        last: usize,
+    },
+    #[error("single_light.level = {0}: must be in (0, 1]")]
+    Level(f64),
+    #[error("single_light.channels[{index}] = {channel}: channel listed twice")]
+    ChannelTwice { index: usize, channel: usize },
+    #[error("single_light.channels: at least one light channel is needed")]
+    NoChannel,
+    #[error("single_light.channels contains {channel}, but the light reports {count} channel(s)")]
+    MissingChannel { channel: usize, count: usize },
+}
+
+fn check_exposures(field: &'static str, values: &[f64]) -> Result<(), PlanError> {
     if values.is_empty() {
-        return Err(format!("{field}: at least one exposure is needed"));
+        return Err(PlanError::NoExposure { field });
     }
     for (i, e) in values.iter().enumerate() {
         if !(e.is_finite() && *e > 0.0 && *e <= 60.0) {
-            return Err(format!(
-                "{field}[{i}] = {e}: an exposure must be in (0, 60] seconds"
-            ));
+            return Err(PlanError::Exposure {
+                field,
+                index: i,
+                value: *e,
+            });
         }
     }
     Ok(())
@@ -302,57 +347,51 @@ fn check_exposures(field: &str, values: &[f64]) -> Result<(), String> {
 
 impl CapturePlan {
     /// Checks the plan on its own (the rig's channel count is checked by [`Self::check_rig`]).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), PlanError> {
         let c = &self.camera;
         if c.width < 8 || c.height < 8 || c.width > 20_000 || c.height > 20_000 {
-            return Err(format!(
-                "camera.width/height = {}x{}: must be between 8 and 20000 pixels",
-                c.width, c.height
-            ));
+            return Err(PlanError::ImageSize {
+                width: c.width,
+                height: c.height,
+            });
         }
         if !(c.gain.is_finite() && c.gain > 0.0) {
-            return Err(format!("camera.gain = {}: must be positive", c.gain));
+            return Err(PlanError::Gain(c.gain));
         }
         if self.ambient.views == 0 || self.ambient.views > 3600 {
-            return Err(format!(
-                "ambient.views = {}: must be between 1 and 3600",
-                self.ambient.views
-            ));
+            return Err(PlanError::Views(self.ambient.views));
         }
         if !self.ambient.start_deg.is_finite() {
-            return Err("ambient.start_deg: must be a finite angle".into());
+            return Err(PlanError::StartAngle);
         }
         check_exposures("ambient.exposures_secs", &self.ambient.exposures_secs)?;
         let sl = &self.single_light;
         match (sl.every, &sl.views) {
-            (Some(_), Some(_)) => {
-                return Err("single_light: give either `every` or `views`, not both".into());
-            }
-            (Some(0), None) => return Err("single_light.every = 0: must be at least 1".into()),
+            (Some(_), Some(_)) => return Err(PlanError::EveryAndViews),
+            (Some(0), None) => return Err(PlanError::EveryZero),
             (_, Some(v)) => {
                 for (i, &view) in v.iter().enumerate() {
                     if view >= self.ambient.views {
-                        return Err(format!(
-                            "single_light.views[{i}] = {view}: there are only {} ambient views (0..{})",
-                            self.ambient.views,
-                            self.ambient.views - 1
-                        ));
+                        return Err(PlanError::View {
+                            index: i,
+                            view,
+                            views: self.ambient.views,
+                            last: self.ambient.views - 1,
+                        });
                     }
                 }
             }
             _ => {}
         }
         if !(sl.level > 0.0 && sl.level <= 1.0) {
-            return Err(format!(
-                "single_light.level = {}: must be in (0, 1]",
-                sl.level
-            ));
+            return Err(PlanError::Level(sl.level));
         }
         for (i, &ch) in sl.channels.iter().enumerate() {
             if sl.channels[..i].contains(&ch) {
-                return Err(format!(
-                    "single_light.channels[{i}] = {ch}: channel listed twice"
-                ));
+                return Err(PlanError::ChannelTwice {
+                    index: i,
+                    channel: ch,
+                });
             }
         }
         let needs_light = !self.single_light_views().is_empty()
@@ -360,7 +399,7 @@ impl CapturePlan {
             || self.calibration.white;
         if needs_light {
             if sl.channels.is_empty() {
-                return Err("single_light.channels: at least one light channel is needed".into());
+                return Err(PlanError::NoChannel);
             }
             check_exposures("single_light.exposures_secs", &sl.exposures_secs)?;
         }
@@ -374,16 +413,17 @@ impl CapturePlan {
     }
 
     /// Checks the plan against the rig: every planned channel must exist.
-    pub fn check_rig(&self, channel_count: usize) -> Result<(), String> {
+    pub fn check_rig(&self, channel_count: usize) -> Result<(), PlanError> {
         if let Some(&ch) = self
             .single_light
             .channels
             .iter()
             .find(|&&ch| ch >= channel_count)
         {
-            return Err(format!(
-                "single_light.channels contains {ch}, but the light reports {channel_count} channel(s)"
-            ));
+            return Err(PlanError::MissingChannel {
+                channel: ch,
+                count: channel_count,
+            });
         }
         Ok(())
     }
@@ -617,7 +657,12 @@ mod tests {
         let err = parse_plan(&bad, "x.toml").unwrap_err().to_string();
         assert!(err.contains("ambient.exposures_secs[0]"), "{err}");
         let plan = default_plan();
-        assert!(plan.check_rig(2).unwrap_err().contains("2 channel"));
+        assert!(
+            plan.check_rig(2)
+                .unwrap_err()
+                .to_string()
+                .contains("2 channel")
+        );
         assert!(plan.check_rig(3).is_ok());
     }
 }

@@ -4,11 +4,11 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use clap::{Args, Subcommand};
 
 use super::ranges::{Closed, Open, int_in, real_in};
-use brdf_rig::eval::rig::{self as bench, RigBenchOptions};
+use brdf_rig::eval::bench::rig::RigPageOptions;
+use brdf_rig::eval::rig::RigBenchOptions;
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
@@ -72,47 +72,31 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
-    let profile = match &a.profile {
-        Some(p) => brdf_rig::profile::Profile::load(p)?,
-        None => brdf_rig::profile::Profile::simulated()?,
-    };
-    anyhow::ensure!(
-        profile.is_simulated(),
-        "{}: bench rig needs a profile with port = \"sim\"",
-        profile.origin
-    );
-    let opts = RigBenchOptions {
+    let bench = RigBenchOptions {
         round_trips: a.round_trips.max(1),
         steps: a.steps.max(1),
         step_deg: a.step_deg,
     };
-    let machine = brdf_rig::eval::host::machine();
-    let report = bench::run(&profile, &opts).context("running the rig benchmark")?;
     let mut command = String::from("cargo run --release -- bench rig");
     if let Some(p) = &a.profile {
         command += &format!(" --profile {}", p.display());
     }
     command += &format!(
         " --round-trips {} --steps {} --step-deg {}",
-        opts.round_trips, opts.steps, opts.step_deg
+        bench.round_trips, bench.steps, bench.step_deg
     );
     if let Some(w) = &a.write {
         command += &format!(" --write {}", w.display());
     }
-    for (i, w) in report.walls.iter().enumerate() {
-        if *w > report.step_wall[0] * 3 / 2 {
-            eprintln!(
-                "note: step {} took {:.1} ms (median {:.1} ms)",
-                i + 1,
-                w.as_secs_f64() * 1e3,
-                report.step_wall[0].as_secs_f64() * 1e3
-            );
-        }
-    }
-    let md = report.markdown(&command, &machine);
+    let md = brdf_rig::eval::bench::rig::run(
+        &RigPageOptions {
+            profile: a.profile,
+            bench,
+            write: a.write,
+            command,
+        },
+        &mut super::bench_notes::printer(),
+    )?;
     print!("{md}");
-    if let Some(w) = &a.write {
-        std::fs::write(w, &md).with_context(|| format!("writing {}", w.display()))?;
-    }
     Ok(ExitCode::SUCCESS)
 }

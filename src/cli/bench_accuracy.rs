@@ -1,20 +1,19 @@
 //! `brdf-rig bench accuracy`: the paper's simulation grid (METHOD.md section 7), written as
-//! markdown tables and raw JSON under `--out` (docs/eval by default). Thin over `eval::accuracy`.
+//! markdown tables and raw JSON under `--out` (docs/eval by default). Thin over
+//! `eval::bench::accuracy`: parses the arguments into its options and prints.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, bail};
 use clap::Args;
 
 use super::ranges::int_in;
-use brdf_rig::brdf::basis::{BasisSettings, GridStride};
-use brdf_rig::brdf::{basis_cache, nbrdf};
-use brdf_rig::eval::PAPER_MATERIALS;
-use brdf_rig::eval::accuracy::{self, AccuracySpec, Rig, Variant};
-use brdf_rig::geometry::mesh::Mesh;
-use brdf_rig::reconstruct::core::CoreSettings;
-use brdf_rig::reconstruct::nielsen::NielsenSettings;
+use brdf_rig::brdf::basis::GridStride;
+use brdf_rig::eval::accuracy::Rig;
+use brdf_rig::eval::bench::accuracy::{
+    self, AccuracyBenchOptions, SceneOptions, materials_or_paper,
+};
 
 /// Options every evaluation command shares: scene, basis and reconstruction size.
 #[derive(Args, Debug, Clone)]
@@ -124,76 +123,24 @@ pub fn parse_stride(s: &str) -> anyhow::Result<GridStride> {
     }
 }
 
-/// Resolved common options.
-pub struct Common {
-    pub meshes: Vec<(String, Mesh)>,
-    pub materials: Vec<(String, nbrdf::Nbrdf)>,
-    pub width: usize,
-    pub height: usize,
-    pub stride: GridStride,
-    pub core: CoreSettings,
-    pub cache: PathBuf,
-    pub scratch: Scratch,
-}
-
-/// The scene folder: given, or a temporary one removed on drop.
-pub enum Scratch {
-    Given(PathBuf),
-    Temp(tempfile::TempDir),
-}
-
-impl Scratch {
-    pub fn path(&self) -> &Path {
-        match self {
-            Scratch::Given(p) => p,
-            Scratch::Temp(t) => t.path(),
-        }
-    }
-}
-
 impl EvalCommon {
-    pub fn resolve(&self) -> anyhow::Result<Common> {
+    /// The options as the library takes them; the size and stride parsed.
+    pub fn scene_options(&self) -> anyhow::Result<SceneOptions> {
         let (width, height) = parse_size(&self.size)?;
         let stride = parse_stride(&self.basis_stride)?;
-        if self.trials == 0 || self.samples == 0 || self.views == 0 {
-            bail!("--trials, --samples and --views must be at least 1");
-        }
-        let meshes = self
-            .meshes
-            .iter()
-            .map(|m| {
-                brdf_rig::eval::meshes::load_named_mesh(m)
-                    .with_context(|| format!("loading mesh {m}"))
-            })
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        let dir = self.nbrdf_dir.clone().unwrap_or_else(nbrdf::default_dir);
-        let materials = nbrdf::load_dir(&dir)
-            .with_context(|| format!("loading the neural MERL fits from {}", dir.display()))?;
-        let mut core = CoreSettings::default();
-        core.trials.trials = self.trials;
-        core.trials.samples = self.samples;
-        if let Some(m) = self.held_out {
-            core.ladder.metric = m;
-        }
-        let scratch = match &self.scratch {
-            Some(p) => {
-                std::fs::create_dir_all(p).with_context(|| format!("creating {}", p.display()))?;
-                Scratch::Given(p.clone())
-            }
-            None => Scratch::Temp(tempfile::tempdir().context("creating a temporary folder")?),
-        };
-        Ok(Common {
-            meshes,
-            materials,
+        Ok(SceneOptions {
+            meshes: self.meshes.clone(),
+            trials: self.trials,
+            samples: self.samples,
             width,
             height,
             stride,
-            core,
-            cache: self
-                .basis_cache
-                .clone()
-                .unwrap_or_else(basis_cache::default_cache_dir),
-            scratch,
+            basis_components: self.basis_components,
+            bin_step: self.bin_step,
+            nbrdf_dir: self.nbrdf_dir.clone(),
+            basis_cache: self.basis_cache.clone(),
+            scratch: self.scratch.clone(),
+            held_out: self.held_out,
         })
     }
 
@@ -216,17 +163,8 @@ impl EvalCommon {
 }
 
 pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
-    let c = a.common.resolve()?;
-    let materials: Vec<String> = if a.materials.is_empty() {
-        PAPER_MATERIALS.iter().map(|s| s.to_string()).collect()
-    } else {
-        a.materials.clone()
-    };
-    for m in &materials {
-        if !c.materials.iter().any(|(n, _)| n == m) {
-            bail!("--materials: {m:?} is not among the neural MERL fits");
-        }
-    }
+    let scene = a.common.scene_options()?;
+    let materials = materials_or_paper(&a.materials);
     if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
         bail!(
             "--one-light-deg must be in (0, 90) degrees, got {}",
@@ -244,38 +182,6 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
             other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let variants = if a.no_ablation {
-        vec![Variant::ALL]
-    } else {
-        Variant::ablation()
-    };
-    let spec = AccuracySpec {
-        materials: materials.clone(),
-        mesh_names: c.meshes.iter().map(|(n, _)| n.clone()).collect(),
-        meshes: c.meshes,
-        views: a.common.views,
-        width: c.width,
-        height: c.height,
-        basis: BasisSettings {
-            stride: c.stride,
-            basis_components: a.common.basis_components,
-            exclude: Vec::new(),
-        },
-        basis_stride: [c.stride.theta_h, c.stride.theta_d, c.stride.phi_d],
-        basis_components: a.common.basis_components,
-        core: c.core,
-        nielsen: NielsenSettings::default(),
-        sfm_iterations: 10,
-        sfm_noise_rel: 0.05,
-        variants,
-        bin_step: a.common.bin_step,
-        seeds: a.seeds.max(1),
-        rigs,
-        refine: a
-            .refine_normals
-            .then(brdf_rig::reconstruct::refine::RefineSettings::default),
-        exact_reference: a.exact_reference,
-    };
     let mut command = format!(
         "cargo run --release -- bench accuracy --materials {} {}",
         materials.join(","),
@@ -299,86 +205,20 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         command += " --exact-reference";
     }
     command += &format!(" --out {}", a.out.display());
-    let machine = brdf_rig::eval::host::machine();
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let start = std::time::Instant::now();
-    let mut done = Vec::new();
-    let out_dir = a.out.clone();
-    let write = |results: &[accuracy::SceneResult], secs: f64| -> anyhow::Result<()> {
-        let mut md = accuracy::markdown(&spec, results, &command, &machine);
-        md += &format!("\nTotal wall time: {secs:.0} s.\n");
-        let md_path = out_dir.join("accuracy.md");
-        std::fs::write(&md_path, md).with_context(|| format!("writing {}", md_path.display()))?;
-        let json = serde_json::json!({
-            "note": "ground truth: neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations, not measured MERL data",
-            "command": command,
-            "machine": machine,
-            "spec": spec,
-            "scenes": results,
-            "seconds": secs,
-        });
-        let json_path = out_dir.join("accuracy.json");
-        std::fs::write(&json_path, serde_json::to_string_pretty(&json)?)
-            .with_context(|| format!("writing {}", json_path.display()))?;
-        Ok(())
+    let options = AccuracyBenchOptions {
+        scene,
+        views: a.common.views,
+        materials,
+        seeds: a.seeds,
+        rigs,
+        no_ablation: a.no_ablation,
+        refine_normals: a.refine_normals,
+        exact_reference: a.exact_reference,
+        out: a.out.clone(),
+        command,
     };
-    let mut write_err = None;
-    let results = accuracy::run(
-        &spec,
-        &c.materials,
-        &c.cache,
-        c.scratch.path(),
-        &mut |line| eprintln!("[{:7.1} s] {line}", start.elapsed().as_secs_f64()),
-        &mut |r| {
-            if let Some(a) = r.all() {
-                eprintln!(
-                    "  {} on {} ({}): ours env {:.3} ({}), Lambert {:.3}, Lambert+GGX {:.3}, ratio {:.2}",
-                    r.material,
-                    r.mesh,
-                    r.rig.label(),
-                    a.chosen.environment,
-                    a.model.family,
-                    r.lambert.map_or(f64::NAN, |e| e.environment),
-                    r.lambert_ggx.map_or(f64::NAN, |e| e.environment),
-                    accuracy::ratio(r).unwrap_or(f64::NAN)
-                );
-            }
-            if let Some(n) = &r.normals {
-                eprintln!(
-                    "  normals: median error {:.2} -> {:.2} deg (pixels {:.2} -> {:.2}; {}, {} iteration(s), mean tilt {:.2} deg); unrefined env {:.3}, exact env {:.3}",
-                    n.median_before_deg,
-                    n.median_after_deg,
-                    n.pixel_median_before_deg,
-                    n.pixel_median_after_deg,
-                    if n.report.accepted { "accepted" } else { "refused" },
-                    n.report.chosen_iterations,
-                    n.report.mean_tilt_deg,
-                    r.unrefined.as_ref().and_then(|x| x.as_ref().ok()).map_or(f64::NAN, |a| a.chosen.environment),
-                    r.exact.as_ref().and_then(|x| x.as_ref().ok()).map_or(f64::NAN, |a| a.chosen.environment),
-                );
-                for it in &n.report.iterations {
-                    eprintln!(
-                        "    iteration {}: tilt mean {:.2} max {:.2} deg, train {:.4}, held-out {:.4}, {:.2} s",
-                        it.iteration, it.mean_tilt_deg, it.max_tilt_deg, it.train_error, it.held_out_error, it.seconds
-                    );
-                }
-            }
-            done.push(r.clone());
-            // Partial results on disk after every scene: a long run cut short still reports.
-            if let Err(e) = write(&done, start.elapsed().as_secs_f64()) {
-                write_err = Some(e);
-            }
-        },
-    )
-    .context("running the accuracy grid")?;
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    write(&results, start.elapsed().as_secs_f64())?;
-    println!(
-        "{}",
-        accuracy::markdown(&spec, &results, &command, &machine)
-    );
+    let bench = accuracy::run(&options, &mut super::bench_notes::printer())?;
+    println!("{}", bench.markdown);
     eprintln!("wrote {}/accuracy.md and accuracy.json", a.out.display());
     Ok(ExitCode::SUCCESS)
 }

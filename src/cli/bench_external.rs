@@ -1,17 +1,14 @@
 //! `brdf-rig bench external`: the reconstruction on scenes rendered by an independent renderer
 //! (`scripts/render_recon_scenes.py`), against least-squares Lambert and Lambert + GGX fits to
 //! the same pixels; writes external.md and external.json under `--out`. Thin over
-//! `eval::external`.
+//! `eval::bench::external`: parses the arguments into its options and prints.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
 use clap::Args;
 
-use brdf_rig::brdf::basis::BasisSettings;
-use brdf_rig::brdf::{basis_cache, nbrdf};
-use brdf_rig::eval::external;
+use brdf_rig::eval::bench::external::{self, ExternalBenchOptions};
 use brdf_rig::reconstruct::Settings;
 use brdf_rig::reconstruct::ladder::HeldOutMetric;
 
@@ -97,18 +94,6 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(m) = a.held_out {
         settings.core.ladder.metric = m;
     }
-    let materials = nbrdf::load_dir(&settings.nbrdf_dir).with_context(|| {
-        format!(
-            "loading the neural MERL fits from {}",
-            settings.nbrdf_dir.display()
-        )
-    })?;
-    let cache = a
-        .basis_cache
-        .clone()
-        .unwrap_or_else(basis_cache::default_cache_dir);
-    let (basis, _) = basis_cache::load_or_build(&BasisSettings::default(), &materials, &cache)
-        .context("loading the basis")?;
     let command = format!(
         "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{} --out {}",
         a.scenes.display(),
@@ -135,52 +120,17 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
         a.out.display()
     );
-    let machine = brdf_rig::eval::host::machine();
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let start = std::time::Instant::now();
-    let out_dir = a.out.clone();
-    let write = |results: &[external::ExternalResult]| -> anyhow::Result<()> {
-        let md = external::markdown(results, &command, &machine);
-        let md_path = out_dir.join("external.md");
-        std::fs::write(&md_path, &md).with_context(|| format!("writing {}", md_path.display()))?;
-        let json =
-            serde_json::json!({ "command": command, "machine": machine, "results": results });
-        let json_path = out_dir.join("external.json");
-        std::fs::write(&json_path, serde_json::to_string_pretty(&json)?)
-            .with_context(|| format!("writing {}", json_path.display()))?;
-        Ok(())
+    let options = ExternalBenchOptions {
+        scenes: a.scenes.clone(),
+        jobs: a.jobs.clone(),
+        seeds: a.seeds.clone(),
+        bin_step: a.bin_step as usize,
+        settings,
+        basis_cache: a.basis_cache.clone(),
+        out: a.out.clone(),
+        command,
     };
-    let mut done = Vec::new();
-    let mut write_err = None;
-    let results = external::run(
-        &a.scenes,
-        &a.jobs,
-        &a.seeds,
-        &settings,
-        &basis,
-        a.bin_step as usize,
-        &mut |line| eprintln!("[{:7.1} s] {line}", start.elapsed().as_secs_f64()),
-        &mut |r| {
-            eprintln!(
-                "  {} {}: ours env {}, ratio {}",
-                r.scene,
-                r.job,
-                r.ours
-                    .as_ref()
-                    .map_or_else(|e| e.clone(), |e| format!("{:.3}", e.environment)),
-                r.ratio().map_or("-".to_string(), |x| format!("{x:.2}"))
-            );
-            done.push(r.clone());
-            if let Err(e) = write(&done) {
-                write_err = Some(e);
-            }
-        },
-    )
-    .with_context(|| format!("running the scenes of {}", a.scenes.display()))?;
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    write(&results)?;
-    println!("{}", external::markdown(&results, &command, &machine));
+    let bench = external::run(&options, &mut super::bench_notes::printer())?;
+    println!("{}", bench.markdown);
     Ok(ExitCode::SUCCESS)
 }

@@ -1,33 +1,22 @@
 //! `brdf-rig capture`: a capture session, new (`--out DIR`) or continued (`--resume DIR`).
-//!
-//! Order of checks, so that nothing moves and nothing is written before everything is known to be
-//! there: plan and profile parse, the simulated scene loads, guided mode needs a terminal, the
-//! output folder is new or empty and its parent takes new files (or, resuming, every journaled
-//! image is checked against its checksum), there is room, the rig answers (a missing port fails
-//! here), the plan's channels exist, the camera opens. Only then is the session folder created
-//! and the turntable homed. A new session whose start fails before its first shot is removed
-//! again, so the same command can simply be run again.
+//! Thin: the arguments become a `pipeline::capture_run::CaptureRequest`, which the library
+//! checks and runs (the order of its checks is written there); the terminal's part (prompts,
+//! progress bar, Ctrl-C) and the final report are here.
 
-use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use brdf_rig::capture::plan::{DEFAULT_PLAN_TOML, load_plan, parse_plan};
-use brdf_rig::capture::runner::{KillPhase, Progress, RunOptions, stage_instructions};
-use brdf_rig::capture::{
-    CaptureError, Operator, Session, ShotRecord, Stage, check_disk_space, run_session,
-};
-use brdf_rig::pipeline::capture_start::{self, CaptureRig, PROFILE_COPY};
-use brdf_rig::profile::Profile;
-use brdf_rig::rig_factory::{self, OpenRig};
-use brdf_rig::sim::scene::StageState;
+use brdf_rig::capture::runner::{Progress, stage_instructions};
+use brdf_rig::capture::{CaptureError, Operator, ShotRecord, Stage};
+use brdf_rig::pipeline::capture_run::{CaptureRequest, Frontend, Outcome, execute};
 
 use super::ranges::int_in;
 use super::rig::RigArgs;
@@ -57,12 +46,12 @@ pub struct CaptureArgs {
 
 /// A person at the rig: prints what to do and waits for Enter. Ctrl-C while waiting stops.
 struct Guided {
-    cancel: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    cancel: Arc<AtomicBool>,
     lines: mpsc::Receiver<Option<String>>,
 }
 
 impl Guided {
-    fn new(cancel: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Self {
+    fn new(cancel: Arc<AtomicBool>) -> Self {
         // stdin is read on its own thread so that Ctrl-C can interrupt the wait.
         let (tx, rx) = mpsc::channel();
         let _ = std::thread::Builder::new()
@@ -151,202 +140,44 @@ impl Progress for Bars {
     }
 }
 
-fn kill_hook() -> anyhow::Result<Option<(usize, KillPhase)>> {
-    let Ok(v) = std::env::var("BRDF_RIG_TEST_KILL_AT") else {
-        return Ok(None);
-    };
-    let (n, phase) = v.split_once(':').unwrap_or((v.as_str(), "after-journal"));
-    let n: usize = n
-        .parse()
-        .with_context(|| format!("BRDF_RIG_TEST_KILL_AT={v}: expected N:phase"))?;
-    let phase = KillPhase::parse(phase).with_context(|| {
-        format!("BRDF_RIG_TEST_KILL_AT={v}: phase is before-image, after-image or after-journal")
-    })?;
-    Ok(Some((n, phase)))
+/// The terminal's side of a capture: notes and the progress bar on stderr, prompts answered with
+/// Enter, Ctrl-C stops.
+pub struct Terminal;
+
+impl Frontend for Terminal {
+    fn note(&mut self, text: &str) {
+        eprint!("{text}");
+    }
+    fn progress(&mut self) -> Box<dyn Progress> {
+        Box::new(Bars::new())
+    }
+    fn guided_operator(&mut self, cancel: Arc<AtomicBool>) -> Box<dyn Operator> {
+        Box::new(Guided::new(cancel))
+    }
+    fn watch_cancel(&mut self, cancel: Arc<AtomicBool>) {
+        let _ = ctrlc::set_handler(move || {
+            cancel.store(true, Ordering::SeqCst);
+        });
+    }
+}
+
+impl CaptureArgs {
+    pub fn request(&self) -> CaptureRequest {
+        CaptureRequest {
+            profile: self.rig.profile.clone(),
+            port: self.rig.port.clone(),
+            plan: self.plan.clone(),
+            out: self.out.clone(),
+            resume: self.resume.clone(),
+            unattended: self.unattended,
+            snapshot_every: self.snapshot_every,
+        }
+    }
 }
 
 pub fn run(args: CaptureArgs) -> anyhow::Result<ExitCode> {
-    let outcome = execute(args)?;
+    let outcome = execute(&args.request(), &mut Terminal)?;
     report(outcome)
-}
-
-/// What a capture command did: the run's result, its session folder, and how to continue it.
-pub struct Outcome {
-    pub result: Result<brdf_rig::capture::RunSummary, CaptureError>,
-    pub dir: PathBuf,
-    /// The command that continues this session, as the user should type it.
-    pub resume_command: String,
-    /// A new session that failed before any shot was taken was removed again.
-    pub removed: bool,
-}
-
-/// `brdf-rig capture --resume DIR`, with the options a resume cannot read from the session:
-/// `--unattended` (without a terminal a guided resume refuses to start) and `--port`.
-fn resume_command(args: &CaptureArgs, dir: &Path) -> String {
-    capture_start::resume_command(dir, args.rig.port.as_deref(), args.unattended)
-}
-
-/// Prepares everything and runs the session. Everything that can be checked is checked before
-/// the session folder is written; a new session whose start fails is removed again.
-pub fn execute(args: CaptureArgs) -> anyhow::Result<Outcome> {
-    let resuming = args.resume.is_some();
-    // 1. Plan and profile, the camera and scene sections, the simulated scene.
-    let (dir, plan, plan_text, profile) = match (&args.resume, &args.out) {
-        (Some(dir), _) => {
-            let plan_path = dir.join(brdf_rig::capture::session::PLAN_FILE);
-            let plan = load_plan(&plan_path)
-                .with_context(|| format!("resuming {}: is it a session folder?", dir.display()))?;
-            let profile = match &args.rig.profile {
-                Some(p) => Profile::load(p)?,
-                None => Profile::load(&dir.join(PROFILE_COPY))?,
-            };
-            let text = std::fs::read_to_string(&plan_path)
-                .with_context(|| format!("reading {}", plan_path.display()))?;
-            (dir.clone(), plan, text, profile)
-        }
-        (None, Some(out)) => {
-            let (plan, text) = match &args.plan {
-                Some(p) => (
-                    load_plan(p)?,
-                    std::fs::read_to_string(p)
-                        .with_context(|| format!("reading {}", p.display()))?,
-                ),
-                None => (
-                    parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (built in)")?,
-                    DEFAULT_PLAN_TOML.to_string(),
-                ),
-            };
-            (out.clone(), plan, text, args.rig.profile()?)
-        }
-        (None, None) => bail!("give --out DIR for a new capture or --resume DIR"),
-    };
-    let resume_cmd = resume_command(&args, &dir);
-    let kit = CaptureRig::load(profile)?;
-    let lab = kit.lab.clone();
-    eprint!("{}", plan.summary(&lab));
-
-    // 2. Guided mode needs someone at a terminal.
-    if !args.unattended && !std::io::stdin().is_terminal() {
-        bail!(
-            "guided mode waits for the operator to press Enter, but standard input is not a terminal; \
-             run it in a terminal, or pass --unattended when nobody needs to act (simulated rig, or a \
-             rig whose room light and targets are already set)"
-        );
-    }
-
-    // 3. The folder and its free space. A resumed session is opened (and locked) here: every
-    // journaled image is checked against its checksum, and damaged ones are taken again.
-    let mut resumed = None;
-    let was_empty_folder = !resuming && dir.is_dir();
-    let remaining = if resuming {
-        eprintln!(
-            "checking every journaled image of {} against its checksum",
-            dir.display()
-        );
-        let s = Session::resume(&dir)?;
-        if !s.repairs().is_empty() {
-            eprintln!(
-                "resume: {} journaled shot(s) are missing or damaged and will be taken again \
-                 (a damaged file is kept in {}):",
-                s.repairs().len(),
-                dir.join(brdf_rig::capture::session::SET_ASIDE_DIR)
-                    .display()
-            );
-            for r in s.repairs() {
-                eprintln!("  {}: {} (shot {})", r.file, r.problem.what(), r.id);
-            }
-        }
-        let n = s.remaining().len();
-        resumed = Some(s);
-        n
-    } else {
-        capture_start::check_output_folder(&dir)?;
-        plan.shots().len()
-    };
-    check_disk_space(&dir, remaining, plan.camera.width, plan.camera.height)?;
-
-    // 4. Devices, before anything moves or is written.
-    let profile = &kit.profile;
-    let OpenRig { rig, sim, .. } = rig_factory::open(profile, args.rig.port.as_deref())
-        .with_context(|| {
-            format!(
-                "opening the rig of {} (port {}); nothing has moved",
-                profile.origin,
-                args.rig
-                    .port
-                    .as_ref()
-                    .map(|p| p.display().to_string())
-                    .unwrap_or_else(|| profile.serial.port.clone())
-            )
-        })?;
-    {
-        use brdf_rig::devices::Light;
-        plan.check_rig(rig.light.channel_count())
-            .map_err(|e| anyhow::anyhow!("the plan does not fit the rig: {e}"))?;
-    }
-    let stage = StageState::default();
-    let mut camera = kit.open_camera(
-        plan.camera.width,
-        plan.camera.height,
-        sim.as_ref(),
-        &stage,
-        &dir.join(".download"),
-    )?;
-    let options = RunOptions {
-        kill_hook: kill_hook()?,
-        ..kit.run_options(args.snapshot_every)
-    };
-
-    // 5. The session: everything is checked, so it is written now (with the simulated ground
-    // truth; deterministic and cheap, so written again on resume in case a kill interrupted it).
-    let mut session = match resumed {
-        Some(s) => {
-            kit.refresh_ground_truth(&dir, &plan)?;
-            s
-        }
-        None => kit.create_session(&dir, &plan, &plan_text, was_empty_folder)?,
-    };
-
-    // 6. Run.
-    let cancel = options.cancel.clone();
-    let _ = ctrlc::set_handler(move || {
-        cancel.store(true, Ordering::SeqCst);
-    });
-    let mut guided;
-    let mut unattended = brdf_rig::capture::Unattended;
-    let base: &mut dyn Operator = if args.unattended {
-        &mut unattended
-    } else {
-        guided = Guided::new(options.cancel.clone());
-        &mut guided
-    };
-    let mut operator = capture_start::SimStage {
-        inner: base,
-        stage: stage.clone(),
-    };
-    let mut bars = Bars::new();
-    let mut rig = rig;
-    let result = run_session(
-        &mut session,
-        &mut rig.turntable,
-        &mut rig.light,
-        camera.as_mut(),
-        &mut operator,
-        &mut bars,
-        &options,
-    );
-    // A new session that stopped before its first shot holds nothing worth resuming.
-    let removed = !resuming && result.is_err() && session.records().is_empty();
-    drop(session);
-    if removed {
-        capture_start::remove_new_session(&dir, was_empty_folder)?;
-    }
-    Ok(Outcome {
-        result,
-        dir,
-        resume_command: resume_cmd,
-        removed,
-    })
 }
 
 fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {

@@ -29,11 +29,10 @@ pub struct RigArgs {
 
 impl RigArgs {
     pub fn profile(&self) -> anyhow::Result<Profile> {
-        Ok(match (&self.profile, &self.port) {
-            (Some(p), _) => Profile::load(p)?,
-            (None, Some(port)) => Profile::real_board_defaults(port)?,
-            (None, None) => Profile::simulated()?,
-        })
+        Ok(Profile::chosen(
+            self.profile.as_deref(),
+            self.port.as_deref(),
+        )?)
     }
 
     /// Loads the profile and opens the rig (spawning the simulated firmware for `port = "sim"`).

@@ -15,6 +15,7 @@
 //! scene sees the same pixels. An I/O edge: writes scene folders.
 
 pub mod accuracy;
+pub mod bench;
 pub mod confidence;
 pub mod external;
 pub mod host;

@@ -82,15 +82,15 @@ fn decode_sensor_data(bytes: &[u8], path: &Path) -> Result<RawImage, ImageIoErro
         path: path.to_path_buf(),
         message,
     };
-    super::tiff_extent::check(bytes).map_err(decode_error)?;
+    super::tiff_extent::check(bytes).map_err(|e| decode_error(e.to_string()))?;
     rawloader::decode(&mut std::io::Cursor::new(bytes))
         .map_err(|e| decode_error(format!("not a RAW file rawloader can decode: {e}")))
 }
 
 fn linearise_named(raw: &RawImage, path: &Path) -> Result<LinearRaw, ImageIoError> {
-    linearise(raw).map_err(|message| ImageIoError::Unsupported {
+    linearise(raw).map_err(|e| ImageIoError::Unsupported {
         path: path.to_path_buf(),
-        message: format!("RAW file: {message}"),
+        message: format!("RAW file: {e}"),
     })
 }
 
@@ -107,30 +107,57 @@ fn wb_normalised(raw: &RawImage) -> [f32; 4] {
     out
 }
 
+/// What a decoded RAW image holds that [`linearise`] cannot use.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RawLayoutError {
+    #[error("crop {crops:?} leaves no pixels of {width}x{height}")]
+    Crop {
+        crops: [usize; 4],
+        width: usize,
+        height: usize,
+    },
+    #[error("{0} components per pixel are not supported")]
+    Components(usize),
+    #[error("{len} samples for a {width}x{height}x{cpp} image")]
+    Samples {
+        len: usize,
+        width: usize,
+        height: usize,
+        cpp: usize,
+    },
+    #[error("single-channel RAW without a colour filter pattern")]
+    NoPattern,
+    #[error("pixel count does not match the size")]
+    PixelCount,
+}
+
 /// Black/white level, white balance and bilinear demosaic of a Bayer (or any periodic CFA)
 /// `RawImage`; 3-channel linear RAWs are only levelled and balanced.
-pub fn linearise(raw: &RawImage) -> Result<LinearRaw, String> {
+pub fn linearise(raw: &RawImage) -> Result<LinearRaw, RawLayoutError> {
     let [top, right, bottom, left] = raw.crops;
     if left + right >= raw.width || top + bottom >= raw.height {
-        return Err(format!(
-            "crop {:?} leaves no pixels of {}x{}",
-            raw.crops, raw.width, raw.height
-        ));
+        return Err(RawLayoutError::Crop {
+            crops: raw.crops,
+            width: raw.width,
+            height: raw.height,
+        });
     }
     let (w, h) = (raw.width - left - right, raw.height - top - bottom);
     let cpp = raw.cpp;
     if cpp != 1 && cpp != 3 {
-        return Err(format!("{cpp} components per pixel are not supported"));
+        return Err(RawLayoutError::Components(cpp));
     }
     let len = match &raw.data {
         RawImageData::Integer(v) => v.len(),
         RawImageData::Float(v) => v.len(),
     };
     if len < raw.width * raw.height * cpp {
-        return Err(format!(
-            "{len} samples for a {}x{}x{cpp} image",
-            raw.width, raw.height
-        ));
+        return Err(RawLayoutError::Samples {
+            len,
+            width: raw.width,
+            height: raw.height,
+            cpp,
+        });
     }
     let wb = wb_normalised(raw);
     // Per CFA colour: (value - black) / (white - black), clipped to [0, 1], times the white
@@ -145,7 +172,7 @@ pub fn linearise(raw: &RawImage) -> Result<LinearRaw, String> {
     } else {
         let cfa = raw.cropped_cfa();
         if !cfa.is_valid() {
-            return Err("single-channel RAW without a colour filter pattern".into());
+            return Err(RawLayoutError::NoPattern);
         }
         (0..cfa.height.max(1))
             .map(|y| (0..w).map(|x| cfa.color_at(y, x).min(3) as u8).collect())
@@ -176,15 +203,14 @@ pub fn linearise(raw: &RawImage) -> Result<LinearRaw, String> {
             }
         });
     let image = if cpp == 3 {
-        LinearImage::from_rgb(w, h, levelled).ok_or("pixel count does not match the size")?
+        LinearImage::from_rgb(w, h, levelled).ok_or(RawLayoutError::PixelCount)?
     } else {
         // the 4th colour counts as green
         let channels: Vec<Vec<u8>> = colours
             .iter()
             .map(|r| r.iter().map(|&c| if c == 3 { 1 } else { c }).collect())
             .collect();
-        demosaic_bilinear(&levelled, w, h, &channels)
-            .ok_or("pixel count does not match the size")?
+        demosaic_bilinear(&levelled, w, h, &channels).ok_or(RawLayoutError::PixelCount)?
     };
     Ok(LinearRaw {
         image,

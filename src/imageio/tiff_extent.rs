@@ -21,9 +21,18 @@ const TILE_OFFSETS: usize = 324;
 const TILE_BYTE_COUNTS: usize = 325;
 const SUB_IFDS: usize = 330;
 
-/// `Err(why)` when a directory, a value or a data chunk of the file ends beyond its last byte;
+/// A part of the file (`what`: a directory, the values of a tag, a strip or tile, with its
+/// byte offsets) that ends beyond the file's `len` bytes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{what} ends beyond the file's {len} bytes: the file is truncated or corrupt")]
+pub struct Truncated {
+    pub what: String,
+    pub len: usize,
+}
+
+/// `Err(what)` when a directory, a value or a data chunk of the file ends beyond its last byte;
 /// `Ok(())` when all lie inside, or the file is not classic TIFF.
-pub fn check(bytes: &[u8]) -> Result<(), String> {
+pub fn check(bytes: &[u8]) -> Result<(), Truncated> {
     let big_endian = match bytes.get(..2) {
         Some(b"II") => false,
         Some(b"MM") => true,
@@ -45,9 +54,7 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
         return Ok(());
     }
     let len = bytes.len();
-    let short = |what: String| {
-        format!("{what} ends beyond the file's {len} bytes: the file is truncated or corrupt")
-    };
+    let short = |what: String| Truncated { what, len };
     let first = u32_at(4).ok_or_else(|| short("the header".into()))?;
     let mut queue = vec![first];
     let mut seen = Vec::new();
@@ -65,7 +72,7 @@ pub fn check(bytes: &[u8]) -> Result<(), String> {
         let next = u32_at(entries + 12 * n).ok_or_else(directory)?;
         queue.push(next);
         // The unsigned values of an entry (SHORT, LONG or IFD), read where they are stored.
-        let values = |at: usize| -> Result<Vec<usize>, String> {
+        let values = |at: usize| -> Result<Vec<usize>, Truncated> {
             let (Some(tag), Some(typ), Some(count)) = (u16_at(at), u16_at(at + 2), u32_at(at + 4))
             else {
                 return Err(directory());
@@ -134,7 +141,7 @@ mod tests {
         assert_eq!(check(&dng), Ok(()));
         // cut in the header, the directory, the values after it and the pixels
         for cut in [5, 7, 20, 200, 240, dng.len() - 48, dng.len() - 1] {
-            let e = check(&dng[..cut]).unwrap_err();
+            let e = check(&dng[..cut]).unwrap_err().to_string();
             assert!(e.contains("truncated"), "cut at {cut}: {e}");
         }
         // the same bytes big-endian: a strip count past the end is found in that order too
@@ -145,7 +152,12 @@ mod tests {
         mm.extend_from_slice(&[0, 0, 0, 0]);
         mm.resize(40, 0);
         assert_eq!(check(&mm), Ok(()));
-        assert!(check(&mm[..39]).unwrap_err().contains("strip 0"));
+        assert!(
+            check(&mm[..39])
+                .unwrap_err()
+                .to_string()
+                .contains("strip 0")
+        );
         // not TIFF: not checked
         assert_eq!(check(b"FUJIFILMCCD-RAW"), Ok(()));
         assert_eq!(check(b""), Ok(()));

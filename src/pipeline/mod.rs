@@ -5,6 +5,7 @@
 //! nothing of each other.
 
 pub mod calibration_file;
+pub mod capture_run;
 pub mod capture_start;
 pub mod session_calib;
 pub mod sim_session;

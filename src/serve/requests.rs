@@ -10,16 +10,39 @@ use serde::Deserialize;
 use serde::de::DeserializeOwned;
 
 use super::hub::{Command, StartSpec};
-use crate::ranges::{Closed, Open, check_int, check_real};
+use crate::ranges::{Closed, Open, RangeError, check_int, check_real};
+
+/// Why a request is refused; the page shows the message as it is.
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum RequestError {
+    /// The body is not the request's JSON (serde_json's reason, which names the field).
+    #[error("invalid request: {0}")]
+    Json(String),
+    #[error(
+        "session name {0:?}: use 1 to 64 letters, digits, '.', '_' or '-', not starting with '.'"
+    )]
+    SessionName(String),
+    #[error(transparent)]
+    Range(#[from] RangeError),
+    /// A field missing, or given where it has no use.
+    #[error("{0}")]
+    Field(String),
+}
+
+impl From<RequestError> for String {
+    fn from(e: RequestError) -> String {
+        e.to_string()
+    }
+}
 
 /// A request body as JSON of type `T`, or the reason it is not one.
-pub fn parse<T: DeserializeOwned>(body: &[u8]) -> Result<T, String> {
-    serde_json::from_slice(body).map_err(|e| format!("invalid request: {e}"))
+pub fn parse<T: DeserializeOwned>(body: &[u8]) -> Result<T, RequestError> {
+    serde_json::from_slice(body).map_err(|e| RequestError::Json(e.to_string()))
 }
 
 /// A session folder name: 1 to 64 of `A-Z a-z 0-9 . _ -`, not starting with a dot (no path,
 /// no hidden folder, nothing a shell or a URL must quote).
-pub fn session_name(name: &str) -> Result<String, String> {
+pub fn session_name(name: &str) -> Result<String, RequestError> {
     let ok = !name.is_empty()
         && name.len() <= 64
         && !name.starts_with('.')
@@ -29,9 +52,7 @@ pub fn session_name(name: &str) -> Result<String, String> {
     if ok {
         Ok(name.to_string())
     } else {
-        Err(format!(
-            "session name {name:?}: use 1 to 64 letters, digits, '.', '_' or '-', not starting with '.'"
-        ))
+        Err(RequestError::SessionName(name.to_string()))
     }
 }
 
@@ -70,7 +91,7 @@ fn default_snapshot_every() -> usize {
 }
 
 impl StartRequest {
-    pub fn check(&self) -> Result<StartSpec, String> {
+    pub fn check(&self) -> Result<StartSpec, RequestError> {
         Ok(StartSpec {
             plan_id: self.plan.clone(),
             session: session_name(&self.session)?,
@@ -88,7 +109,7 @@ pub struct ResumeRequest {
 }
 
 impl ResumeRequest {
-    pub fn check(&self) -> Result<Command, String> {
+    pub fn check(&self) -> Result<Command, RequestError> {
         Ok(Command::Resume {
             session: session_name(&self.session)?,
             guided: self.mode == Mode::Guided,
@@ -128,16 +149,18 @@ fn full() -> f64 {
 }
 
 impl LightRequest {
-    pub fn check(&self, limits: &RigLimits) -> Result<Command, String> {
+    pub fn check(&self, limits: &RigLimits) -> Result<Command, RequestError> {
         if !self.on {
             return Ok(Command::LightOff);
         }
         let n = limits.max_levels.len();
         let Some(channel) = self.channel else {
-            return Err("channel: needed to switch a light on".into());
+            return Err(RequestError::Field(
+                "channel: needed to switch a light on".into(),
+            ));
         };
         if n == 0 {
-            return Err("the rig has no light channel".into());
+            return Err(RequestError::Field("the rig has no light channel".into()));
         }
         let channel = check_int("channel", channel, 0, n - 1)?;
         let max = limits.max_levels[channel];
@@ -156,7 +179,7 @@ pub struct TurntableRequest {
 }
 
 impl TurntableRequest {
-    pub fn check(&self, limits: &RigLimits) -> Result<Command, String> {
+    pub fn check(&self, limits: &RigLimits) -> Result<Command, RequestError> {
         match (self.action.as_str(), self.angle_deg) {
             ("home", None) => Ok(Command::Home),
             ("move", Some(a)) => Ok(Command::MoveTo {
@@ -167,9 +190,11 @@ impl TurntableRequest {
                     Closed(limits.max_angle_deg),
                 )?,
             }),
-            ("move", None) => Err("angle_deg: needed to move".into()),
-            ("home", Some(_)) => Err("angle_deg: not used to home".into()),
-            (other, _) => Err(format!("action {other:?}: must be home or move")),
+            ("move", None) => Err(RequestError::Field("angle_deg: needed to move".into())),
+            ("home", Some(_)) => Err(RequestError::Field("angle_deg: not used to home".into())),
+            (other, _) => Err(RequestError::Field(format!(
+                "action {other:?}: must be home or move"
+            ))),
         }
     }
 }
@@ -184,7 +209,7 @@ pub struct PreviewRequest {
 
 impl PreviewRequest {
     /// The ranges a plan's exposures and gain may take.
-    pub fn check(&self) -> Result<(f64, f64), String> {
+    pub fn check(&self) -> Result<(f64, f64), RequestError> {
         Ok((
             check_real("exposure_secs", self.exposure_secs, Open(0.0), Closed(60.0))?,
             check_real("gain", self.gain, Open(0.0), Closed(1000.0))?,
@@ -238,22 +263,32 @@ mod tests {
             })
         );
         assert_eq!(on(r#"{"on": false}"#), Ok(Command::LightOff));
-        let e = on(r#"{"on": true, "channel": 1, "level": 0.8}"#).unwrap_err();
+        let e = on(r#"{"on": true, "channel": 1, "level": 0.8}"#)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("level = 0.8") && e.contains("(0, 0.5]"), "{e}");
         assert!(
             on(r#"{"on": true, "channel": 2}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("[0, 1]")
         );
-        assert!(on(r#"{"on": true}"#).unwrap_err().contains("channel"));
+        assert!(
+            on(r#"{"on": true}"#)
+                .unwrap_err()
+                .to_string()
+                .contains("channel")
+        );
         assert!(
             on(r#"{"on": true, "channel": -1}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("invalid")
         );
         assert!(
             on(r#"{"on": true, "channel": 0, "lvl": 1}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("unknown field")
         );
         let tt = |body: &str| parse::<TurntableRequest>(body.as_bytes()).and_then(|r| r.check(&l));
@@ -265,6 +300,7 @@ mod tests {
         assert!(
             tt(r#"{"action": "move", "angle_deg": 361}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("[-360, 360]")
         );
         assert!(tt(r#"{"action": "spin"}"#).is_err());
@@ -281,13 +317,15 @@ mod tests {
         assert!(start(r#"{"plan": "q", "session": "s", "mode": "sometimes"}"#).is_err());
         let e =
             start(r#"{"plan": "q", "session": "s", "mode": "unattended", "snapshot_every": 0}"#)
-                .unwrap_err();
+                .unwrap_err()
+                .to_string();
         assert!(e.contains("[1, 100000]"), "{e}");
         let p = |body: &str| parse::<PreviewRequest>(body.as_bytes()).and_then(|r| r.check());
         assert_eq!(p(r#"{"exposure_secs": 0.01}"#), Ok((0.01, 1.0)));
         assert!(
             p(r#"{"exposure_secs": 0}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("(0, 60]")
         );
         assert!(p(r#"{"exposure_secs": 1e400}"#).is_err());

@@ -181,7 +181,7 @@ impl PlanInfo {
         match load_plan(path) {
             Ok(plan) => {
                 let mut info = PlanInfo::of(&id, &file, &plan, lab);
-                info.error = plan.check_rig(channels).err();
+                info.error = plan.check_rig(channels).err().map(|e| e.to_string());
                 info
             }
             Err(e) => PlanInfo {
@@ -201,7 +201,7 @@ impl PlanInfo {
             "capture-plans/default.toml (built in)",
         ) {
             let mut info = PlanInfo::of(BUILT_IN_PLAN, "(built in)", &plan, lab);
-            info.error = plan.check_rig(channels).err();
+            info.error = plan.check_rig(channels).err().map(|e| e.to_string());
             out.push(info);
         }
         if let Some(dir) = dir {

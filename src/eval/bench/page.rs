@@ -12,12 +12,11 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, bail};
-
-use brdf_rig::profile::Profile;
-use brdf_rig::serve::hub::{Command as RigCommand, StartSpec};
-use brdf_rig::serve::state::Phase;
-use brdf_rig::serve::{ServeConfig, Server};
+use super::{BenchError, Note, temp_dir};
+use crate::profile::Profile;
+use crate::serve::hub::{Command as RigCommand, StartSpec};
+use crate::serve::state::Phase;
+use crate::serve::{ServeConfig, Server};
 
 /// A headless Chromium showing `url` until dropped.
 struct Page {
@@ -26,12 +25,16 @@ struct Page {
 }
 
 impl Page {
-    fn open(url: &str) -> anyhow::Result<Page> {
-        let exe = brdf_rig::report::headless::chromium()
-            .context("--page needs Debian's chromium (scripts/setup.sh installs it)")?;
-        let profile = tempfile::tempdir().context("creating a browser profile folder")?;
+    fn open(url: &str) -> Result<Page, BenchError> {
+        let exe = crate::report::headless::chromium().ok_or_else(|| {
+            BenchError::Invalid(
+                "--page needs Debian's chromium (scripts/setup.sh installs it)".into(),
+            )
+        })?;
+        let profile = tempfile::tempdir()
+            .map_err(|e| BenchError::step("creating a browser profile folder", e))?;
         let child = Command::new(exe)
-            .args(brdf_rig::report::headless::HEADLESS_FLAGS)
+            .args(crate::report::headless::HEADLESS_FLAGS)
             .arg("--window-size=1280,1000")
             .arg(format!("--user-data-dir={}", profile.path().display()))
             .arg(url)
@@ -39,7 +42,7 @@ impl Page {
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
-            .context("starting chromium")?;
+            .map_err(|e| BenchError::step("starting chromium", e))?;
         Ok(Page {
             child,
             _profile: profile,
@@ -102,20 +105,20 @@ fn tree_cpu_secs(pid: u32) -> f64 {
     ticks as f64 / 100.0
 }
 
-fn wait_for(what: &str, secs: u64, mut ok: impl FnMut() -> bool) -> anyhow::Result<()> {
+fn wait_for(what: &str, secs: u64, mut ok: impl FnMut() -> bool) -> Result<(), BenchError> {
     let t = Instant::now();
     while !ok() {
         if t.elapsed() > Duration::from_secs(secs) {
-            bail!("{what}: not within {secs} s");
+            return Err(BenchError::Invalid(format!("{what}: not within {secs} s")));
         }
         std::thread::sleep(Duration::from_millis(20));
     }
     Ok(())
 }
 
-fn serve(profile: &Profile, dir: &Path, fps: f64) -> anyhow::Result<Server> {
+fn serve(profile: &Profile, dir: &Path, fps: f64) -> Result<Server, BenchError> {
     Server::start(ServeConfig {
-        bind: "127.0.0.1:0".parse()?,
+        bind: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
         profile: profile.clone(),
         port_override: None,
         token: None,
@@ -125,23 +128,23 @@ fn serve(profile: &Profile, dir: &Path, fps: f64) -> anyhow::Result<Server> {
         preview_fps: fps,
         lost_after: Duration::from_millis(1500),
     })
-    .context("starting the lab page server")
+    .map_err(|e| BenchError::step("starting the lab page server", e))
 }
 
 /// Waits until a page is connected and settled (it has been sent a few live frames): the
 /// browser's own start-up is not what a connected page costs.
-fn page_settled(hub: &brdf_rig::serve::hub::Hub) -> anyhow::Result<()> {
+fn page_settled(hub: &crate::serve::hub::Hub) -> Result<(), BenchError> {
     wait_for("the page connects and gets frames", 60, || {
         hub.frames_sent().iter().any(|&(_, n)| n >= 3)
     })
 }
 
 /// Frames per second delivered to the one connected page over `secs`, idle.
-fn preview_rate(server: &Server, secs: f64) -> anyhow::Result<(f64, f64)> {
+fn preview_rate(server: &Server, secs: f64) -> Result<(f64, f64), BenchError> {
     let page = Page::open(&format!("http://{}/", server.addr()))?;
     let hub = server.hub().clone();
     page_settled(&hub)?;
-    let sent = |h: &brdf_rig::serve::hub::Hub| h.frames_sent().iter().map(|&(_, n)| n).sum::<u64>();
+    let sent = |h: &crate::serve::hub::Hub| h.frames_sent().iter().map(|&(_, n)| n).sum::<u64>();
     let (s0, m0, t0) = (sent(&hub), hub.frames_made(), Instant::now());
     std::thread::sleep(Duration::from_secs_f64(secs));
     let dt = t0.elapsed().as_secs_f64();
@@ -152,7 +155,7 @@ fn preview_rate(server: &Server, secs: f64) -> anyhow::Result<(f64, f64)> {
 }
 
 /// Runs the plan `plan_id` unattended through the server; the capture's own wall time.
-fn served_capture(server: &Server, plan_id: &str, session: &str) -> anyhow::Result<f64> {
+fn served_capture(server: &Server, plan_id: &str, session: &str) -> Result<f64, BenchError> {
     let hub = server.hub();
     let answer = hub
         .send(RigCommand::Start(StartSpec {
@@ -162,36 +165,36 @@ fn served_capture(server: &Server, plan_id: &str, session: &str) -> anyhow::Resu
             snapshot_every: 16,
         }))
         .blocking_recv()
-        .context("the rig's thread stopped")?;
-    answer.map_err(anyhow::Error::msg)?;
+        .map_err(|e| BenchError::step("the rig's thread stopped", e))?;
+    answer.map_err(BenchError::Invalid)?;
     wait_for("the capture ends", 600, || !hub.phase().is_active())?;
     let s = hub.snapshot();
     if s.capture.phase != Phase::Complete {
-        bail!(
+        return Err(BenchError::Invalid(format!(
             "the served capture ended {:?}: {:?}",
-            s.capture.phase,
-            s.capture.stop_reason
-        );
+            s.capture.phase, s.capture.stop_reason
+        )));
     }
     s.capture
         .wall_secs
-        .context("the capture reported no wall time")
+        .ok_or_else(|| BenchError::Invalid("the capture reported no wall time".into()))
 }
 
+/// The median of `v` ([`crate::stats::median`]); NaN for none.
 fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    crate::stats::median(&mut v).unwrap_or(f64::NAN)
 }
 
-/// The page section of docs/benchmarks-capture.md. `cli_capture` runs the same plan with
-/// `brdf-rig capture` and returns its wall time.
+/// The page section of docs/benchmarks-capture.md. `cli_capture` runs the same plan as
+/// `brdf-rig capture` does and returns its wall time.
 pub fn measure(
     profile_text: &str,
     plan_text: &str,
     reps: usize,
-    mut cli_capture: impl FnMut(usize) -> anyhow::Result<f64>,
-) -> anyhow::Result<String> {
-    let tmp = tempfile::tempdir().context("creating a temporary folder")?;
+    mut cli_capture: impl FnMut(usize) -> Result<f64, BenchError>,
+    note: &mut dyn FnMut(Note<'_>),
+) -> Result<String, BenchError> {
+    let tmp = temp_dir()?;
     std::fs::create_dir_all(tmp.path().join("plans"))?;
     std::fs::write(tmp.path().join("plans/bench.toml"), plan_text)?;
     let ppath = tmp.path().join("profile.toml");
@@ -228,11 +231,11 @@ pub fn measure(
         browser_cpu.push(tree_cpu_secs(page.child.id()) - b0);
         let frames = sent() - f0;
         drop(page);
-        eprintln!(
+        note(Note::Detail(&format!(
             "rep {r}: capture {:.2} s ({:.2} s CPU), served {:.2} s ({:.2} s CPU), served with a page \
              {:.2} s ({:.2} s CPU, browser {:.2} s CPU; {frames} frames sent during it)",
             cli[r], cli_cpu[r], bare[r], bare_cpu[r], with_page[r], page_cpu[r], browser_cpu[r]
-        );
+        )));
     }
     server.stop();
 
