@@ -9,9 +9,9 @@ fn main() -> std::process::ExitCode {
     match cli::run(args) {
         Ok(code) => code,
         Err(err) => {
-            eprintln!("error: {err}");
+            cli::output::err(format_args!("error: {err}"), true);
             for cause in err.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+                cli::output::err(format_args!("  caused by: {cause}"), true);
             }
             std::process::ExitCode::from(1)
         }

@@ -16,6 +16,7 @@ mod calib_white;
 mod capture_kill;
 mod capture_sim;
 mod capture_util;
+mod cli_output;
 mod eval;
 mod firmware;
 mod firmware_flash;

@@ -97,6 +97,6 @@ fn rig(a: BenchRigArgs) -> anyhow::Result<ExitCode> {
         },
         &mut super::bench_notes::printer(),
     )?;
-    print!("{md}");
+    out!("{md}");
     Ok(ExitCode::SUCCESS)
 }

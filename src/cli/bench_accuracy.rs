@@ -218,7 +218,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         command,
     };
     let bench = accuracy::run(&options, &mut super::bench_notes::printer())?;
-    println!("{}", bench.markdown);
-    eprintln!("wrote {}/accuracy.md and accuracy.json", a.out.display());
+    outln!("{}", bench.markdown);
+    errln!("wrote {}/accuracy.md and accuracy.json", a.out.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -68,9 +68,9 @@ pub fn run(args: BenchCaptureArgs) -> anyhow::Result<ExitCode> {
         },
         &mut Terminal,
     )?;
-    println!("{}", bench.table);
+    outln!("{}", bench.table);
     if let Some(p) = &bench.page {
-        println!("{p}");
+        outln!("{p}");
     }
     Ok(ExitCode::SUCCESS)
 }

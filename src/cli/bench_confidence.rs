@@ -35,7 +35,7 @@ pub fn run(a: BenchConfidenceArgs) -> anyhow::Result<ExitCode> {
         out: a.out,
         command,
     })?;
-    println!("{}", bench.markdown);
-    println!("tuned: {:?}", bench.tuned);
+    outln!("{}", bench.markdown);
+    outln!("tuned: {:?}", bench.tuned);
     Ok(ExitCode::SUCCESS)
 }

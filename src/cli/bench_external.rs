@@ -131,6 +131,6 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         command,
     };
     let bench = external::run(&options, &mut super::bench_notes::printer())?;
-    println!("{}", bench.markdown);
+    outln!("{}", bench.markdown);
     Ok(ExitCode::SUCCESS)
 }

@@ -7,8 +7,8 @@ pub fn printer() -> impl FnMut(brdf_rig::eval::bench::Note<'_>) {
     let start = std::time::Instant::now();
     move |note| match note {
         brdf_rig::eval::bench::Note::Step(line) => {
-            eprintln!("[{:7.1} s] {line}", start.elapsed().as_secs_f64())
+            errln!("[{:7.1} s] {line}", start.elapsed().as_secs_f64())
         }
-        brdf_rig::eval::bench::Note::Detail(text) => eprintln!("{text}"),
+        brdf_rig::eval::bench::Note::Detail(text) => errln!("{text}"),
     }
 }

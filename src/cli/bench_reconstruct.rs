@@ -114,6 +114,6 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         command,
     };
     let md = reconstruct::run(&options, &mut super::bench_notes::printer())?;
-    print!("{md}");
+    out!("{md}");
     Ok(ExitCode::SUCCESS)
 }

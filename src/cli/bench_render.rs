@@ -31,6 +31,6 @@ pub fn run(a: BenchRenderArgs) -> anyhow::Result<ExitCode> {
         write: a.write,
         command,
     })?;
-    print!("{md}");
+    out!("{md}");
     Ok(ExitCode::SUCCESS)
 }

@@ -69,7 +69,7 @@ pub fn speed(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
         common_args(&a)
     );
     let md = sweeps::speed(&options(a, command), &mut super::bench_notes::printer())?;
-    print!("{md}");
+    out!("{md}");
     Ok(ExitCode::SUCCESS)
 }
 
@@ -81,6 +81,6 @@ pub fn stability(a: BenchSweepArgs) -> anyhow::Result<ExitCode> {
         common_args(&a)
     );
     let md = sweeps::stability(&options(a, command), &mut super::bench_notes::printer())?;
-    print!("{md}");
+    out!("{md}");
     Ok(ExitCode::SUCCESS)
 }

@@ -354,7 +354,7 @@ fn sphere(a: SphereArgs) -> Result<()> {
         })
         .collect();
     for w in &warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let d = cal.dir_camera;
     let seconds = StageSeconds(vec![
@@ -404,23 +404,25 @@ fn sphere(a: SphereArgs) -> Result<()> {
             "images": images,
             "seconds": seconds.json(),
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!(
+        outln!(
             "light direction (towards the light; camera axes x right, y down, z forward): \
              {:.6} {:.6} {:.6}",
-            d.x, d.y, d.z
+            d.x,
+            d.y,
+            d.z
         );
-        println!(
+        outln!(
             "uncertainty {:.3} deg (RMS angle to the truth; spread {:.3} deg over {} image(s), fit {:.3} deg)",
             cal.uncertainty_deg,
             cal.spread_deg,
             cal.per_image.len(),
             cal.fit_uncertainty_deg
         );
-        println!("clip level: {clip}");
+        outln!("clip level: {clip}");
         for (p, s) in a.images.iter().zip(&cal.per_image) {
-            println!(
+            outln!(
                 "  {}: highlight at ({:.2}, {:.2}) px ({} px, {} clipped), sphere centre ({:.2}, {:.2}) px, radius {:.2} px, {} edge points",
                 p.display(),
                 s.highlight.centroid_px[0],
@@ -433,7 +435,7 @@ fn sphere(a: SphereArgs) -> Result<()> {
                 s.outline.edge_points
             );
         }
-        println!("{seconds}");
+        outln!("{seconds}");
     }
     Ok(())
 }
@@ -535,7 +537,7 @@ fn white(a: WhiteArgs) -> Result<()> {
     )
     .with_context(|| format!("measuring the irradiance from {}", a.image.display()))?;
     for w in &r.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let seconds = StageSeconds(vec![
         ("read", read_secs),
@@ -562,11 +564,11 @@ fn white(a: WhiteArgs) -> Result<()> {
             "warnings": r.warnings,
             "seconds": seconds.json(),
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         let [er, eg, eb] = r.irradiance;
-        println!("irradiance (R G B): {er:.6} {eg:.6} {eb:.6}");
-        println!(
+        outln!("irradiance (R G B): {er:.6} {eg:.6} {eb:.6}");
+        outln!(
             "  standard error {:.2e} {:.2e} {:.2e}; board radiance {:.6} {:.6} {:.6}",
             r.std_error[0],
             r.std_error[1],
@@ -583,7 +585,7 @@ fn white(a: WhiteArgs) -> Result<()> {
         } else {
             String::new()
         };
-        println!(
+        outln!(
             "  cos(theta) {:.4}{}; {} pixels used{sampled}, {} clipped; flat-field spread {:.2} %",
             r.cos_theta,
             if r.normal_assumed {
@@ -595,8 +597,8 @@ fn white(a: WhiteArgs) -> Result<()> {
             r.pixels_saturated,
             100.0 * r.flat_field.spread
         );
-        println!("  clip level: {clip}");
-        println!("  {seconds}");
+        outln!("  clip level: {clip}");
+        outln!("  {seconds}");
     }
     Ok(())
 }

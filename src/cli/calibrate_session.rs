@@ -41,15 +41,15 @@ pub fn run(a: SessionArgs) -> Result<()> {
         truth: None,
     };
     let opts = sim_session::calib_options(&dir, given)?;
-    let cal = calibrate_session(&dir, &opts, |m| eprintln!("calibrate: {m}"))
+    let cal = calibrate_session(&dir, &opts, |m| errln!("calibrate: {m}"))
         .with_context(|| format!("calibrating session {}", dir.display()))?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&cal)?);
+        outln!("{}", serde_json::to_string_pretty(&cal)?);
         return Ok(());
     }
     for c in &cal.channels {
         let d = c.light.dir_camera;
-        println!(
+        outln!(
             "channel {}: light direction (camera axes) ({:.5}, {:.5}, {:.5}) +- {:.3} deg; irradiance ({:.5}, {:.5}, {:.5}) +- ({:.2e}, {:.2e}, {:.2e})",
             c.channel,
             d[0],
@@ -64,16 +64,16 @@ pub fn run(a: SessionArgs) -> Result<()> {
             c.irradiance_std_error[2]
         );
         if let (Some(de), Some(ie)) = (c.truth_dir_error_deg, c.truth_irradiance_error) {
-            println!(
+            outln!(
                 "  against the simulated truth: direction error {de:.3} deg, irradiance error {:.2} %",
                 ie * 100.0
             );
         }
         for w in &c.warnings {
-            println!("  warning: {w}");
+            outln!("  warning: {w}");
         }
     }
-    println!(
+    outln!(
         "wrote {} HDR single-light images, {} and {}",
         cal.light_images,
         dir.join(brdf_rig::pipeline::calibration_file::CALIBRATION_FILE)

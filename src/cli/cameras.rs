@@ -15,14 +15,14 @@ pub struct CamerasArgs {
 
 pub fn run(args: CamerasArgs) -> anyhow::Result<ExitCode> {
     for listing in list_all(&args.gphoto2) {
-        println!("{}:", listing.backend);
+        outln!("{}:", listing.backend);
         if let Some(why) = &listing.unavailable {
-            println!("  unavailable: {why}");
+            outln!("  unavailable: {why}");
         } else if listing.cameras.is_empty() {
-            println!("  none found");
+            outln!("  none found");
         }
         for (id, name) in &listing.cameras {
-            println!("  {id}  {name}");
+            outln!("  {id}  {name}");
         }
     }
     Ok(ExitCode::SUCCESS)

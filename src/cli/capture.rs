@@ -83,11 +83,11 @@ impl Operator for Guided {
         if steps.is_empty() {
             return Ok(());
         }
-        eprintln!();
+        errln!();
         for s in &steps {
-            eprintln!("  >>> {s}");
+            errln!("  >>> {s}");
         }
-        eprintln!("  Press Enter when done (Ctrl-C stops; the session can be resumed).");
+        errln!("  Press Enter when done (Ctrl-C stops; the session can be resumed).");
         loop {
             if self.cancel.load(Ordering::SeqCst) {
                 return Err(CaptureError::Setup("stopped by Ctrl-C at a prompt".into()));
@@ -146,7 +146,7 @@ pub struct Terminal;
 
 impl Frontend for Terminal {
     fn note(&mut self, text: &str) {
-        eprint!("{text}");
+        errout!("{text}");
     }
     fn progress(&mut self) -> Box<dyn Progress> {
         Box::new(Bars::new())
@@ -190,7 +190,7 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
     if removed {
         let why = match &result {
             Err(CaptureError::Interrupted { .. }) => {
-                eprintln!(
+                errln!(
                     "interrupted before the first shot; the light is off and the new session \
                      folder {} was removed",
                     dir.display()
@@ -208,7 +208,7 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
     }
     match result {
         Ok(summary) => {
-            eprintln!(
+            errln!(
                 "capture complete: {} shots in {} ({} taken now in {:.1} s, {:.2} shots/s); verify with `brdf-rig session verify {}`",
                 summary.shots_total,
                 dir.display(),
@@ -218,7 +218,7 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
                 dir.display()
             );
             if summary.retakes > 0 {
-                eprintln!(
+                errln!(
                     "  {} of them re-taken because their journaled image was missing or damaged \
                      (damaged files are kept in {})",
                     summary.retakes,
@@ -226,7 +226,7 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
                 );
             }
             let per = |d: Duration| 1000.0 * d.as_secs_f64() / summary.shots_taken.max(1) as f64;
-            eprintln!(
+            errln!(
                 "  per shot: {:.1} ms wall = devices {:.1} ms (camera {:.1}, settle {:.1}) + storage {:.1} ms + controller {:.2} ms",
                 per(summary.wall),
                 per(summary.device_time),
@@ -238,7 +238,7 @@ fn report(outcome: Outcome) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Err(CaptureError::Interrupted { done, total }) => {
-            eprintln!(
+            errln!(
                 "interrupted: {done} of {total} shots are in {}; the light is off. Continue with `{resume_command}`",
                 dir.display(),
             );

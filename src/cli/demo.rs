@@ -25,7 +25,7 @@ pub struct DemoArgs {
 }
 
 fn step(name: &str, args: Vec<OsString>) -> Result<()> {
-    eprintln!("\n=== {name}: brdf-rig {}", shown(&args));
+    errln!("\n=== {name}: brdf-rig {}", shown(&args));
     let mut argv = vec![OsString::from("brdf-rig")];
     argv.extend(args);
     let cli = super::Cli::try_parse_from(argv).with_context(|| format!("{name}: bad arguments"))?;
@@ -118,7 +118,7 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
             )),
         ],
     )?;
-    eprintln!(
+    errln!(
         "\ndemo finished in {:.0} s: session {}, BRDF {}, report {}",
         t0.elapsed().as_secs_f64(),
         session.display(),
@@ -127,6 +127,6 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
             .display(),
         report.display()
     );
-    println!("{}", report.display());
+    outln!("{}", report.display());
     Ok(ExitCode::SUCCESS)
 }

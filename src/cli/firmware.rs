@@ -101,7 +101,7 @@ fn find_on_path(program: &str) -> Option<PathBuf> {
 
 fn flash(args: FlashArgs) -> anyhow::Result<ExitCode> {
     let avr_args = avrdude_args(&args.port, &args.hex)?;
-    println!("{}", render("avrdude", &avr_args));
+    outln!("{}", render("avrdude", &avr_args));
     if !args.run {
         return Ok(ExitCode::SUCCESS);
     }

@@ -84,7 +84,7 @@ fn print_status(light: &mut dyn Light, profile: &brdf_rig::profile::Profile) -> 
             .get(i)
             .map(|c| c.name.as_str())
             .unwrap_or("?");
-        println!(
+        outln!(
             "channel {i} {name:<8} level {:.3} {}",
             c.level,
             if c.level == 0.0 {

@@ -121,14 +121,14 @@ pub fn run(args: MerlArgs) -> anyhow::Result<ExitCode> {
                     .lookup(&brdf_rig::brdf::coords::HalfDiff::from_directions(&wi, &wo))
                     .is_none()
             {
-                eprintln!(
+                errln!(
                     "warning: {}: the table has no data (a negative value) in the bin of these \
                      directions; f_r is given as 0",
                     file.display()
                 );
             }
             let [r, g, b] = brdf.eval_local(&wi, &wo);
-            println!("{r:.9e} {g:.9e} {b:.9e}");
+            outln!("{r:.9e} {g:.9e} {b:.9e}");
         }
         MerlCommand::Tabulate { nbrdf, out } => {
             let net = Nbrdf::load(&nbrdf)?;
@@ -147,18 +147,18 @@ pub fn run(args: MerlArgs) -> anyhow::Result<ExitCode> {
                 .with_context(|| format!("loading the candidate {}", candidate.display()))?;
             let truth = brdf_rig::eval::Truth::new(&r, bin_step as usize);
             let e = truth.errors_of(&c);
-            println!(
+            outln!(
                 "environment (relative L2 of the rendered sphere): {:.4}",
                 e.environment
             );
-            println!(
+            outln!(
                 "environment PSNR (tone-mapped): {:.2} dB",
                 e.environment_psnr_db
             );
-            println!("novel lights (relative L2): {:.4}", e.lights);
-            println!("table, solid-angle weighted: {:.4}", e.solid_angle);
-            println!("table, log space: {:.4}", e.log);
-            println!(
+            outln!("novel lights (relative L2): {:.4}", e.lights);
+            outln!("table, solid-angle weighted: {:.4}", e.solid_angle);
+            outln!("table, log space: {:.4}", e.log);
+            outln!(
                 "table, cosine weighted (peak-dominated): {:.4}",
                 e.cosine_weighted
             );

@@ -1,6 +1,10 @@
 //! Command-line interface: clap definitions and dispatch. Thin: each subcommand lives in its
 //! own file, turns raw arguments into a validated configuration, calls the library and prints.
 
+// first: its macros (`outln!`, `out!`, `errln!`, `errout!`) are for every module below
+#[macro_use]
+pub(crate) mod output;
+
 pub mod calibrate;
 mod calibrate_session;
 mod demo;

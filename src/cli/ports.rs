@@ -8,7 +8,7 @@ use anyhow::Context;
 pub fn run() -> anyhow::Result<ExitCode> {
     let ports = serialport::available_ports().context("listing serial ports")?;
     if ports.is_empty() {
-        println!("no serial ports found (the simulated rig needs none: use the default profile)");
+        outln!("no serial ports found (the simulated rig needs none: use the default profile)");
     }
     for p in ports {
         let kind = match p.port_type {
@@ -23,7 +23,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
             serialport::SerialPortType::BluetoothPort => "Bluetooth".into(),
             serialport::SerialPortType::Unknown => "unknown".into(),
         };
-        println!("{}\t{}", p.port_name, kind.trim());
+        outln!("{}\t{}", p.port_name, kind.trim());
     }
     Ok(ExitCode::SUCCESS)
 }

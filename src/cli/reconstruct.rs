@@ -162,7 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let job = Job::from_file(&args.job)?;
     for w in &job.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let mut settings = Settings::default();
     settings.core.trials.trials = args.trials;
@@ -200,7 +200,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         settings.nbrdf_dir = d;
     }
     if std::env::var_os("BRDF_RIG_BASIS_CACHE").is_some() && args.basis_cache.is_none() {
-        eprintln!(
+        errln!(
             "warning: BRDF_RIG_BASIS_CACHE is no longer read; the basis cache folder is \
              $BRDF_RIG_CACHE (or --basis-cache)"
         );
@@ -222,26 +222,26 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let started = std::time::Instant::now();
     let mut progress = |stage: &str| {
-        eprintln!("[{:7.2} s] {stage}", started.elapsed().as_secs_f64());
+        errln!("[{:7.2} s] {stage}", started.elapsed().as_secs_f64());
     };
     let output = reconstruct::reconstruct(&job, &settings, &mut progress)
         .with_context(|| format!("reconstructing from {}", args.job.display()))?;
     reconstruct::output::write(&args.out, &output)
         .with_context(|| format!("writing results to {}", args.out.display()))?;
     for w in &output.report.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let model = &output.report.model;
-    eprintln!(
+    errln!(
         "done in {:.2} s: {}{}; wrote {}",
         started.elapsed().as_secs_f64(),
         model.family,
         model.k.map_or(String::new(), |k| format!(" (k = {k})")),
         args.out.display()
     );
-    eprintln!("model: {}", model.reason);
+    errln!("model: {}", model.reason);
     if let Some(r) = &output.report.normals {
-        eprintln!(
+        errln!(
             "normals: {} ({}; mean tilt {:.2} deg, largest {:.2} deg over {} vertices)",
             if r.accepted { "refined" } else { "kept" },
             r.reason,
@@ -251,7 +251,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     let p = &output.report.plausibility;
-    eprintln!(
+    errln!(
         "plausibility: {:.0} % of the table from the prior, {} invalid bins replaced, largest \
          albedo {:.3} (before {:.3})",
         100.0 * p.prior_share,
@@ -260,14 +260,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         p.max_albedo_before
     );
     let confidence = &output.report.confidence;
-    eprintln!("confidence: {}", confidence.level);
+    errln!("confidence: {}", confidence.level);
     for r in &confidence.reasons {
-        eprintln!("  {r}");
+        errln!("  {r}");
     }
     if let Some(min) = args.min_confidence
         && confidence.level < min
     {
-        eprintln!(
+        errln!(
             "error: confidence {} is below --min-confidence {min}; the results are written but \
              should not be trusted",
             confidence.level

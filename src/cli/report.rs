@@ -73,9 +73,9 @@ pub fn run(a: ReportArgs) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("making the report of {}", a.dir.display()))?;
     if let brdf_rig::report::avail::Avail::Yes(b) = &data.brdf {
         for m in &b.missing {
-            eprintln!("warning: comparison not shown: {m}");
+            errln!("warning: comparison not shown: {m}");
         }
     }
-    println!("{}", path.display());
+    outln!("{}", path.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -49,7 +49,7 @@ impl RigArgs {
             )
         })?;
         if opened.sim.is_some() {
-            eprintln!(
+            errln!(
                 "note: simulated rig on {}, spawned for this command only (state does not persist \
                  between invocations)",
                 opened.rig.port.display()
@@ -83,10 +83,10 @@ pub fn run(args: RigCommandArgs) -> anyhow::Result<ExitCode> {
 fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
     let (profile, mut r) = args.open()?;
     let h = &r.hello;
-    println!("port:       {}", r.port.display());
+    outln!("port:       {}", r.port.display());
     let settings = r.settings();
     let link = &settings.link;
-    println!(
+    outln!(
         "link:       first reply {} ms after opening the port (boot window {} ms, then {} ms per \
          reply x {} attempts)",
         r.link_stats().first_reply_ms.unwrap_or(0),
@@ -94,9 +94,9 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
         link.timeout.as_millis(),
         link.retries + 1
     );
-    println!("firmware:   {}", h.name);
-    println!("protocol:   {}.{}", h.major, h.minor);
-    println!("boot:       {}", h.boot);
+    outln!("firmware:   {}", h.name);
+    outln!("protocol:   {}.{}", h.major, h.minor);
+    outln!("boot:       {}", h.boot);
     let names = [
         (caps::TURNTABLE, "turntable"),
         (caps::LIGHT, "light"),
@@ -109,8 +109,8 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
         .filter(|(b, _)| h.caps & b != 0)
         .map(|(_, n)| *n)
         .collect();
-    println!("caps:       {}", c.join(", "));
-    println!(
+    outln!("caps:       {}", c.join(", "));
+    outln!(
         "firmware limits: angle [{}, {}] deg, speed {} deg/s, accel {} deg/s^2, {} light channels",
         h.min_angle as f64 / 1000.0,
         h.max_angle as f64 / 1000.0,
@@ -119,7 +119,7 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
         h.channels
     );
     let t = &profile.turntable;
-    println!(
+    outln!(
         "profile limits:  angle [{}, {}] deg, speed {} deg/s, accel {} deg/s^2, {} steps/rev ({})",
         t.min_angle_deg,
         t.max_angle_deg,
@@ -128,13 +128,13 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
         t.steps_per_rev,
         profile.origin
     );
-    println!("watchdog:   {} ms", h.watchdog_ms);
+    outln!("watchdog:   {} ms", h.watchdog_ms);
     use brdf_rig::devices::{Light, Turntable};
     let s = r
         .turntable
         .status()
         .context("reading the turntable status")?;
-    println!(
+    outln!(
         "turntable:  angle {:.3} deg, {}, {}",
         s.angle_deg,
         if s.homed { "homed" } else { "not homed" },
@@ -142,7 +142,7 @@ fn check(args: &RigArgs) -> anyhow::Result<ExitCode> {
     );
     let lights = r.light.status().context("reading the light status")?;
     for (i, (l, ch)) in lights.iter().zip(&profile.light.channels).enumerate() {
-        println!(
+        outln!(
             "light {i}:    {:<8} level {:.3}{} (azimuth {} deg, elevation {} deg, max level {})",
             ch.name,
             l.level,

@@ -91,18 +91,19 @@ pub fn run(args: ServeArgs) -> anyhow::Result<ExitCode> {
     } else {
         format!("http://{addr}/")
     };
-    println!("{shown}");
-    eprintln!(
+    outln!("{shown}");
+    errln!(
         "the lab page is at {shown} (sessions in {}); Ctrl-C stops (a capture under way pauses, light off)",
         args.sessions.display()
     );
     wait_for_signal()?;
-    eprintln!("stopping: a capture under way pauses at its next safe point");
+    errln!("stopping: a capture under way pauses at its next safe point");
     let end = server.stop();
     if let (Some(dir), Some(cmd)) = (&end.capture.dir, &end.capture.resume_command) {
-        eprintln!(
+        errln!(
             "session {dir}: {} of {} shots; the light is off. Continue with `{cmd}` or from the page",
-            end.capture.done, end.capture.total
+            end.capture.done,
+            end.capture.total
         );
     }
     Ok(ExitCode::SUCCESS)

@@ -32,7 +32,7 @@ pub fn run(args: SessionArgs) -> anyhow::Result<ExitCode> {
 fn verify(dir: PathBuf) -> anyhow::Result<ExitCode> {
     let report = verify_session(&dir)
         .with_context(|| format!("verifying the session in {}", dir.display()))?;
-    println!(
+    outln!(
         "session {} (plan `{}`, {}): {} of {} planned shots, {:.1} MiB checked",
         dir.display(),
         report.header.plan_name,
@@ -42,7 +42,7 @@ fn verify(dir: PathBuf) -> anyhow::Result<ExitCode> {
         report.bytes as f64 / (1024.0 * 1024.0)
     );
     for (id, retake) in &report.retaken {
-        println!(
+        outln!(
             "  re-taken by a resume: {id} ({}{})",
             retake.reason,
             retake
@@ -53,10 +53,10 @@ fn verify(dir: PathBuf) -> anyhow::Result<ExitCode> {
         );
     }
     for p in &report.problems {
-        println!("  BAD  {p}");
+        outln!("  BAD  {p}");
     }
     if !report.complete() {
-        println!(
+        outln!(
             "  INCOMPLETE: {} planned shot(s) not taken (first: {}); continue with `brdf-rig capture --resume {}`",
             report.not_taken.len(),
             report.not_taken[0],
@@ -64,10 +64,10 @@ fn verify(dir: PathBuf) -> anyhow::Result<ExitCode> {
         );
     }
     if report.intact() && report.complete() {
-        println!("  OK: every checksum matches and every planned shot is present");
+        outln!("  OK: every checksum matches and every planned shot is present");
         Ok(ExitCode::SUCCESS)
     } else if !report.intact() {
-        println!("  FAILED: {} problem(s)", report.problems.len());
+        outln!("  FAILED: {} problem(s)", report.problems.len());
         Ok(ExitCode::from(2))
     } else {
         Ok(ExitCode::from(3))

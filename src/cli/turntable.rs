@@ -50,7 +50,7 @@ pub fn run(args: TurntableArgs) -> anyhow::Result<ExitCode> {
         TurntableCommand::Move { angle, relative } => {
             let s = tt.status().context("reading the turntable status")?;
             if !s.homed {
-                eprintln!("turntable not homed: homing first");
+                errln!("turntable not homed: homing first");
                 tt.home().context("homing the turntable")?;
             }
             if relative {
@@ -64,7 +64,7 @@ pub fn run(args: TurntableArgs) -> anyhow::Result<ExitCode> {
         TurntableCommand::Status => {}
     }
     let s = tt.status().context("reading the turntable status")?;
-    println!(
+    outln!(
         "angle {:.3} deg, target {:.3} deg, {}, {}",
         s.angle_deg,
         s.target_deg,
