@@ -2,7 +2,9 @@
 
 use crate::util::shared_data;
 use brdf_rig::geometry::mesh::MeshError;
-use brdf_rig::geometry::mesh_io::{MeshIoError, PlyEncoding, load_mesh, write_ply};
+use brdf_rig::geometry::mesh_io::{
+    MeshIoError, PlyEncoding, load_mesh, write_ply, write_ply_labelled,
+};
 
 fn meshes() -> std::path::PathBuf {
     shared_data().join("meshes")
@@ -53,6 +55,32 @@ fn ply_round_trip_ascii_and_binary() {
     }
     // no temp files left behind by the atomic writer
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
+fn labelled_ply_reads_back_with_its_labels() {
+    let dir = tempfile::tempdir().unwrap();
+    let (spot, _) = load_mesh(&meshes().join("spot_triangulated.obj")).unwrap();
+    let labels: Vec<u32> = (0..spot.positions().len())
+        .map(|i| (i % 3) as u32)
+        .collect();
+    for enc in [PlyEncoding::Ascii, PlyEncoding::BinaryLittleEndian] {
+        let p = dir.path().join(format!("map-{enc:?}.ply"));
+        write_ply_labelled(&p, &spot, &labels, enc).unwrap();
+        // our reader ignores the extra properties
+        let (back, _) = load_mesh(&p).unwrap();
+        assert_eq!(back.faces(), spot.faces());
+        // a peer reader (ply-rs's parser) sees the labels
+        let mut f = std::io::BufReader::new(std::fs::File::open(&p).unwrap());
+        let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
+            .read_ply(&mut f)
+            .unwrap();
+        let verts = &ply.payload["vertex"];
+        assert_eq!(verts.len(), labels.len());
+        for (v, &l) in verts.iter().zip(&labels) {
+            assert_eq!(v["label"], ply_rs::ply::Property::UChar(l as u8));
+        }
+    }
 }
 
 #[test]

@@ -58,6 +58,7 @@ fn sweep_matches_the_ray_cast_observations_up_to_edge_pixels() {
                     position: f.position,
                     normal: f.normal,
                     mean_curvature: f.mean_curvature.unwrap(),
+                    face: f.face,
                     lit: l.unwrap(),
                 })
             })

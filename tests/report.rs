@@ -278,6 +278,7 @@ fn example_report(job: PathBuf) -> Report {
             max_tilt_deg: 9.0,
             seconds: 2.0,
         }),
+        materials: None,
         timings: [("rasterise", 1.5), ("observe", 0.25), ("trials", 3.0)]
             .into_iter()
             .map(|(stage, seconds)| StageTiming {

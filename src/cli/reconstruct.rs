@@ -105,6 +105,14 @@ pub struct Args {
     /// Largest tilt the refinement may give a normal, degrees (0 to 60).
     #[arg(long, default_value_t = 20.0, value_parser = real_in(Closed(0.0), Closed(60.0)))]
     pub max_tilt: f64,
+    /// Materials of the object: `one` (the paper's assumption) or `auto` (find them in the
+    /// images, choose how many on held-out images, fit one BRDF each: materials/NAME.binary,
+    /// materials.json, material_map.ply; docs/materials.md).
+    #[arg(long, value_enum, default_value = "one")]
+    pub materials: MaterialsArg,
+    /// With `--materials auto`: the largest number of materials tried (1 to 8).
+    #[arg(long, default_value_t = 4, value_parser = int_in(1usize, 8))]
+    pub max_materials: usize,
     /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
     /// "Cost at camera resolution"; slower and larger at camera resolutions).
     #[arg(long)]
@@ -119,6 +127,12 @@ pub struct Args {
     /// medium or high. Default: never (the confidence is always printed and in report.json).
     #[arg(long, value_parser = parse_level)]
     pub min_confidence: Option<Level>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MaterialsArg {
+    One,
+    Auto,
 }
 
 pub(crate) fn parse_choice(s: &str) -> Result<TrialChoice, String> {
@@ -220,6 +234,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             ..Default::default()
         });
     }
+    if args.materials == MaterialsArg::Auto {
+        settings.materials = Some(reconstruct::segment::SegmentSettings {
+            max_materials: args.max_materials,
+            ..Default::default()
+        });
+    }
     let started = std::time::Instant::now();
     let mut progress = |stage: &str| {
         errln!("[{:7.2} s] {stage}", started.elapsed().as_secs_f64());
@@ -240,6 +260,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.out.display()
     );
     errln!("model: {}", model.reason);
+    if let Some(m) = &output.report.materials {
+        errln!("materials: {} ({})", m.count, m.reason);
+        for e in &m.materials {
+            errln!(
+                "  {}: {} pixels, {}, confidence {}; wrote {}",
+                e.name,
+                e.observed_pixels,
+                e.model,
+                e.confidence,
+                args.out.join(&e.file).display()
+            );
+        }
+    }
     if let Some(r) = &output.report.normals {
         errln!(
             "normals: {} ({}; mean tilt {:.2} deg, largest {:.2} deg over {} vertices)",

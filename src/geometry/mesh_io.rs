@@ -239,32 +239,82 @@ pub fn load_obj(path: &Path) -> Result<(Mesh, MeshReport), MeshIoError> {
 /// Hand-written rather than ply-rs's writer: ply-rs 0.1.3 writes the element count instead of
 /// the list length in binary lists, producing files nobody (itself included) can read back.
 pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<(), MeshIoError> {
-    let mut out = Vec::with_capacity(32 * mesh.positions().len() + 16 * mesh.faces().len() + 256);
+    write_ply_with(path, mesh, None, encoding)
+}
+
+/// Colours of labels 0, 1, 2, ... in [`write_ply_labelled`] (then repeating): distinct hues a
+/// mesh viewer shows as they are.
+pub const LABEL_COLOURS: [[u8; 3]; 6] = [
+    [230, 159, 0],
+    [86, 180, 233],
+    [0, 158, 115],
+    [213, 94, 0],
+    [204, 121, 167],
+    [240, 228, 66],
+];
+
+/// As [`write_ply`], with a `uchar label` per vertex and its colour (`red green blue`, from
+/// [`LABEL_COLOURS`]) so a mesh viewer shows the labels. Labels above 255 are written as 255;
+/// `labels` shorter than the vertices leaves the rest at 0.
+pub fn write_ply_labelled(
+    path: &Path,
+    mesh: &Mesh,
+    labels: &[u32],
+    encoding: PlyEncoding,
+) -> Result<(), MeshIoError> {
+    write_ply_with(path, mesh, Some(labels), encoding)
+}
+
+fn write_ply_with(
+    path: &Path,
+    mesh: &Mesh,
+    labels: Option<&[u32]>,
+    encoding: PlyEncoding,
+) -> Result<(), MeshIoError> {
+    let mut out = Vec::with_capacity(36 * mesh.positions().len() + 16 * mesh.faces().len() + 256);
     let format = match encoding {
         PlyEncoding::Ascii => "ascii",
         PlyEncoding::BinaryLittleEndian => "binary_little_endian",
     };
+    let label_props = if labels.is_some() {
+        "property uchar label\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+    } else {
+        ""
+    };
     let header = format!(
         "ply\nformat {format} 1.0\ncomment written by brdf-rig\nelement vertex {}\n\
          property float x\nproperty float y\nproperty float z\n\
-         property float nx\nproperty float ny\nproperty float nz\n\
+         property float nx\nproperty float ny\nproperty float nz\n{label_props}\
          element face {}\nproperty list uchar int vertex_indices\nend_header\n",
         mesh.positions().len(),
         mesh.faces().len()
     );
     out.extend_from_slice(header.as_bytes());
-    let verts = mesh.positions().iter().zip(mesh.vertex_normals());
+    let label_of = |i: usize| -> Option<[u8; 4]> {
+        let l = labels?.get(i).copied().unwrap_or(0);
+        let c = LABEL_COLOURS[l as usize % LABEL_COLOURS.len()];
+        Some([u8::try_from(l).unwrap_or(u8::MAX), c[0], c[1], c[2]])
+    };
+    let verts = mesh
+        .positions()
+        .iter()
+        .zip(mesh.vertex_normals())
+        .enumerate();
     match encoding {
         PlyEncoding::Ascii => {
             use std::fmt::Write as _;
             let mut text = String::new();
-            for (p, n) in verts {
+            for (i, (p, n)) in verts {
                 // `{}` on f32 prints the shortest string that reads back to the same float
-                let _ = writeln!(
+                let _ = write!(
                     text,
                     "{} {} {} {} {} {}",
                     p.x as f32, p.y as f32, p.z as f32, n.x as f32, n.y as f32, n.z as f32
                 );
+                if let Some(l) = label_of(i) {
+                    let _ = write!(text, " {} {} {} {}", l[0], l[1], l[2], l[3]);
+                }
+                text.push('\n');
             }
             for f in mesh.faces() {
                 let _ = writeln!(text, "3 {} {} {}", f[0], f[1], f[2]);
@@ -272,9 +322,12 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<(), 
             out.extend_from_slice(text.as_bytes());
         }
         PlyEncoding::BinaryLittleEndian => {
-            for (p, n) in verts {
+            for (i, (p, n)) in verts {
                 for v in [p.x, p.y, p.z, n.x, n.y, n.z] {
                     out.extend_from_slice(&(v as f32).to_le_bytes());
+                }
+                if let Some(l) = label_of(i) {
+                    out.extend_from_slice(&l);
                 }
             }
             for f in mesh.faces() {

@@ -85,6 +85,19 @@ pub fn compare_image(
     obs: &[&Observation],
     table: &MerlTable,
 ) -> Comparison {
+    compare_image_with(image_index, photo, obs, |o| {
+        table.get(o.bin).unwrap_or([0.0; 3])
+    })
+}
+
+/// As [`compare_image`], with the BRDF value of each pixel from `brdf_of` (an object of several
+/// materials: each pixel's own material's table).
+pub fn compare_image_with(
+    image_index: usize,
+    photo: &Thumbnail,
+    obs: &[&Observation],
+    brdf_of: impl Fn(&Observation) -> [f64; 3],
+) -> Comparison {
     let (w, h, step) = (photo.width, photo.height, photo.step);
     let (sw, sh) = (photo.image.width(), photo.image.height());
     // Per thumbnail pixel: sums of the re-render and of re-render minus photo over the observed
@@ -99,7 +112,7 @@ pub fn compare_image(
         if x >= w || y >= h {
             continue;
         }
-        let f = table.get(o.bin).unwrap_or([0.0; 3]);
+        let f = brdf_of(o);
         let v = [0, 1, 2].map(|c| f[c] * o.irradiance[c] * o.cos_theta_i);
         for (vc, rc) in v.iter().zip(&o.radiance) {
             num += (vc - rc).powi(2);

@@ -308,6 +308,7 @@ mod tests {
             light: Vector3::z(),
             view: Vector3::z(),
             mean_curvature: 0.0,
+            face: crate::reconstruct::observation::NO_FACE,
             radiance: [1.0; 3],
             irradiance: [1.0; 3],
             reflectance: [1.0; 3],

@@ -28,6 +28,7 @@ pub mod confidence;
 pub mod core;
 pub mod job;
 pub mod ladder;
+pub mod materials;
 pub mod nielsen;
 pub mod observation;
 pub mod observe;
@@ -41,6 +42,7 @@ pub mod refine;
 pub mod reliable;
 pub mod report_file;
 pub mod run;
+pub mod segment;
 pub mod sweep;
 pub mod trials;
 

@@ -18,7 +18,12 @@ pub struct Seen {
     pub normal: Vector3<f64>,
     /// Mean curvature H = (k1 + k2) / 2, in 1 / (mesh unit).
     pub mean_curvature: f64,
+    /// The mesh face the pixel sees ([`NO_FACE`] when not from a mesh).
+    pub face: u32,
 }
+
+/// The face of a pixel that was not seen on a mesh (tests and probes).
+pub const NO_FACE: u32 = u32::MAX;
 
 impl Seen {
     /// A pixel at the origin of a flat surface with normal `normal` (for tests and probes that
@@ -31,6 +36,7 @@ impl Seen {
             position: Point3::origin(),
             normal,
             mean_curvature: 0.0,
+            face: NO_FACE,
         }
     }
 }
@@ -47,6 +53,8 @@ pub struct Observation {
     pub light: Vector3<f64>,
     pub view: Vector3<f64>,
     pub mean_curvature: f64,
+    /// The mesh face the pixel sees ([`NO_FACE`] when not from a mesh).
+    pub face: u32,
     /// Pixel value I (linear), RGB.
     pub radiance: [f64; 3],
     pub irradiance: [f64; 3],
@@ -90,6 +98,7 @@ impl Observation {
             position,
             normal,
             mean_curvature,
+            face,
         } = seen;
         let cos_theta_i = normal.dot(&light);
         let cos_theta_o = normal.dot(&view);
@@ -108,6 +117,7 @@ impl Observation {
             light,
             view,
             mean_curvature,
+            face,
             radiance,
             irradiance,
             reflectance,
@@ -152,6 +162,7 @@ impl Observation {
             position: self.position,
             normal: self.normal,
             mean_curvature: self.mean_curvature,
+            face: self.face,
         }
     }
 }

@@ -12,7 +12,7 @@
 //!
 //! Pure: the surface samples come from the rasteriser, the image and mask from the loader.
 
-pub use super::observation::{Observation, Seen, to_local};
+pub use super::observation::{NO_FACE, Observation, Seen, to_local};
 use super::reduce::Reduction;
 
 use crate::render::image::LinearImage;
@@ -30,6 +30,8 @@ pub struct SurfacePixel {
     pub normal: Vector3<f64>,
     /// Mean curvature H = (k1 + k2) / 2, in 1 / (mesh unit).
     pub mean_curvature: f64,
+    /// The mesh face seen ([`NO_FACE`] when not from a mesh).
+    pub face: u32,
     /// Whether the light reaches this point (shadow ray not blocked).
     pub lit: bool,
 }
@@ -209,6 +211,7 @@ pub fn check_pixel(
             position: s.position,
             normal,
             mean_curvature: s.mean_curvature,
+            face: s.face,
         },
         input.light_world,
         view,
@@ -271,6 +274,7 @@ mod tests {
             position: Point3::origin(),
             normal,
             mean_curvature: 0.0,
+            face: NO_FACE,
             lit,
         };
         let surface = [

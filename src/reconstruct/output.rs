@@ -44,6 +44,7 @@ pub(super) fn report_of(
     comparisons: &[super::compare::Comparison],
     normals: Option<super::refine::RefineReport>,
     timings: Vec<(String, f64)>,
+    materials: Option<&super::materials::Materials>,
 ) -> Report {
     let s = basis.settings().stride;
     let mut warnings = scene.warnings.clone();
@@ -71,6 +72,7 @@ pub(super) fn report_of(
             cache: None,
             note: PROVENANCE.to_string(),
         },
+        materials: materials.map(super::materials::MaterialsFile::of),
         mesh_vertices: scene.mesh.positions().len(),
         mesh_faces: scene.mesh.faces().len(),
         images: observed.images.clone(),
@@ -127,7 +129,12 @@ pub(super) fn report_of(
 
 /// The result of a reconstruction, before anything is written.
 pub struct Output {
+    /// The result (`brdf.binary`); with several materials, the largest material's.
     pub table: MerlTable,
+    /// What the segmentation found, when it ran (`Settings::materials`); the per-material
+    /// results when it found more than one (`materials/`, `materials.json`,
+    /// `material_map.ply`).
+    pub materials: Option<super::materials::Materials>,
     pub core: CoreOutput,
     pub observed: Observed,
     pub report: Report,
@@ -161,6 +168,8 @@ pub enum OutputError {
     Mesh(#[from] crate::geometry::mesh_io::MeshIoError),
     #[error(transparent)]
     Report(#[from] crate::format::FormatError),
+    #[error(transparent)]
+    Materials(#[from] super::materials::MaterialsWriteError),
 }
 
 /// A preview of a BRDF on a sphere (see the module header), `size` pixels square.
@@ -191,6 +200,9 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
     imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;
+    if let Some(m) = output.materials.as_ref().filter(|m| !m.results.is_empty()) {
+        super::materials::write(dir, m)?;
+    }
     if let Some(mesh) = &output.refined_mesh {
         write_ply(
             &dir.join("mesh_refined.ply"),

@@ -57,6 +57,9 @@ pub struct Settings {
     pub saturation: Option<f64>,
     /// Refine the mesh's normals from the images first (`reconstruct::refine`); `None` = off.
     pub refine: Option<RefineSettings>,
+    /// Find the object's materials and fit one BRDF each (`reconstruct::materials`); `None` =
+    /// one material, as the paper assumes.
+    pub materials: Option<super::segment::SegmentSettings>,
 }
 
 impl Default for Settings {
@@ -71,6 +74,7 @@ impl Default for Settings {
             png_scale: 1.0,
             saturation: None,
             refine: None,
+            materials: None,
         }
     }
 }
@@ -133,6 +137,12 @@ pub enum ReconstructError {
     Basis(#[from] BasisCacheError),
     #[error("job {job}: {source}")]
     Core { job: PathBuf, source: CoreError },
+    #[error("job {job}: {name}: {source}")]
+    Material {
+        job: PathBuf,
+        name: String,
+        source: CoreError,
+    },
 }
 
 /// One light image, loaded and checked.
@@ -347,6 +357,7 @@ fn surface_pixels(gbuf: &GBuffer, lit: &[Option<bool>]) -> Vec<SurfacePixel> {
                 position: f.position,
                 normal: f.normal,
                 mean_curvature: f.mean_curvature.unwrap_or(f64::NAN),
+                face: f.face,
                 lit: lit.unwrap_or(false),
             })
         })

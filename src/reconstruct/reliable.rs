@@ -223,6 +223,7 @@ mod tests {
                 position: Point3::origin(),
                 normal: Vector3::z(),
                 mean_curvature: curvature,
+                face: crate::reconstruct::observation::NO_FACE,
             },
             l,
             Vector3::z(),

@@ -125,6 +125,11 @@ pub struct Report {
     pub confidence: Confidence,
     /// What the normal refinement did (`reconstruct::refine`); `None` when it was off.
     pub normals: Option<RefineReport>,
+    /// What the segmentation found when it ran (`--materials`; `reconstruct::materials`): the
+    /// content of `materials.json`, with no per-material entries when it found one material.
+    /// Absent in reports written before it existed.
+    #[serde(default)]
+    pub materials: Option<super::materials::MaterialsFile>,
     pub timings: Vec<StageTiming>,
     pub peak_memory_bytes: Option<u64>,
     pub warnings: Vec<String>,

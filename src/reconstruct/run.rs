@@ -2,9 +2,10 @@
 //! (`prepare`), the basis (cache or build), the pure core, the photo/re-render comparison
 //! per light image, and the report (`output::report_of`). Writes nothing; `output::write` does.
 
-use super::compare::{Comparison, compare_image};
+use super::compare::{Comparison, compare_image, compare_image_with};
 use super::core::reconstruct_observations;
 use super::job::Job;
+use super::materials::{MaterialError, Materials, material_name, reconstruct_materials};
 use super::nielsen::NielsenPrior;
 use super::observe::Observation;
 use super::output::{Output, report_of};
@@ -65,16 +66,53 @@ pub fn finish(
         basis,
         settings: settings.nielsen,
     };
-    let core = reconstruct_observations(&observed.observations, &prior, &settings.core, progress)
-        .map_err(|source| ReconstructError::Core {
+    let core_err = |source| ReconstructError::Core {
         job: job.source.clone(),
         source,
-    })?;
-    timings.extend(core.timings.iter().cloned());
+    };
+    let mut materials = None;
+    let mut material_cores = Vec::new();
+    if let Some(seg) = &settings.materials {
+        let (m, cores) = reconstruct_materials(
+            &scene.mesh,
+            &observed.observations,
+            &prior,
+            &settings.core,
+            seg,
+            progress,
+        )
+        .map_err(|e| match e {
+            MaterialError::Core { name, source } => ReconstructError::Material {
+                job: job.source.clone(),
+                name,
+                source,
+            },
+        })?;
+        timings.push(("materials".to_string(), m.segment_seconds));
+        materials = Some(m);
+        material_cores = cores;
+    }
+    // With several materials the report's main result is the largest material's (first).
+    let mut cores = material_cores.into_iter();
+    let core = match cores.next() {
+        Some(c) => c,
+        None => reconstruct_observations(&observed.observations, &prior, &settings.core, progress)
+            .map_err(core_err)?,
+    };
+    for (i, c) in std::iter::once(&core).chain(cores.as_slice()).enumerate() {
+        let prefix = match &materials {
+            Some(m) if !m.results.is_empty() => format!("{}: ", material_name(i)),
+            _ => String::new(),
+        };
+        timings.extend(c.timings.iter().map(|(s, t)| (format!("{prefix}{s}"), *t)));
+    }
     let table = core.table.clone();
     let t = Instant::now();
     progress("photo against re-render, per light image");
-    let comparisons = comparisons(&scene, &observed, &table);
+    let comparisons = match materials.as_ref().filter(|m| !m.results.is_empty()) {
+        Some(m) => comparisons_materials(&scene, &observed, m),
+        None => comparisons(&scene, &observed, &table),
+    };
     timings.push(("compare".to_string(), t.elapsed().as_secs_f64()));
     let report = report_of(
         job,
@@ -86,6 +124,7 @@ pub fn finish(
         &comparisons,
         refinement,
         timings,
+        materials.as_ref(),
     );
     let refined_mesh = report
         .normals
@@ -94,12 +133,36 @@ pub fn finish(
         .then_some(scene.mesh);
     Ok(Output {
         table,
+        materials,
         refined_mesh,
         core,
         observed,
         report,
         comparisons,
     })
+}
+
+/// Every light image beside its re-render, each pixel by its own material's table.
+fn comparisons_materials(scene: &Scene, observed: &Observed, m: &Materials) -> Vec<Comparison> {
+    scene
+        .views
+        .iter()
+        .zip(&observed.thumbnails)
+        .filter_map(|(v, thumb)| {
+            let obs: Vec<&Observation> = observed
+                .observations
+                .iter()
+                .filter(|o| o.image == v.index)
+                .collect();
+            Some(compare_image_with(v.index, thumb.as_ref()?, &obs, |o| {
+                m.segmentation
+                    .label_of(&scene.mesh, o)
+                    .and_then(|l| m.results.get(l as usize))
+                    .and_then(|r| r.table.get(o.bin))
+                    .unwrap_or([0.0; 3])
+            }))
+        })
+        .collect()
 }
 
 /// Every light image beside its re-render (`compare`).

@@ -78,6 +78,7 @@ pub fn sweep_view(
             position: f.position,
             normal: f.normal,
             mean_curvature: f.mean_curvature.unwrap_or(f64::NAN),
+            face: f.face,
             lit: true,
         };
         Some((f, s))

@@ -1,0 +1,276 @@
+//! Several materials on one object (issue #17): the segmentation (`segment`), one BRDF per
+//! material by the whole core (model ladder, trials, plausibility, confidence), and the owner of
+//! `materials.json`, its name, version and the names of the files beside it. The per-material
+//! fits are pure; only [`write`] and [`read`] touch files.
+
+use super::confidence::Confidence;
+use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_observations};
+use super::observation::Observation;
+use super::prior::Prior;
+use super::segment::{CountScore, SegmentSettings, Segmentation, segment};
+use crate::brdf::merl::MerlTable;
+use crate::format::{FormatError, Versioned};
+use crate::geometry::mesh::Mesh;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The per-material summary, in the result folder.
+pub const MATERIALS_FILE: &str = "materials.json";
+/// The folder of the per-material MERL tables, in the result folder.
+pub const MATERIALS_DIR: &str = "materials";
+/// The mesh with a per-vertex material label, in the result folder.
+pub const MATERIAL_MAP_FILE: &str = "material_map.ply";
+/// Version of `materials.json`; a reader refuses any other.
+pub const MATERIALS_FORMAT_VERSION: u32 = 1;
+
+const FORMAT: Versioned = Versioned {
+    what: "materials file (materials.json)",
+    version: MATERIALS_FORMAT_VERSION,
+    remedy: "re-run `brdf-rig reconstruct` with this version",
+};
+
+/// The name of material `i` (0-based): `material-1`, `material-2`, ...
+pub fn material_name(i: usize) -> String {
+    format!("material-{}", i + 1)
+}
+
+/// The MERL file of a material, relative to the result folder.
+pub fn material_file(name: &str) -> String {
+    format!("{MATERIALS_DIR}/{name}.binary")
+}
+
+/// One material's result.
+pub struct MaterialResult {
+    pub name: String,
+    /// Its observations (pixels).
+    pub observed_pixels: usize,
+    /// Mesh vertices observed with this label.
+    pub observed_vertices: usize,
+    /// Mean chromaticity of its pixels (r, g, b shares).
+    pub chromaticity: [f64; 3],
+    /// Its result as written (`materials/NAME.binary`).
+    pub table: MerlTable,
+    pub model: ModelReport,
+    pub confidence: Confidence,
+}
+
+/// The segmentation and, when it found more than one material, a result per material,
+/// largest first (by observed pixels; the labels are renumbered to that order).
+pub struct Materials {
+    pub segmentation: Segmentation,
+    pub results: Vec<MaterialResult>,
+    /// Seconds spent finding the materials (not fitting them).
+    pub segment_seconds: f64,
+    pub settings: SegmentSettings,
+    /// The mesh the labels belong to (`material_map.ply`).
+    pub mesh: Mesh,
+}
+
+/// Finds the materials of `mesh` from `observations`; when there is more than one, runs the
+/// core on each material's pixels and returns the cores too (in the order of `results`). With
+/// one material `results` is empty: the caller runs the core on every pixel as without
+/// segmentation.
+pub fn reconstruct_materials(
+    mesh: &Mesh,
+    observations: &[Observation],
+    prior: &dyn Prior,
+    core_settings: &CoreSettings,
+    settings: &SegmentSettings,
+    progress: &mut dyn FnMut(&str),
+) -> Result<(Materials, Vec<CoreOutput>), MaterialError> {
+    let t = std::time::Instant::now();
+    progress("materials (segmentation, count chosen on held-out images)");
+    let mut segmentation = segment(mesh, observations, settings);
+    let segment_seconds = t.elapsed().as_secs_f64();
+    let mut results = Vec::new();
+    let mut cores = Vec::new();
+    if segmentation.count > 1 {
+        let mut groups: Vec<Vec<Observation>> = vec![Vec::new(); segmentation.count];
+        for o in observations {
+            if let Some(l) = segmentation.label_of(mesh, o) {
+                groups[l as usize].push(*o);
+            }
+        }
+        // largest first, labels renumbered to match
+        let mut order: Vec<usize> = (0..groups.len()).collect();
+        order.sort_by_key(|&i| std::cmp::Reverse(groups[i].len()));
+        let mut new_label = vec![0u32; order.len()];
+        for (new, &old) in order.iter().enumerate() {
+            new_label[old] = new as u32;
+        }
+        for l in &mut segmentation.vertex_labels {
+            *l = new_label[*l as usize];
+        }
+        segmentation.observed_vertices = order
+            .iter()
+            .map(|&i| segmentation.observed_vertices[i])
+            .collect();
+        segmentation.chromaticity = order
+            .iter()
+            .map(|&i| segmentation.chromaticity[i])
+            .collect();
+        let groups: Vec<Vec<Observation>> = order
+            .iter()
+            .map(|&i| std::mem::take(&mut groups[i]))
+            .collect();
+        for (i, obs) in groups.iter().enumerate() {
+            let name = material_name(i);
+            progress(&format!("{name}: {} pixels", obs.len()));
+            let core = reconstruct_observations(obs, prior, core_settings, progress).map_err(
+                |source| MaterialError::Core {
+                    name: name.clone(),
+                    source,
+                },
+            )?;
+            results.push(MaterialResult {
+                name,
+                observed_pixels: obs.len(),
+                observed_vertices: segmentation.observed_vertices[i],
+                chromaticity: segmentation.chromaticity[i],
+                table: core.table.clone(),
+                model: core.model.clone(),
+                confidence: core.confidence.clone(),
+            });
+            cores.push(core);
+        }
+    }
+    Ok((
+        Materials {
+            segmentation,
+            results,
+            segment_seconds,
+            settings: *settings,
+            mesh: mesh.clone(),
+        },
+        cores,
+    ))
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MaterialError {
+    #[error("{name}: {source}")]
+    Core {
+        name: String,
+        #[source]
+        source: CoreError,
+    },
+}
+
+/// One material in `materials.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MaterialEntry {
+    pub name: String,
+    /// Its MERL table, relative to the folder of `materials.json`.
+    pub file: String,
+    pub observed_pixels: usize,
+    pub observed_vertices: usize,
+    /// Mean chromaticity of its pixels (r, g, b shares).
+    pub chromaticity: [f64; 3],
+    /// The model the ladder chose (its label) and why.
+    pub model: String,
+    pub model_reason: String,
+    /// The verdict (`high`, `medium`, `low`) and its reasons.
+    pub confidence: String,
+    pub confidence_reasons: Vec<String>,
+    pub held_out_error: Option<f64>,
+}
+
+/// `materials.json`: how many materials and why, and one entry per material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MaterialsFile {
+    pub format_version: u32,
+    pub count: usize,
+    /// Why this count (one sentence).
+    pub reason: String,
+    /// Every count tried, with its held-out image error.
+    pub scores: Vec<CountScore>,
+    pub settings: SegmentSettings,
+    /// The mesh with a per-vertex `label` (0-based, the order of `materials`), relative to
+    /// the folder of `materials.json`.
+    pub material_map: String,
+    pub materials: Vec<MaterialEntry>,
+}
+
+impl MaterialsFile {
+    /// The file's content for these materials (`results` must be non-empty to list any).
+    pub fn of(m: &Materials) -> Self {
+        Self {
+            format_version: MATERIALS_FORMAT_VERSION,
+            count: m.segmentation.count,
+            reason: m.segmentation.reason.clone(),
+            scores: m.segmentation.scores.clone(),
+            settings: m.settings,
+            material_map: MATERIAL_MAP_FILE.to_string(),
+            materials: m
+                .results
+                .iter()
+                .map(|r| MaterialEntry {
+                    name: r.name.clone(),
+                    file: material_file(&r.name),
+                    observed_pixels: r.observed_pixels,
+                    observed_vertices: r.observed_vertices,
+                    chromaticity: r.chromaticity,
+                    model: model_label(&r.model),
+                    model_reason: r.model.reason.clone(),
+                    confidence: r.confidence.level.to_string(),
+                    confidence_reasons: r.confidence.reasons.clone(),
+                    held_out_error: r.confidence.held_out_error,
+                })
+                .collect(),
+        }
+    }
+}
+
+fn model_label(m: &ModelReport) -> String {
+    match (m.k, m.eta) {
+        (Some(k), Some(eta)) => format!("{} (k = {k}, eta = {eta})", m.family),
+        _ => m.family.to_string(),
+    }
+}
+
+/// Writes `materials.json`, the per-material tables and the labelled mesh into `dir`.
+pub fn write(dir: &Path, m: &Materials) -> Result<(), MaterialsWriteError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| MaterialsWriteError::Io { path, source }
+    };
+    let mdir = dir.join(MATERIALS_DIR);
+    std::fs::create_dir_all(&mdir).map_err(io(&mdir))?;
+    for r in &m.results {
+        r.table.write(&dir.join(material_file(&r.name)))?;
+    }
+    crate::geometry::mesh_io::write_ply_labelled(
+        &dir.join(MATERIAL_MAP_FILE),
+        &m.mesh,
+        &m.segmentation.vertex_labels,
+        crate::geometry::mesh_io::PlyEncoding::BinaryLittleEndian,
+    )?;
+    FORMAT.write(&dir.join(MATERIALS_FILE), &MaterialsFile::of(m))?;
+    Ok(())
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MaterialsWriteError {
+    #[error("{path}: {source}")]
+    Io {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error(transparent)]
+    Table(#[from] crate::brdf::merl::MerlError),
+    #[error(transparent)]
+    Mesh(#[from] crate::geometry::mesh_io::MeshIoError),
+}
+
+/// Reads `dir/materials.json`; `Ok(None)` when the folder has none (one material, or a
+/// reconstruction without `--materials`).
+pub fn read(dir: &Path) -> Result<Option<MaterialsFile>, FormatError> {
+    match FORMAT.read(&dir.join(MATERIALS_FILE)) {
+        Ok(f) => Ok(Some(f)),
+        Err(e) if e.is_not_found() => Ok(None),
+        Err(e) => Err(e),
+    }
+}

@@ -1,0 +1,754 @@
+//! Which material each part of the surface is, from the observations alone (issue #17): no
+//! mask, no ground truth. Pure: observations and the mesh in, labels and the evidence out;
+//! it must not read files or fit the basis (the per-material BRDFs are `core`'s job).
+//!
+//! 1. **Features per vertex that do not depend on the normals' error**: each observation
+//!    belongs to the nearest corner of the face it saw; a vertex pools the observations of
+//!    itself and its one-ring. Its features are the chromaticity of the summed reflectance
+//!    (`r / (r + g + b)`, `g / (r + g + b)`: a wrong normal scales all three channels alike)
+//!    and the median of `ln` of the mean reflectance (the level; a wrong normal moves it by
+//!    `ln(cos)` ratios, a highlight by more, so the median over the pooled pixels). The
+//!    features are scaled by what counts as a different material ([`SegmentSettings`]).
+//! 2. **k-means** (k-means++ seeding, seeded restarts, weighted by pixels), then **spatial
+//!    smoothness**: a few sweeps of iterated conditional modes on the mesh's vertex graph
+//!    (a Potts cost per neighbour of another label), which also labels the vertices no pixel
+//!    saw. Materials below `min_share` of the observed vertices, or whose centres are closer
+//!    than one scaled unit, are merged into their nearest neighbour.
+//! 3. **How many materials**: for each count, on folds of whole images, the labels are found
+//!    from the training images alone, a Lambert + GGX fit per material to the training pixels
+//!    renders the held-out pixels, and the image-space error is averaged over the folds. The
+//!    simplest count whose error is within one standard error (of its paired difference to the
+//!    best; at least 2 % of the best) of the best wins: the model ladder's rule, so a
+//!    one-material object gives one.
+
+use super::baselines::fit_lambert_ggx;
+use super::ladder::subset;
+use super::observation::{NO_FACE, Observation};
+use crate::brdf::Brdf;
+use crate::geometry::mesh::Mesh;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// Knobs of the segmentation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SegmentSettings {
+    /// The largest number of materials tried.
+    pub max_materials: usize,
+    /// A chromaticity difference of this much is one unit of feature distance.
+    pub chroma_scale: f64,
+    /// A difference of `ln` reflectance level of this much is one unit.
+    pub level_scale: f64,
+    /// Potts cost of a neighbour with another label, in squared feature units per pixel
+    /// weight (the data cost of a vertex is its pixel count, capped at 8, times its squared
+    /// distance to the material's centre).
+    pub smoothness: f64,
+    /// A material must hold at least this share of the observed vertices.
+    pub min_share: f64,
+    /// k-means restarts.
+    pub restarts: usize,
+    /// Folds of whole images for the choice of the count.
+    pub folds: usize,
+    /// At most this many pixels per material and fold in the Lambert + GGX fits.
+    pub max_fit_pixels: usize,
+    pub seed: u64,
+}
+
+impl Default for SegmentSettings {
+    fn default() -> Self {
+        Self {
+            max_materials: 4,
+            chroma_scale: 0.02,
+            level_scale: 0.35,
+            smoothness: 2.0,
+            min_share: 0.03,
+            restarts: 4,
+            folds: 5,
+            max_fit_pixels: 1500,
+            seed: 0x5E6,
+        }
+    }
+}
+
+/// One count of materials tried.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CountScore {
+    /// The count asked for.
+    pub asked: usize,
+    /// The count found on all images (after merging small or close materials).
+    pub found: usize,
+    /// Held-out image error per fold (`None`: the fold could not be scored).
+    pub fold_errors: Vec<Option<f64>>,
+    pub error: Option<f64>,
+    pub standard_error: Option<f64>,
+}
+
+/// What the segmentation found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segmentation {
+    /// The chosen number of materials.
+    pub count: usize,
+    /// Per mesh vertex, its material (0..count).
+    pub vertex_labels: Vec<u32>,
+    /// Per material: the observed vertices that carry it.
+    pub observed_vertices: Vec<usize>,
+    /// Per material: the mean chromaticity (r, g, b shares) of its pixels.
+    pub chromaticity: Vec<[f64; 3]>,
+    /// Every count tried.
+    pub scores: Vec<CountScore>,
+    /// Why this count (one sentence).
+    pub reason: String,
+}
+
+impl Segmentation {
+    /// The material of an observation (through the corner of its face it is nearest);
+    /// `None` for an observation not seen on this mesh.
+    pub fn label_of(&self, mesh: &Mesh, o: &Observation) -> Option<u32> {
+        let v = nearest_corner(mesh, o)?;
+        self.vertex_labels.get(v).copied()
+    }
+}
+
+/// The vertex of `o`'s face nearest to where it was seen.
+fn nearest_corner(mesh: &Mesh, o: &Observation) -> Option<usize> {
+    if o.face == NO_FACE {
+        return None;
+    }
+    let f = mesh.faces().get(o.face as usize)?;
+    let p = mesh.positions();
+    f.iter()
+        .map(|&v| v as usize)
+        .filter(|&v| v < p.len())
+        .min_by(|&a, &b| {
+            let da = (p[a] - o.position).norm_squared();
+            let db = (p[b] - o.position).norm_squared();
+            da.total_cmp(&db)
+        })
+}
+
+/// The scaled features of the observed vertices.
+struct Features {
+    /// Per vertex: `Some(index into points)` when observed.
+    slot: Vec<Option<usize>>,
+    points: Vec<[f64; 3]>,
+    /// Pixels pooled per point.
+    weight: Vec<f64>,
+}
+
+fn features(
+    mesh: &Mesh,
+    nb: &[Vec<u32>],
+    obs: &[Observation],
+    settings: &SegmentSettings,
+) -> Features {
+    let n = mesh.positions().len();
+    let mut per_vertex: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, o) in obs.iter().enumerate() {
+        let finite = o.reflectance.iter().all(|v| v.is_finite() && *v > 0.0);
+        if let (true, Some(v)) = (finite, nearest_corner(mesh, o)) {
+            per_vertex[v].push(i);
+        }
+    }
+    let mut slot = vec![None; n];
+    let mut points = Vec::new();
+    let mut weight = Vec::new();
+    for v in 0..n {
+        if per_vertex[v].is_empty() {
+            continue;
+        }
+        let pooled: Vec<usize> = std::iter::once(v)
+            .chain(nb[v].iter().map(|&u| u as usize))
+            .flat_map(|u| per_vertex[u].iter().copied())
+            .collect();
+        let mut sum = [0.0f64; 3];
+        let mut levels: Vec<f64> = Vec::with_capacity(pooled.len());
+        for &i in &pooled {
+            let r = obs[i].reflectance;
+            for c in 0..3 {
+                sum[c] += r[c];
+            }
+            levels.push(((r[0] + r[1] + r[2]) / 3.0).ln());
+        }
+        let total = sum[0] + sum[1] + sum[2];
+        let Some(level) = crate::stats::median(&mut levels) else {
+            continue;
+        };
+        if !(total > 0.0 && total.is_finite()) {
+            continue;
+        }
+        slot[v] = Some(points.len());
+        points.push([
+            sum[0] / total / settings.chroma_scale,
+            sum[1] / total / settings.chroma_scale,
+            level / settings.level_scale,
+        ]);
+        weight.push(per_vertex[v].len() as f64);
+    }
+    Features {
+        slot,
+        points,
+        weight,
+    }
+}
+
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    (0..3).map(|i| (a[i] - b[i]) * (a[i] - b[i])).sum()
+}
+
+/// Weighted k-means with k-means++ seeding and restarts; the centres of the best restart.
+fn kmeans(
+    points: &[[f64; 3]],
+    weight: &[f64],
+    k: usize,
+    restarts: usize,
+    seed: u64,
+) -> Vec<[f64; 3]> {
+    let k = k.min(points.len()).max(1);
+    let mut best: Option<(f64, Vec<[f64; 3]>)> = None;
+    for r in 0..restarts.max(1) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (r as u64).wrapping_mul(0x9E37_79B9));
+        let mut centres = vec![points[rng.gen_range(0..points.len())]];
+        while centres.len() < k {
+            let d: Vec<f64> = points
+                .iter()
+                .zip(weight)
+                .map(|(p, w)| {
+                    w * centres
+                        .iter()
+                        .map(|c| dist2(p, c))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .collect();
+            let total: f64 = d.iter().sum();
+            if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                break;
+            }
+            let mut pick = rng.r#gen::<f64>() * total;
+            let mut chosen = points.len() - 1;
+            for (i, di) in d.iter().enumerate() {
+                pick -= di;
+                if pick <= 0.0 {
+                    chosen = i;
+                    break;
+                }
+            }
+            centres.push(points[chosen]);
+        }
+        let mut cost = f64::INFINITY;
+        for _ in 0..50 {
+            let mut sums = vec![[0.0f64; 4]; centres.len()];
+            let mut c = 0.0;
+            for (p, w) in points.iter().zip(weight) {
+                let (j, d) = nearest(&centres, p);
+                c += w * d;
+                for i in 0..3 {
+                    sums[j][i] += w * p[i];
+                }
+                sums[j][3] += w;
+            }
+            let moved: Vec<[f64; 3]> = sums
+                .iter()
+                .zip(&centres)
+                .map(|(s, old)| {
+                    if s[3] > 0.0 {
+                        [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
+                    } else {
+                        *old
+                    }
+                })
+                .collect();
+            let done = moved == centres;
+            centres = moved;
+            cost = c;
+            if done {
+                break;
+            }
+        }
+        if best.as_ref().is_none_or(|(b, _)| cost < *b) {
+            best = Some((cost, centres));
+        }
+    }
+    best.map(|b| b.1).unwrap_or_default()
+}
+
+fn nearest(centres: &[[f64; 3]], p: &[f64; 3]) -> (usize, f64) {
+    centres
+        .iter()
+        .enumerate()
+        .map(|(j, c)| (j, dist2(p, c)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((0, 0.0))
+}
+
+/// Labels every vertex: nearest centre where observed, then ICM sweeps with the Potts cost
+/// (unobserved vertices take their neighbours' majority).
+fn smooth_labels(f: &Features, nb: &[Vec<u32>], centres: &[[f64; 3]], smoothness: f64) -> Vec<u32> {
+    let n = f.slot.len();
+    let none = u32::MAX;
+    let mut labels: Vec<u32> = f
+        .slot
+        .iter()
+        .map(|s| s.map_or(none, |i| nearest(centres, &f.points[i]).0 as u32))
+        .collect();
+    // Unobserved vertices: breadth-first from the observed ones.
+    let mut frontier: Vec<usize> = (0..n).filter(|&v| labels[v] != none).collect();
+    while !frontier.is_empty() {
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &u in &nb[v] {
+                let u = u as usize;
+                if labels[u] == none {
+                    labels[u] = labels[v];
+                    next.push(u);
+                }
+            }
+        }
+        frontier = next;
+    }
+    for l in &mut labels {
+        if *l == none {
+            *l = 0; // a part of the mesh no pixel reaches, not connected to any that is seen
+        }
+    }
+    for _ in 0..10 {
+        let mut changed = 0;
+        for v in 0..n {
+            let data = |k: usize| {
+                f.slot[v].map_or(0.0, |i| {
+                    f.weight[i].min(8.0) * dist2(&f.points[i], &centres[k])
+                })
+            };
+            let cost = |k: usize| {
+                data(k)
+                    + smoothness
+                        * nb[v]
+                            .iter()
+                            .filter(|&&u| labels[u as usize] != k as u32)
+                            .count() as f64
+            };
+            let best = (0..centres.len())
+                .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
+                .unwrap_or(0) as u32;
+            if best != labels[v] {
+                labels[v] = best;
+                changed += 1;
+            }
+        }
+        if changed == 0 {
+            break;
+        }
+    }
+    labels
+}
+
+/// Labels for `asked` materials from these observations; small or close materials merged.
+/// Returns the vertex labels (0..found) and, per found material, its centre.
+fn label_vertices(
+    mesh: &Mesh,
+    nb: &[Vec<u32>],
+    obs: &[Observation],
+    asked: usize,
+    settings: &SegmentSettings,
+) -> (Vec<u32>, usize) {
+    let n = mesh.positions().len();
+    let f = features(mesh, nb, obs, settings);
+    if asked <= 1 || f.points.len() < 2 * asked {
+        return (vec![0; n], 1);
+    }
+    let mut centres = kmeans(
+        &f.points,
+        &f.weight,
+        asked,
+        settings.restarts,
+        settings.seed,
+    );
+    loop {
+        let labels = smooth_labels(&f, nb, &centres, settings.smoothness);
+        let observed = f.slot.iter().filter(|s| s.is_some()).count().max(1);
+        let mut counts = vec![0usize; centres.len()];
+        for (v, s) in f.slot.iter().enumerate() {
+            if s.is_some() {
+                counts[labels[v] as usize] += 1;
+            }
+        }
+        // The weakest material: too small, or too close to another to be a material.
+        let small = (0..centres.len())
+            .filter(|&j| (counts[j] as f64) < settings.min_share * observed as f64)
+            .min_by_key(|&j| counts[j]);
+        let close = (0..centres.len())
+            .flat_map(|a| ((a + 1)..centres.len()).map(move |b| (a, b)))
+            .filter(|&(a, b)| dist2(&centres[a], &centres[b]) < 1.0)
+            .min_by_key(|&(a, b)| counts[a].min(counts[b]))
+            .map(|(a, b)| if counts[a] < counts[b] { a } else { b });
+        let Some(drop) = small.or(close) else {
+            return (labels, centres.len());
+        };
+        if centres.len() <= 1 {
+            return (vec![0; n], 1);
+        }
+        centres.remove(drop);
+    }
+}
+
+/// Relative image-space error of per-material fits on held-out pixels.
+fn held_out_error(fits: &[Option<Box<dyn Brdf>>], held: &[(u32, &Observation)]) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (l, o) in held {
+        let fit = fits.get(*l as usize).and_then(|f| f.as_ref())?;
+        let (wi, wo) = super::observation::to_local(&o.normal, &o.light, &o.view);
+        let fr = fit.eval_local(&wi, &wo);
+        #[allow(clippy::needless_range_loop)] // three parallel channel arrays
+        for c in 0..3 {
+            let d = fr[c] * o.irradiance[c] * o.cos_theta_i - o.radiance[c];
+            num += d * d;
+            den += o.radiance[c] * o.radiance[c];
+        }
+    }
+    (den > 0.0 && num.is_finite()).then(|| (num / den).sqrt())
+}
+
+/// Lambert + GGX per material, each on at most `max` of its pixels; a material with too few
+/// pixels takes the fit of all of them.
+fn fit_per_material(
+    labelled: &[(u32, &Observation)],
+    count: usize,
+    settings: &SegmentSettings,
+) -> Vec<Option<Box<dyn Brdf>>> {
+    let fit = |obs: Vec<Observation>| -> Option<Box<dyn Brdf>> {
+        let obs = subset(&obs, settings.max_fit_pixels, settings.seed ^ 0xF17);
+        fit_lambert_ggx(&obs).map(|b| Box::new(b) as Box<dyn Brdf>)
+    };
+    (0..count as u32)
+        .map(|m| {
+            let own: Vec<Observation> = labelled
+                .iter()
+                .filter(|(l, _)| *l == m)
+                .map(|(_, o)| **o)
+                .collect();
+            if own.len() >= 30 {
+                fit(own)
+            } else {
+                fit(labelled.iter().map(|(_, o)| **o).collect())
+            }
+        })
+        .collect()
+}
+
+fn mean_se(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    if v.len() < 2 {
+        return (mean, f64::INFINITY);
+    }
+    let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+/// Finds the materials of the surface (see the module header).
+pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> Segmentation {
+    let nb = mesh.vertex_neighbours();
+    let mut images: Vec<usize> = obs.iter().map(|o| o.image).collect();
+    images.sort_unstable();
+    images.dedup();
+    let folds = settings.folds.min(images.len());
+    let fold_of = |o: &Observation| images.binary_search(&o.image).unwrap_or(0) % folds.max(1);
+    let mut scores = Vec::new();
+    let mut full = Vec::new();
+    for asked in 1..=settings.max_materials.max(1) {
+        let (labels, found) = label_vertices(mesh, &nb, obs, asked, settings);
+        if asked > 1 && full.iter().any(|(_, f, _)| *f == found) {
+            // merging gave a count already tried: nothing new to score
+            scores.push(CountScore {
+                asked,
+                found,
+                fold_errors: Vec::new(),
+                error: None,
+                standard_error: None,
+            });
+            continue;
+        }
+        let mut fold_errors = Vec::with_capacity(folds);
+        for k in 0..folds {
+            if folds < 2 {
+                break;
+            }
+            let train: Vec<Observation> = obs.iter().filter(|o| fold_of(o) != k).copied().collect();
+            let (train_labels, train_found) = label_vertices(mesh, &nb, &train, asked, settings);
+            let label = |o: &Observation| {
+                nearest_corner(mesh, o).and_then(|v| train_labels.get(v).copied())
+            };
+            let labelled: Vec<(u32, &Observation)> =
+                train.iter().filter_map(|o| Some((label(o)?, o))).collect();
+            let held: Vec<(u32, &Observation)> = obs
+                .iter()
+                .filter(|o| fold_of(o) == k)
+                .filter_map(|o| Some((label(o)?, o)))
+                .collect();
+            let fits = fit_per_material(&labelled, train_found, settings);
+            fold_errors.push(held_out_error(&fits, &held));
+        }
+        let scored: Vec<f64> = fold_errors.iter().flatten().copied().collect();
+        let (error, standard_error) = if scored.len() == fold_errors.len() && !scored.is_empty() {
+            let (m, s) = mean_se(&scored);
+            (Some(m), Some(s))
+        } else {
+            (None, None)
+        };
+        scores.push(CountScore {
+            asked,
+            found,
+            fold_errors,
+            error,
+            standard_error,
+        });
+        full.push((scores.len() - 1, found, labels));
+    }
+    let (chosen, reason) = choose_count(&scores);
+    let (_, count, vertex_labels) = full
+        .iter()
+        .find(|(i, _, _)| *i == chosen)
+        .cloned()
+        .unwrap_or((0, 1, vec![0; mesh.positions().len()]));
+    let mut observed_vertices = vec![0usize; count];
+    let mut sums = vec![[0.0f64; 3]; count];
+    let mut seen = vec![false; mesh.positions().len()];
+    for o in obs {
+        if let Some(v) = nearest_corner(mesh, o) {
+            let l = vertex_labels[v] as usize;
+            if !seen[v] {
+                seen[v] = true;
+                observed_vertices[l] += 1;
+            }
+            if o.reflectance.iter().all(|x| x.is_finite()) {
+                for (s, r) in sums[l].iter_mut().zip(o.reflectance) {
+                    *s += r;
+                }
+            }
+        }
+    }
+    let chromaticity = sums
+        .iter()
+        .map(|s| {
+            let t = s[0] + s[1] + s[2];
+            if t > 0.0 {
+                [s[0] / t, s[1] / t, s[2] / t]
+            } else {
+                [1.0 / 3.0; 3]
+            }
+        })
+        .collect();
+    Segmentation {
+        count,
+        vertex_labels,
+        observed_vertices,
+        chromaticity,
+        scores,
+        reason,
+    }
+}
+
+/// A count must lower the held-out error by more than this share of the best error to be
+/// chosen over a simpler one, however small the folds' spread (near-identical fits give
+/// paired differences with a vanishing standard error).
+const MIN_GAIN: f64 = 0.02;
+
+/// The simplest count within one standard error of the best, the error of each count's
+/// difference to the best taken over the same folds (paired), or within [`MIN_GAIN`].
+fn choose_count(scores: &[CountScore]) -> (usize, String) {
+    let Some(best) = scores
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.error.is_some())
+        .min_by(|a, b| {
+            a.1.error
+                .unwrap_or(f64::INFINITY)
+                .total_cmp(&b.1.error.unwrap_or(f64::INFINITY))
+        })
+        .map(|(i, _)| i)
+    else {
+        return (
+            0,
+            "no count of materials could be scored on held-out images: one material".into(),
+        );
+    };
+    let b = &scores[best];
+    for (i, s) in scores.iter().enumerate() {
+        let Some(e) = s.error else { continue };
+        let diffs: Vec<f64> = s
+            .fold_errors
+            .iter()
+            .zip(&b.fold_errors)
+            .filter_map(|(x, y)| Some((*x)? - (*y)?))
+            .collect();
+        let (d, se) = if diffs.is_empty() {
+            (e - b.error.unwrap_or(e), 0.0)
+        } else {
+            mean_se(&diffs)
+        };
+        if i == best || d <= se.max(MIN_GAIN * b.error.unwrap_or(0.0)) {
+            let why = if i == best {
+                format!(
+                    "{} material(s) rendered the held-out images best ({:.4})",
+                    s.found, e
+                )
+            } else {
+                format!(
+                    "{} material(s) are within one standard error of the best ({} material(s)): \
+                     held-out image error {:.4} against {:.4} (paired difference {:.4} +- {:.4})",
+                    s.found,
+                    b.found,
+                    e,
+                    b.error.unwrap_or(f64::NAN),
+                    d,
+                    se
+                )
+            };
+            return (i, why);
+        }
+    }
+    (best, "the best held-out error".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::analytic::LambertGgx;
+    use crate::reconstruct::observation::Seen;
+    use nalgebra::{Point3, Vector3};
+
+    /// A flat grid of `n` x `n` vertices in the xy plane (normal +z), two triangles per cell.
+    fn grid(n: usize) -> Mesh {
+        let mut p = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                p.push(Point3::new(i as f64, j as f64, 0.0));
+            }
+        }
+        let mut f: Vec<[i64; 3]> = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as i64;
+                let b = a + 1;
+                let c = a + n as i64;
+                let d = c + 1;
+                f.push([a, b, d]);
+                f.push([a, d, c]);
+            }
+        }
+        Mesh::new(p, f, "grid").expect("a valid grid").0
+    }
+
+    /// Pixels on every face of the grid, in `images` images with lights from several
+    /// directions, shaded by the material of the face's left (x < split) or right half. The
+    /// surface's true normal is the grid's tilted by up to 6 degrees per face (a photogrammetry
+    /// mesh's error: the observations keep the grid's +z) and each pixel has 3 % noise.
+    fn scene(mesh: &Mesh, materials: &[LambertGgx], split: f64, images: usize) -> Vec<Observation> {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut obs = Vec::new();
+        let view = Vector3::z();
+        let tilts: Vec<Vector3<f64>> = (0..mesh.faces().len())
+            .map(|_| {
+                let t = rng.gen_range(0.0..6.0f64).to_radians();
+                let p = rng.gen_range(0.0..std::f64::consts::TAU);
+                Vector3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+            })
+            .collect();
+        for img in 0..images {
+            let a = 0.2 + 0.9 * img as f64 / images as f64;
+            let light = Vector3::new(
+                a.sin() * (img as f64).cos(),
+                a.sin() * (img as f64).sin(),
+                a.cos(),
+            );
+            for (fi, _) in mesh.faces().iter().enumerate() {
+                let t = mesh.triangle(fi);
+                let c = Point3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0);
+                let m = if c.x < split {
+                    0
+                } else {
+                    1.min(materials.len() - 1)
+                };
+                let n = tilts[fi];
+                let (wi, wo) = super::super::observation::to_local(&n, &light, &view);
+                let fr = materials[m].eval_local(&wi, &wo);
+                let cos = n.dot(&light).max(0.0);
+                let rad = [0, 1, 2].map(|c| fr[c] * cos * (1.0 + 0.03 * rng.gen_range(-1.0..1.0)));
+                let seen = Seen {
+                    face: fi as u32,
+                    position: c,
+                    ..Seen::pixel(img, fi as u32, 0, Vector3::z())
+                };
+                if let Some(o) = Observation::new(seen, light, view, rad, [1.0; 3]) {
+                    obs.push(o);
+                }
+            }
+        }
+        obs
+    }
+
+    fn ggx(rgb: [f64; 3], alpha: f64) -> LambertGgx {
+        LambertGgx {
+            kd: rgb,
+            ks: [0.3; 3],
+            alpha,
+            f0: 0.04,
+        }
+    }
+
+    #[test]
+    fn one_material_gives_one() {
+        let mesh = grid(16);
+        let obs = scene(&mesh, &[ggx([0.3, 0.2, 0.1], 0.3)], 8.0, 6);
+        let s = segment(&mesh, &obs, &SegmentSettings::default());
+        assert_eq!(s.count, 1, "{:?}", s.scores);
+        assert!(s.vertex_labels.iter().all(|&l| l == 0));
+    }
+
+    #[test]
+    fn two_colours_give_two_split_where_they_meet() {
+        let mesh = grid(16);
+        let obs = scene(
+            &mesh,
+            &[ggx([0.35, 0.08, 0.1], 0.3), ggx([0.05, 0.25, 0.1], 0.2)],
+            7.5,
+            6,
+        );
+        let s = segment(&mesh, &obs, &SegmentSettings::default());
+        assert_eq!(s.count, 2, "{} / {:?}", s.reason, s.scores);
+        // every vertex well inside a half carries that half's label
+        let p = mesh.positions();
+        let left = s.vertex_labels[0];
+        let wrong = p
+            .iter()
+            .zip(&s.vertex_labels)
+            .filter(|(q, _)| (q.x - 7.5).abs() > 1.5)
+            .filter(|(q, l)| (q.x < 7.5) != (**l == left))
+            .count();
+        assert_eq!(wrong, 0, "labels {:?}", s.vertex_labels);
+        // the held-out error of two materials is far below that of one
+        let e = |n: usize| s.scores.iter().find(|c| c.found == n).and_then(|c| c.error);
+        assert!(e(2).unwrap() < 0.5 * e(1).unwrap(), "{:?}", s.scores);
+    }
+
+    #[test]
+    fn observations_off_the_mesh_have_no_label() {
+        let mesh = grid(4);
+        let s = Segmentation {
+            count: 1,
+            vertex_labels: vec![0; 16],
+            observed_vertices: vec![16],
+            chromaticity: vec![[1.0 / 3.0; 3]],
+            scores: Vec::new(),
+            reason: String::new(),
+        };
+        let o = Observation::new(
+            Seen::pixel(0, 0, 0, Vector3::z()),
+            Vector3::z(),
+            Vector3::z(),
+            [0.1; 3],
+            [1.0; 3],
+        )
+        .expect("a valid observation");
+        assert_eq!(s.label_of(&mesh, &o), None);
+    }
+}
