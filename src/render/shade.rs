@@ -7,6 +7,8 @@
 //! `geometry::shadow`) or `n . v <= 0`; plus, optionally, a uniform environment (see
 //! [`UniformEnvironment`]): `L_env = (pi / N) * sum_k f_r(w_k, v) * L_uniform * V(w_k)` over
 //! cosine-distributed `w_k` about `n`. Uncovered pixels get the background value.
+//! An object of several materials ([`render_mesh_materials`]) takes the BRDF of the fragment's
+//! face from its `geometry::labels::FaceLabels`; everything else is the same.
 //! Conventions: radiance in the irradiance's unit per steradian; the BRDF is evaluated in the
 //! frame of [`ShadingFrame`]. Pure: no file I/O (see `crate::imageio`).
 
@@ -16,6 +18,7 @@ use super::light::{DirectionalLight, UniformEnvironment};
 use crate::brdf::Brdf;
 use crate::geometry::bvh::{Bvh, Ray};
 use crate::geometry::camera::{Intrinsics, Pose};
+use crate::geometry::labels::FaceLabels;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::raster::{Fragment, GBuffer, Rasteriser};
 use crate::geometry::shadow::{default_offset, light_visible};
@@ -56,6 +59,85 @@ pub fn render_mesh(
     brdf: &dyn Brdf,
     opts: &ShadeOptions,
 ) -> LinearImage {
+    render_mesh_with(mesh, bvh, k, pose, |_| Some(brdf), opts)
+}
+
+/// Why a mesh cannot be rendered with a material per face.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MaterialsError {
+    #[error("{labels} face labels for a mesh of {faces} faces: there must be one label per face")]
+    Labels { labels: usize, faces: usize },
+    #[error("face {face} is material {label}, but only {brdfs} BRDFs were given")]
+    NoBrdf {
+        face: usize,
+        label: u32,
+        brdfs: usize,
+    },
+}
+
+/// [`render_mesh`] for an object of several materials: face `f` is shaded with
+/// `brdfs[labels.labels[f]]` (the same per-pixel kernel, [`shade_fragment`], so one material
+/// gives exactly [`render_mesh`]'s image). The labels must fit (see [`check_materials`]): a face
+/// without a label, or whose label has no BRDF, is left as background rather than panicking.
+pub fn render_mesh_materials(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    k: &Intrinsics,
+    pose: &Pose,
+    brdfs: &[&dyn Brdf],
+    labels: &FaceLabels,
+    opts: &ShadeOptions,
+) -> LinearImage {
+    render_mesh_with(
+        mesh,
+        bvh,
+        k,
+        pose,
+        |face| {
+            let label = *labels.labels.get(face as usize)?;
+            brdfs.get(label as usize).copied()
+        },
+        opts,
+    )
+}
+
+/// Checks that `labels` has one label per face of `mesh` and that `brdfs` has a BRDF for each
+/// (before [`render_mesh_materials`], which would leave such faces as background).
+pub fn check_materials(
+    mesh: &Mesh,
+    brdfs: &[&dyn Brdf],
+    labels: &FaceLabels,
+) -> Result<(), MaterialsError> {
+    if labels.labels.len() != mesh.faces().len() {
+        return Err(MaterialsError::Labels {
+            labels: labels.labels.len(),
+            faces: mesh.faces().len(),
+        });
+    }
+    match labels
+        .labels
+        .iter()
+        .enumerate()
+        .find(|(_, l)| **l as usize >= brdfs.len())
+    {
+        Some((face, &label)) => Err(MaterialsError::NoBrdf {
+            face,
+            label,
+            brdfs: brdfs.len(),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// [`render_mesh`] with the BRDF of each fragment chosen by its face (`None`: background).
+fn render_mesh_with<'b>(
+    mesh: &Mesh,
+    bvh: &Bvh,
+    k: &Intrinsics,
+    pose: &Pose,
+    brdf_of: impl Fn(u32) -> Option<&'b dyn Brdf> + Sync,
+    opts: &ShadeOptions,
+) -> LinearImage {
     let r = Rasteriser::new(mesh, bvh, k, pose, None);
     let centre = pose.centre();
     let faces = r.faces();
@@ -70,7 +152,7 @@ pub fn render_mesh(
             bvh,
             &f,
             &centre,
-            brdf,
+            brdf_of(f.face)?,
             opts,
             (y * k.width + x) as u64,
         ))

@@ -11,17 +11,26 @@
 //! `light_angle_deg` across the views, rotated about the optical axis so it comes from above,
 //! alternately left and right. A turntable rig with one fixed light has a single `alpha`; this
 //! scene spreads it on purpose (METHOD.md section 1: the basis needs several `theta_d`).
+//!
+//! Materials: one BRDF for the whole object ([`write_scene`]), or one per face
+//! ([`write_scene_materials`], labels from `geometry::labels`), with the truth per face written
+//! beside the scene (`sim::truth_labels`).
 
 use crate::brdf::Brdf;
 use crate::geometry::bvh::Bvh;
 use crate::geometry::camera::{Intrinsics, Pose};
 use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, write_text};
+use crate::geometry::labels::FaceLabels;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io::{PlyEncoding, write_ply};
 use crate::imageio::{self, ExrPrecision};
 use crate::reconstruct::job::{JOB_FILE, Job, LightImageSpec};
 use crate::render::light::DirectionalLight;
-use crate::render::shade::{ShadeOptions, render_mesh};
+use crate::render::shade::{ShadeOptions, check_materials, render_mesh_materials};
+use crate::sim::truth_labels::write_truth_labels;
+pub use crate::sim::truth_labels::{
+    TRUTH_LABELS_FILE, TruthLabels, TruthLabelsError, read_truth_labels,
+};
 use nalgebra::{Point3, Vector3};
 use std::path::Path;
 
@@ -109,7 +118,8 @@ pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Po
 }
 
 /// Renders `truth_mesh` with `brdf` and writes the job folder; the job names `job_mesh` (the
-/// SfM-like mesh the reconstruction sees). Returns the job, as written to `dir/job.toml`.
+/// SfM-like mesh the reconstruction sees). Returns the job, as written to `dir/job.toml`. The
+/// one-material case of [`write_scene_materials`].
 pub fn write_scene(
     dir: &Path,
     truth_mesh: &Mesh,
@@ -117,6 +127,52 @@ pub fn write_scene(
     brdf: &dyn Brdf,
     spec: &SceneSpec,
 ) -> std::io::Result<Job> {
+    let labels = FaceLabels::uniform(truth_mesh.faces().len());
+    write_scene_materials(dir, truth_mesh, job_mesh, &[brdf], &labels, &[], spec)
+}
+
+/// [`write_scene`] for an object of several materials: face `f` of `truth_mesh` is rendered
+/// with `brdfs[labels.labels[f]]`. With more than one material (`labels.count > 1`) the truth is
+/// written beside the scene, `dir/truth_labels.json` (`sim::truth_labels`: the labels and
+/// `names`, empty or one name per material); with one, the folder is exactly
+/// [`write_scene`]'s.
+///
+/// The labels are per face of `truth_mesh`. `geometry::sfm_like` moves vertices and keeps the
+/// faces, so for a `job_mesh` made by it (or `truth_mesh` itself) they are also the labels of
+/// the job's `mesh.ply`; a job mesh of another face count is refused when there is more than one
+/// material, since the truth would not describe it. Every check runs before anything is written.
+pub fn write_scene_materials(
+    dir: &Path,
+    truth_mesh: &Mesh,
+    job_mesh: &Mesh,
+    brdfs: &[&dyn Brdf],
+    labels: &FaceLabels,
+    names: &[String],
+    spec: &SceneSpec,
+) -> std::io::Result<Job> {
+    let invalid = |e: &dyn std::fmt::Display| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("simulated scene {}: {e}", dir.display()),
+        )
+    };
+    check_materials(truth_mesh, brdfs, labels).map_err(|e| invalid(&e))?;
+    let several = labels.count > 1;
+    if several && job_mesh.faces().len() != truth_mesh.faces().len() {
+        return Err(invalid(&format_args!(
+            "the job mesh has {} faces and the truth mesh {}: the truth labels would not \
+             describe the job mesh (make it with geometry::sfm_like, which keeps the faces)",
+            job_mesh.faces().len(),
+            truth_mesh.faces().len()
+        )));
+    }
+    if !names.is_empty() && names.len() != labels.count as usize {
+        return Err(invalid(&format_args!(
+            "{} material names for {} materials",
+            names.len(),
+            labels.count
+        )));
+    }
     let io = |e: &dyn std::fmt::Display| std::io::Error::other(e.to_string());
     std::fs::create_dir_all(dir.join("light"))?;
     let bvh = Bvh::build(truth_mesh);
@@ -126,12 +182,13 @@ pub fn write_scene(
         let (k, pose, l_cam) = view_geometry(truth_mesh, spec, i);
         let light = DirectionalLight::new(pose.dir_to_world(&l_cam), spec.irradiance)
             .ok_or_else(|| io(&"degenerate light direction"))?;
-        let img = render_mesh(
+        let img = render_mesh_materials(
             truth_mesh,
             &bvh,
             &k,
             &pose,
-            brdf,
+            brdfs,
+            labels,
             &ShadeOptions::single_light(light),
         );
         let name = format!("view_{i:02}.exr");
@@ -175,6 +232,9 @@ pub fn write_scene(
         light_images,
         warnings: Vec::new(),
     };
+    if several {
+        write_truth_labels(&dir.join(TRUTH_LABELS_FILE), labels, names).map_err(|e| io(&e))?;
+    }
     let text = job.to_toml(dir).map_err(std::io::Error::other)?;
     std::fs::write(&job.source, text)?;
     Ok(job)

@@ -12,6 +12,7 @@ pub mod motion;
 pub mod runner;
 pub mod scene;
 pub mod truth;
+pub mod truth_labels;
 
 pub use firmware::{FirmwareConfig, MoveKind, MoveRecord, SimSnapshot};
 pub use runner::{FaultControl, LinkFaults, SimConfig, SimHandle, SimRig};

@@ -1,0 +1,186 @@
+//! Simulated multi-material scenes: Spot split by a plane into two materials (neural MERL fits,
+//! smooth approximations of MERL materials by Sztrajman et al. 2021, not measured data), written
+//! as a job folder with the truth per face beside it; the images really show each face's
+//! material, and the truth file reads back to the labels the scene was rendered with.
+
+use crate::util;
+use brdf_rig::brdf::Brdf;
+use brdf_rig::brdf::nbrdf::Nbrdf;
+use brdf_rig::geometry::bvh::Bvh;
+use brdf_rig::geometry::labels::{FaceLabels, area_agreement, split_by_planes};
+use brdf_rig::geometry::mesh::Mesh;
+use brdf_rig::geometry::mesh_io::load_mesh;
+use brdf_rig::geometry::raster::Rasteriser;
+use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
+use brdf_rig::imageio::read_exr;
+use brdf_rig::render::light::DirectionalLight;
+use brdf_rig::render::shade::{ShadeOptions, render_mesh, render_mesh_materials};
+use brdf_rig::sim::job_scene::{
+    SceneSpec, TRUTH_LABELS_FILE, read_truth_labels, view_geometry, write_scene,
+    write_scene_materials,
+};
+use nalgebra::Vector3;
+
+const MATERIALS: [&str; 2] = ["green-latex", "pink-fabric"];
+
+fn spot() -> Mesh {
+    load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj"))
+        .unwrap()
+        .0
+}
+
+fn material(name: &str) -> Nbrdf {
+    Nbrdf::load(
+        &util::shared_data()
+            .join("merl-nbrdf")
+            .join(format!("{name}.f32")),
+    )
+    .unwrap()
+}
+
+/// Red and green chromaticity `(r, g) / (r + g + b)`.
+fn chromaticity(rgb: [f64; 3]) -> [f64; 2] {
+    let s = rgb[0] + rgb[1] + rgb[2];
+    [rgb[0] / s, rgb[1] / s]
+}
+
+fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+}
+
+#[test]
+fn two_material_spot_shows_each_faces_material_and_writes_its_truth() {
+    let mesh = spot();
+    let job_mesh = sfm_like(&mesh, &SfmLikeParams::default());
+    assert_eq!(
+        job_mesh.faces(),
+        mesh.faces(),
+        "sfm_like keeps the faces, so the truth labels are the job mesh's too"
+    );
+    let mats: Vec<Nbrdf> = MATERIALS.iter().map(|n| material(n)).collect();
+    let brdfs: Vec<&dyn Brdf> = mats.iter().map(|m| m as &dyn Brdf).collect();
+    let names: Vec<String> = MATERIALS.iter().map(|n| n.to_string()).collect();
+    // Spot's length runs along z: front half one material, back half the other
+    let labels = split_by_planes(&mesh, Vector3::z(), 2);
+    let per_label = |l: u32| labels.labels.iter().filter(|&&x| x == l).count();
+    assert!(per_label(0) > mesh.faces().len() / 5 && per_label(1) > mesh.faces().len() / 5);
+
+    let spec = SceneSpec {
+        views: 5,
+        width: 64,
+        height: 48,
+        ..SceneSpec::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let job = write_scene_materials(dir.path(), &mesh, &job_mesh, &brdfs, &labels, &names, &spec)
+        .unwrap();
+    assert_eq!(job.light_images.len(), 5);
+
+    let truth = read_truth_labels(&dir.path().join(TRUTH_LABELS_FILE)).unwrap();
+    assert_eq!(truth.labels, labels);
+    assert_eq!(truth.names, names);
+    assert!((area_agreement(&mesh, &truth.labels, &labels, None) - 1.0).abs() < 1e-12);
+
+    // Mean colour of the lit pixels of each truth label, over the views.
+    let bvh = Bvh::build(&mesh);
+    let mut sum = [[0.0f64; 3]; 2];
+    let mut pixels = [0usize; 2];
+    for (i, light_image) in job.light_images.iter().enumerate() {
+        let img = read_exr(&light_image.file).unwrap();
+        let (k, pose, _) = view_geometry(&mesh, &spec, i);
+        let gbuf = Rasteriser::new(&mesh, &bvh, &k, &pose, None).gbuffer();
+        for y in 0..k.height {
+            for x in 0..k.width {
+                let Some(f) = gbuf.get(x, y) else { continue };
+                let rgb = img.get(x, y).map(f64::from);
+                if rgb.iter().sum::<f64>() <= 1e-4 {
+                    continue; // shadowed or facing away: no colour to see
+                }
+                let l = truth.labels.labels[f.face as usize] as usize;
+                pixels[l] += 1;
+                for c in 0..3 {
+                    sum[l][c] += rgb[c];
+                }
+            }
+        }
+    }
+    assert!(pixels[0] > 200 && pixels[1] > 200, "lit pixels {pixels:?}");
+    let seen = [chromaticity(sum[0]), chromaticity(sum[1])];
+    // Each material's own colour: near-retro reflection, theta_h 0.3 rad, theta_d 0.4 rad.
+    let own = [
+        chromaticity(mats[0].eval_angles(0.3, 0.4, std::f64::consts::FRAC_PI_2)),
+        chromaticity(mats[1].eval_angles(0.3, 0.4, std::f64::consts::FRAC_PI_2)),
+    ];
+    assert!(
+        distance(own[0], own[1]) > 0.05,
+        "the materials differ in colour: {own:?}"
+    );
+    for l in 0..2 {
+        assert!(
+            distance(seen[l], own[l]) < distance(seen[l], own[1 - l]),
+            "label {l} ({}) looks like {:?}, own colour {:?}, the other's {:?}",
+            MATERIALS[l],
+            seen[l],
+            own[l],
+            own[1 - l]
+        );
+    }
+    assert!(seen[0][1] > seen[1][1], "green-latex is greener: {seen:?}");
+    assert!(seen[1][0] > seen[0][0], "pink-fabric is redder: {seen:?}");
+}
+
+#[test]
+fn one_material_is_the_single_material_scene() {
+    let mesh = spot();
+    let mat = material(MATERIALS[0]);
+    let spec = SceneSpec {
+        views: 2,
+        width: 32,
+        height: 24,
+        ..SceneSpec::default()
+    };
+    // the same BRDF on both halves renders exactly render_mesh's image
+    let bvh = Bvh::build(&mesh);
+    let (k, pose, l_cam) = view_geometry(&mesh, &spec, 0);
+    let light = DirectionalLight::new(pose.dir_to_world(&l_cam), spec.irradiance).unwrap();
+    let opts = ShadeOptions::single_light(light);
+    let one = render_mesh(&mesh, &bvh, &k, &pose, &mat, &opts);
+    let split = split_by_planes(&mesh, Vector3::x(), 2);
+    let twice = render_mesh_materials(&mesh, &bvh, &k, &pose, &[&mat, &mat], &split, &opts);
+    assert_eq!(one.data(), twice.data());
+
+    // one material: no truth file, the same folder as write_scene's
+    let a = tempfile::tempdir().unwrap();
+    let b = tempfile::tempdir().unwrap();
+    write_scene(a.path(), &mesh, &mesh, &mat, &spec).unwrap();
+    let uniform = FaceLabels::uniform(mesh.faces().len());
+    write_scene_materials(b.path(), &mesh, &mesh, &[&mat], &uniform, &[], &spec).unwrap();
+    assert!(!b.path().join(TRUTH_LABELS_FILE).exists());
+    for file in ["light/view_00.exr", "light/view_01.exr", "mesh.ply"] {
+        assert_eq!(
+            std::fs::read(a.path().join(file)).unwrap(),
+            std::fs::read(b.path().join(file)).unwrap(),
+            "{file}"
+        );
+    }
+
+    // refused before anything is written: a label without a BRDF, names that do not fit
+    let c = tempfile::tempdir().unwrap();
+    let e = write_scene_materials(c.path(), &mesh, &mesh, &[&mat], &split, &[], &spec)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("material 1") && e.contains("1 BRDFs"), "{e}");
+    let e = write_scene_materials(
+        c.path(),
+        &mesh,
+        &mesh,
+        &[&mat, &mat],
+        &split,
+        &["only one".to_string()],
+        &spec,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("1 material names for 2"), "{e}");
+    assert!(!c.path().join("light").exists());
+}
