@@ -36,6 +36,8 @@ pub enum BenchCommand {
     External(super::bench_external::BenchExternalArgs),
     /// Tune the confidence thresholds on one mesh of an accuracy grid, check on the other.
     Confidence(super::bench_confidence::BenchConfidenceArgs),
+    /// Objects of several materials: segmentation against the truth, one BRDF per material.
+    Materials(super::bench_materials::BenchMaterialsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -68,6 +70,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         BenchCommand::Reconstruct(a) => super::bench_reconstruct::run(a),
         BenchCommand::External(a) => super::bench_external::run(a),
         BenchCommand::Confidence(a) => super::bench_confidence::run(a),
+        BenchCommand::Materials(a) => super::bench_materials::run(a),
     }
 }
 

@@ -130,7 +130,15 @@ impl Rig {
         }
     }
 
-    fn scene(&self, views: usize, width: usize, height: usize) -> SceneSpec {
+    /// A short tag for folder names (`spread`, `one30`).
+    pub fn tag(&self) -> String {
+        match self {
+            Rig::Spread => "spread".to_string(),
+            Rig::OneLight { alpha_deg } => format!("one{alpha_deg:.0}"),
+        }
+    }
+
+    pub(crate) fn scene(&self, views: usize, width: usize, height: usize) -> SceneSpec {
         let base = match *self {
             Rig::Spread => SceneSpec::default(),
             Rig::OneLight { alpha_deg } => SceneSpec::one_light(alpha_deg),
@@ -207,10 +215,7 @@ pub fn run(
         });
         for ((mesh_name, mesh), rig, seed) in cases {
             let t = Instant::now();
-            let rig_tag = match rig {
-                Rig::Spread => "spread".to_string(),
-                Rig::OneLight { alpha_deg } => format!("one{alpha_deg:.0}"),
-            };
+            let rig_tag = rig.tag();
             let dir = scratch.join(format!("{mesh_name}-{name}-{rig_tag}-{seed}"));
             let sfm = SfmLikeParams {
                 iterations: spec.sfm_iterations,

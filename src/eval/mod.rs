@@ -19,6 +19,7 @@ pub mod bench;
 pub mod confidence;
 pub mod external;
 pub mod host;
+pub mod materials;
 pub mod meshes;
 pub mod rig;
 pub mod sweeps;
@@ -78,6 +79,8 @@ pub enum EvalError {
     Reconstruct(#[from] ReconstructError),
     #[error("reconstruction core: {0}")]
     Core(#[from] CoreError),
+    #[error(transparent)]
+    Material(#[from] crate::reconstruct::materials::MaterialError),
     #[error("basis: {0}")]
     Basis(#[from] crate::brdf::basis_cache::BasisCacheError),
 }

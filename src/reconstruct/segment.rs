@@ -12,8 +12,9 @@
 //! 2. **k-means** (k-means++ seeding, seeded restarts, weighted by pixels), then **spatial
 //!    smoothness**: a few sweeps of iterated conditional modes on the mesh's vertex graph
 //!    (a Potts cost per neighbour of another label), which also labels the vertices no pixel
-//!    saw. Materials below `min_share` of the observed vertices, or whose centres are closer
-//!    than one scaled unit, are merged into their nearest neighbour.
+//!    saw. Materials below `min_share` of the observed vertices, whose centres are closer
+//!    than `merge_distance`, or that lie between two larger ones (the mixed pixels where two
+//!    materials meet), are merged away.
 //! 3. **How many materials**: for each count, on folds of whole images, the labels are found
 //!    from the training images alone, a Lambert + GGX fit per material to the training pixels
 //!    renders the held-out pixels, and the image-space error is averaged over the folds. The
@@ -45,6 +46,12 @@ pub struct SegmentSettings {
     pub smoothness: f64,
     /// A material must hold at least this share of the observed vertices.
     pub min_share: f64,
+    /// Two materials whose centres are closer than this (scaled feature units) are one.
+    pub merge_distance: f64,
+    /// A count must lower the held-out error by more than this share of the best error to be
+    /// chosen over a simpler one, however small the folds' spread (near-identical fits give
+    /// paired differences with a vanishing standard error).
+    pub min_gain: f64,
     /// k-means restarts.
     pub restarts: usize,
     /// Folds of whole images for the choice of the count.
@@ -62,6 +69,8 @@ impl Default for SegmentSettings {
             level_scale: 0.35,
             smoothness: 2.0,
             min_share: 0.03,
+            merge_distance: 1.0,
+            min_gain: 0.02,
             restarts: 4,
             folds: 5,
             max_fit_pixels: 1500,
@@ -193,6 +202,22 @@ fn features(
 
 fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     (0..3).map(|i| (a[i] - b[i]) * (a[i] - b[i])).sum()
+}
+
+/// Squared distance of `c` from the segment between `a` and `b`, inside its middle 80 %
+/// (infinite outside it: a point near an end is near that material, not between two).
+fn between(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> f64 {
+    let ab: Vec<f64> = (0..3).map(|i| b[i] - a[i]).collect();
+    let len2: f64 = ab.iter().map(|x| x * x).sum();
+    if len2 <= 0.0 {
+        return f64::INFINITY;
+    }
+    let t = (0..3).map(|i| (c[i] - a[i]) * ab[i]).sum::<f64>() / len2;
+    if !(0.1..=0.9).contains(&t) {
+        return f64::INFINITY;
+    }
+    let p = [a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]];
+    dist2(&p, c)
 }
 
 /// Weighted k-means with k-means++ seeding and restarts; the centres of the best restart.
@@ -377,10 +402,26 @@ fn label_vertices(
             .min_by_key(|&j| counts[j]);
         let close = (0..centres.len())
             .flat_map(|a| ((a + 1)..centres.len()).map(move |b| (a, b)))
-            .filter(|&(a, b)| dist2(&centres[a], &centres[b]) < 1.0)
+            .filter(|&(a, b)| dist2(&centres[a], &centres[b]) < settings.merge_distance.powi(2))
             .min_by_key(|&(a, b)| counts[a].min(counts[b]))
             .map(|(a, b)| if counts[a] < counts[b] { a } else { b });
-        let Some(drop) = small.or(close) else {
+        // A blend: a smaller material lying on the segment between two others (within
+        // `merge_distance`), as the mixed pixels where two materials meet do.
+        let blend = (0..centres.len())
+            .filter(|&c| {
+                (0..centres.len()).any(|a| {
+                    (0..centres.len()).any(|b| {
+                        a != b
+                            && a != c
+                            && b != c
+                            && counts[c] < counts[a].min(counts[b])
+                            && between(&centres[a], &centres[b], &centres[c])
+                                < settings.merge_distance.powi(2)
+                    })
+                })
+            })
+            .min_by_key(|&c| counts[c]);
+        let Some(drop) = small.or(close).or(blend) else {
             return (labels, centres.len());
         };
         if centres.len() <= 1 {
@@ -503,7 +544,7 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
         });
         full.push((scores.len() - 1, found, labels));
     }
-    let (chosen, reason) = choose_count(&scores);
+    let (chosen, reason) = choose_count(&scores, settings.min_gain);
     let (_, count, vertex_labels) = full
         .iter()
         .find(|(i, _, _)| *i == chosen)
@@ -547,14 +588,9 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
     }
 }
 
-/// A count must lower the held-out error by more than this share of the best error to be
-/// chosen over a simpler one, however small the folds' spread (near-identical fits give
-/// paired differences with a vanishing standard error).
-const MIN_GAIN: f64 = 0.02;
-
 /// The simplest count within one standard error of the best, the error of each count's
-/// difference to the best taken over the same folds (paired), or within [`MIN_GAIN`].
-fn choose_count(scores: &[CountScore]) -> (usize, String) {
+/// difference to the best taken over the same folds (paired), or within `min_gain`.
+fn choose_count(scores: &[CountScore], min_gain: f64) -> (usize, String) {
     let Some(best) = scores
         .iter()
         .enumerate()
@@ -585,7 +621,7 @@ fn choose_count(scores: &[CountScore]) -> (usize, String) {
         } else {
             mean_se(&diffs)
         };
-        if i == best || d <= se.max(MIN_GAIN * b.error.unwrap_or(0.0)) {
+        if i == best || d <= se.max(min_gain * b.error.unwrap_or(0.0)) {
             let why = if i == best {
                 format!(
                     "{} material(s) rendered the held-out images best ({:.4})",

@@ -11,6 +11,7 @@ pub mod accuracy;
 pub mod capture;
 pub mod confidence;
 pub mod external;
+pub mod materials;
 pub mod page;
 pub mod reconstruct;
 pub mod render;

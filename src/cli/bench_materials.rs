@@ -1,0 +1,96 @@
+//! `brdf-rig bench materials`: objects of several materials (issue #17), written as
+//! materials.md and materials.json under `--out`. Thin over `eval::bench::materials`: parses
+//! the arguments into its options and prints.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::bail;
+use clap::Args;
+
+use super::bench_accuracy::EvalCommon;
+use super::ranges::int_in;
+use brdf_rig::eval::accuracy::Rig;
+use brdf_rig::eval::bench::materials::{self, MaterialsBenchOptions};
+
+#[derive(Args, Debug)]
+pub struct BenchMaterialsArgs {
+    #[command(flatten)]
+    pub common: EvalCommon,
+    /// Objects, comma-separated, each its materials joined by `+` (neural MERL fit names; one
+    /// name: a one-material object, whose count must stay 1).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "green-latex+pink-fabric,alum-bronze+blue-acrylic,fruitwood-241+pink-fabric2+green-latex,pink-fabric"
+    )]
+    pub objects: Vec<String>,
+    /// Seeds per object (each moves the SfM-like noise and the trials' pixel draws).
+    #[arg(long, default_value_t = 1, value_parser = int_in(1u64, 1000))]
+    pub seeds: u64,
+    /// Light rigs: spread (many theta_d) and/or one-light (fixed beside the camera).
+    #[arg(long, value_delimiter = ',', default_value = "spread")]
+    pub rigs: Vec<String>,
+    /// The one-light rig's angle from the optical axis, degrees.
+    #[arg(long, default_value_t = 30.0)]
+    pub one_light_deg: f64,
+    /// The largest number of materials the segmentation tries (1 to 8).
+    #[arg(long, default_value_t = 4, value_parser = int_in(1usize, 8))]
+    pub max_materials: usize,
+    /// Output folder for materials.md and materials.json.
+    #[arg(long, default_value = "docs/eval/materials")]
+    pub out: PathBuf,
+}
+
+pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
+    let scene = a.common.scene_options()?;
+    if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
+        bail!(
+            "--one-light-deg must be in (0, 90) degrees, got {}",
+            a.one_light_deg
+        );
+    }
+    let rigs = a
+        .rigs
+        .iter()
+        .map(|r| match r.as_str() {
+            "spread" => Ok(Rig::Spread),
+            "one-light" => Ok(Rig::OneLight {
+                alpha_deg: a.one_light_deg,
+            }),
+            other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let objects: Vec<Vec<String>> = a
+        .objects
+        .iter()
+        .map(|o| o.split('+').map(|m| m.trim().to_string()).collect())
+        .collect();
+    if objects.iter().flatten().any(|m| m.is_empty()) {
+        bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
+    }
+    let command = format!(
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {} --out {}",
+        a.objects.join(","),
+        a.common.command_args(),
+        a.seeds,
+        a.rigs.join(","),
+        a.one_light_deg,
+        a.max_materials,
+        a.out.display()
+    );
+    let options = MaterialsBenchOptions {
+        scene,
+        views: a.common.views,
+        objects,
+        seeds: a.seeds,
+        rigs,
+        max_materials: a.max_materials,
+        out: a.out.clone(),
+        command,
+    };
+    let md = materials::run(&options, &mut super::bench_notes::printer())?;
+    outln!("{md}");
+    errln!("wrote {}/materials.md and materials.json", a.out.display());
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,113 @@
+//! `brdf-rig bench materials`: the multi-material study (`eval::materials`), written as
+//! materials.md and materials.json under `--out` after every object, so a long run cut short
+//! still reports.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use super::accuracy::SceneOptions;
+use super::{BenchError, Note, create_dir, write_file};
+use crate::brdf::basis::BasisSettings;
+use crate::eval::accuracy::Rig;
+use crate::eval::materials::{self, MaterialsSpec, ObjectResult};
+use crate::reconstruct::segment::SegmentSettings;
+
+/// The options of `bench materials`.
+#[derive(Clone, Debug)]
+pub struct MaterialsBenchOptions {
+    pub scene: SceneOptions,
+    pub views: usize,
+    /// Objects, each a list of material names.
+    pub objects: Vec<Vec<String>>,
+    pub seeds: u64,
+    pub rigs: Vec<Rig>,
+    pub max_materials: usize,
+    /// Folder of materials.md and materials.json.
+    pub out: PathBuf,
+    /// The command as typed, quoted by the page.
+    pub command: String,
+}
+
+/// Runs the study (see the module header); returns the page.
+pub fn run(
+    o: &MaterialsBenchOptions,
+    note: &mut dyn FnMut(Note<'_>),
+) -> Result<String, BenchError> {
+    if o.views == 0 || o.objects.is_empty() {
+        return Err(BenchError::Invalid(
+            "--views must be at least 1 and --objects must name at least one object".into(),
+        ));
+    }
+    let c = o.scene.resolve()?;
+    for m in o.objects.iter().flatten() {
+        if !c.materials.iter().any(|(n, _)| n == m) {
+            return Err(BenchError::Invalid(format!(
+                "--objects: {m:?} is not among the neural MERL fits"
+            )));
+        }
+    }
+    let stride = o.scene.stride;
+    let spec = MaterialsSpec {
+        objects: o.objects.clone(),
+        mesh_names: c.meshes.iter().map(|(n, _)| n.clone()).collect(),
+        meshes: c.meshes,
+        views: o.views,
+        width: o.scene.width,
+        height: o.scene.height,
+        basis: BasisSettings {
+            stride,
+            basis_components: o.scene.basis_components,
+            exclude: Vec::new(),
+        },
+        core: c.core,
+        segment: SegmentSettings {
+            max_materials: o.max_materials,
+            ..SegmentSettings::default()
+        },
+        seeds: o.seeds.max(1),
+        rigs: o.rigs.clone(),
+        bin_step: o.scene.bin_step,
+    };
+    let machine = crate::eval::host::machine();
+    create_dir(&o.out)?;
+    let start = Instant::now();
+    let write = |results: &[ObjectResult], secs: f64| -> Result<(), BenchError> {
+        let mut md = materials::markdown(&spec, results, &o.command, &machine);
+        md += &format!("\nTotal wall time: {secs:.0} s.\n");
+        write_file(&o.out.join("materials.md"), md)?;
+        let json = serde_json::json!({
+            "note": "ground truth: neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations, not measured MERL data",
+            "command": o.command,
+            "machine": machine,
+            "spec": spec,
+            "objects": results,
+            "seconds": secs,
+        });
+        write_file(
+            &o.out.join("materials.json"),
+            serde_json::to_string_pretty(&json)?,
+        )
+    };
+    let mut done = Vec::new();
+    let mut write_err = None;
+    let note = std::cell::RefCell::new(note);
+    let results = materials::run(
+        &spec,
+        &c.materials,
+        &c.cache,
+        c.scratch.path(),
+        &mut |line| (note.borrow_mut())(Note::Step(line)),
+        &mut |r| {
+            done.push(r.clone());
+            if let Err(e) = write(&done, start.elapsed().as_secs_f64()) {
+                write_err = Some(e);
+            }
+        },
+    )
+    .map_err(|e| BenchError::step("running the materials study", e))?;
+    if let Some(e) = write_err {
+        return Err(e);
+    }
+    write(&results, start.elapsed().as_secs_f64())?;
+    Ok(materials::markdown(&spec, &results, &o.command, &machine))
+}

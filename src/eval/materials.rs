@@ -1,0 +1,407 @@
+//! The multi-material study (issue #17): simulated objects of two or three of the paper's
+//! materials (the mesh split into slabs along its height, `geometry::labels::split_by_planes`),
+//! rendered by `sim::job_scene::write_scene_materials`, reconstructed as `brdf-rig reconstruct
+//! --materials auto` does (`reconstruct::materials`), and scored against the truth: the share
+//! of the visible surface area whose found material is the true one (`area_agreement`), the
+//! chosen count, and each found material's rendered error against its true material beside
+//! Lambert and Lambert + GGX fitted to the same pixels. One-material objects check that the
+//! count stays 1. The time is compared with the one-material reconstruction of the same pixels.
+//! Writes the scenes (I/O edge of the evaluation, like `eval::accuracy`).
+
+use super::accuracy::Rig;
+use super::{EvalError, Truth, baseline_errors, find_material, load_case};
+use crate::brdf::basis_cache;
+use crate::brdf::nbrdf::Nbrdf;
+use crate::brdf::{BinValues, Brdf};
+use crate::geometry::labels::{FaceLabels, area_agreement, split_by_planes};
+use crate::geometry::mesh::Mesh;
+use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
+use crate::geometry::zbuffer::face_buffer;
+use crate::reconstruct::core::{CoreSettings, reconstruct_observations};
+use crate::reconstruct::materials::reconstruct_materials;
+use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
+use crate::reconstruct::observe::{NO_FACE, ObserveSettings};
+use crate::reconstruct::prepare::observe_scene;
+use crate::reconstruct::segment::SegmentSettings;
+use crate::sim::job_scene::{view_geometry, write_scene_materials};
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// What to run.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialsSpec {
+    /// Objects: each a list of material names (one name: a one-material object).
+    pub objects: Vec<Vec<String>>,
+    #[serde(skip)]
+    pub meshes: Vec<(String, Mesh)>,
+    pub mesh_names: Vec<String>,
+    pub views: usize,
+    pub width: usize,
+    pub height: usize,
+    #[serde(skip)]
+    pub basis: crate::brdf::basis::BasisSettings,
+    pub core: CoreSettings,
+    pub segment: SegmentSettings,
+    pub seeds: u64,
+    pub rigs: Vec<Rig>,
+    pub bin_step: usize,
+}
+
+/// One found material against its true one.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialScore {
+    /// The true material it matched (most of its pixels' true label).
+    pub truth: String,
+    pub found: String,
+    pub pixels: usize,
+    /// Share of its pixels whose true material is `truth`.
+    pub purity: f64,
+    pub model: String,
+    pub confidence: String,
+    /// Environment errors against the true material.
+    pub ours: f64,
+    pub lambert: Option<f64>,
+    pub lambert_ggx: Option<f64>,
+}
+
+impl MaterialScore {
+    /// The better baseline's error over ours (above 1: ours is better).
+    pub fn ratio(&self) -> Option<f64> {
+        let base = match (self.lambert, self.lambert_ggx) {
+            (Some(a), Some(b)) => a.min(b),
+            (a, b) => a.or(b)?,
+        };
+        Some(base / self.ours)
+    }
+}
+
+/// One object's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct ObjectResult {
+    pub mesh: String,
+    pub materials: Vec<String>,
+    pub rig: Rig,
+    pub seed: u64,
+    pub count: usize,
+    pub reason: String,
+    /// Every count tried, with its held-out error.
+    pub count_scores: Vec<crate::reconstruct::segment::CountScore>,
+    /// Share of the visible surface area labelled with its true material (best renaming).
+    pub agreement: f64,
+    pub scores: Vec<MaterialScore>,
+    pub observed_pixels: usize,
+    /// Segmentation plus the per-material fits, and the one-material fit of the same pixels.
+    pub seconds: f64,
+    /// Of `seconds`, finding the materials (the count's held-out fits included).
+    pub segment_seconds: f64,
+    pub seconds_one: f64,
+}
+
+/// Faces of `mesh` seen by any view of the scene.
+fn visible_faces(mesh: &Mesh, spec: &crate::sim::job_scene::SceneSpec) -> Vec<bool> {
+    let mut seen = vec![false; mesh.faces().len()];
+    for i in 0..spec.views {
+        let (k, pose, _) = view_geometry(mesh, spec, i);
+        if let Some(fb) = face_buffer(mesh, &k, &pose) {
+            for y in 0..fb.height() {
+                for &f in fb.row(y) {
+                    if let Some(s) = seen.get_mut(f as usize) {
+                        *s = true;
+                    }
+                }
+            }
+        }
+    }
+    seen
+}
+
+/// Per face, the label most of its corners carry (the first corner's on a three-way tie).
+fn face_labels_of(mesh: &Mesh, vertex_labels: &[u32]) -> FaceLabels {
+    let labels: Vec<u32> = mesh
+        .faces()
+        .iter()
+        .map(|f| {
+            let l = f.map(|v| vertex_labels.get(v as usize).copied().unwrap_or(0));
+            if l[1] == l[2] { l[1] } else { l[0] }
+        })
+        .collect();
+    let count = labels.iter().max().map_or(1, |m| m + 1);
+    FaceLabels { labels, count }
+}
+
+/// Runs every object. `scratch` receives the scene folders.
+pub fn run(
+    spec: &MaterialsSpec,
+    materials: &[(String, Nbrdf)],
+    cache_dir: &Path,
+    scratch: &Path,
+    progress: &mut dyn FnMut(&str),
+    on_object: &mut dyn FnMut(&ObjectResult),
+) -> Result<Vec<ObjectResult>, EvalError> {
+    let mut results = Vec::new();
+    for names in &spec.objects {
+        let brdfs: Vec<&Nbrdf> = names
+            .iter()
+            .map(|n| find_material(materials, n))
+            .collect::<Result<_, _>>()?;
+        let mut bs = spec.basis.clone();
+        bs.exclude = names.clone();
+        let object = names.join("+");
+        progress(&format!("{object}: basis without them (cache or build)"));
+        let (basis, _) = basis_cache::load_or_build(&bs, materials, cache_dir)?;
+        let truths: Vec<Truth> = brdfs
+            .iter()
+            .map(|b| Truth::new(*b, spec.bin_step))
+            .collect();
+        let prior = NielsenPrior {
+            basis: &basis,
+            settings: NielsenSettings::default(),
+        };
+        for (mesh_name, mesh) in &spec.meshes {
+            for rig in &spec.rigs {
+                for seed in 0..spec.seeds.max(1) {
+                    let t0 = Instant::now();
+                    let scene = rig.scene(spec.views, spec.width, spec.height);
+                    let dir = scratch.join(format!("{mesh_name}-{object}-{}-{seed}", rig.tag()));
+                    progress(&format!(
+                        "{object} on {mesh_name}, {}, seed {seed}: rendering",
+                        rig.label()
+                    ));
+                    // slabs along the mesh's up axis (+y, the scenes' world up)
+                    let truth_labels = split_by_planes(mesh, Vector3::y(), names.len() as u32);
+                    let job_mesh = sfm_like(
+                        mesh,
+                        &SfmLikeParams {
+                            seed: 7 + seed,
+                            ..SfmLikeParams::default()
+                        },
+                    );
+                    let dyn_brdfs: Vec<&dyn Brdf> = brdfs.iter().map(|b| *b as &dyn Brdf).collect();
+                    let job = write_scene_materials(
+                        &dir,
+                        mesh,
+                        &job_mesh,
+                        &dyn_brdfs,
+                        &truth_labels,
+                        names,
+                        &scene,
+                    )
+                    .map_err(|source| EvalError::Scene {
+                        dir: dir.clone(),
+                        source,
+                    })?;
+                    let observe = ObserveSettings::default();
+                    let loaded = load_case(&job, &observe, &super::Perturb::default())?;
+                    let obs = observe_scene(&loaded, &observe).observations;
+                    let mut core = spec.core.clone();
+                    core.trials.seed += seed;
+                    let t = Instant::now();
+                    progress(&format!("{object} on {mesh_name}: materials"));
+                    let (m, cores) = reconstruct_materials(
+                        &loaded.mesh,
+                        &obs,
+                        &prior,
+                        &core,
+                        &spec.segment,
+                        &mut |_| {},
+                    )?;
+                    let seconds = t.elapsed().as_secs_f64();
+                    let t = Instant::now();
+                    let one = reconstruct_observations(&obs, &prior, &core, &mut |_| {})?;
+                    let seconds_one = t.elapsed().as_secs_f64();
+                    let found = face_labels_of(&loaded.mesh, &m.segmentation.vertex_labels);
+                    let visible = visible_faces(mesh, &scene);
+                    let agreement = area_agreement(mesh, &truth_labels, &found, Some(&visible));
+                    // each found material against the true material most of its pixels have
+                    let mut scores = Vec::new();
+                    let tables: Vec<(String, &dyn BinValues, String, String)> = if cores.is_empty()
+                    {
+                        vec![(
+                            "one".to_string(),
+                            &one.table as &dyn BinValues,
+                            one.model.family.to_string(),
+                            one.confidence.level.to_string(),
+                        )]
+                    } else {
+                        m.results
+                            .iter()
+                            .map(|r| {
+                                (
+                                    r.name.clone(),
+                                    &r.table as &dyn BinValues,
+                                    r.model.family.to_string(),
+                                    r.confidence.level.to_string(),
+                                )
+                            })
+                            .collect()
+                    };
+                    for (i, (name, table, model, confidence)) in tables.into_iter().enumerate() {
+                        let own: Vec<_> = obs
+                            .iter()
+                            .filter(|o| {
+                                cores.is_empty()
+                                    || m.segmentation.label_of(&loaded.mesh, o) == Some(i as u32)
+                            })
+                            .copied()
+                            .collect();
+                        let mut votes = vec![0usize; names.len()];
+                        for o in &own {
+                            if o.face != NO_FACE
+                                && let Some(&l) = truth_labels.labels.get(o.face as usize)
+                            {
+                                votes[l as usize] += 1;
+                            }
+                        }
+                        let (t, &n) = votes
+                            .iter()
+                            .enumerate()
+                            .max_by_key(|(_, n)| **n)
+                            .unwrap_or((0, &0));
+                        let (lambert, lambert_ggx) = baseline_errors(&truths[t], &own);
+                        scores.push(MaterialScore {
+                            truth: names[t].clone(),
+                            found: name,
+                            pixels: own.len(),
+                            purity: n as f64 / own.len().max(1) as f64,
+                            model,
+                            confidence,
+                            ours: truths[t].errors_of(table).environment,
+                            lambert: lambert.map(|e| e.environment),
+                            lambert_ggx: lambert_ggx.map(|e| e.environment),
+                        });
+                    }
+                    let r = ObjectResult {
+                        mesh: mesh_name.clone(),
+                        materials: names.clone(),
+                        rig: *rig,
+                        seed,
+                        count: m.segmentation.count,
+                        reason: m.segmentation.reason.clone(),
+                        count_scores: m.segmentation.scores.clone(),
+                        agreement,
+                        scores,
+                        observed_pixels: obs.len(),
+                        seconds,
+                        segment_seconds: m.segment_seconds,
+                        seconds_one,
+                    };
+                    progress(&format!(
+                        "  {} materials found, agreement {:.3}, {:.1} s ({:.1} s one-material) [{:.0} s]",
+                        r.count,
+                        r.agreement,
+                        r.seconds,
+                        r.seconds_one,
+                        t0.elapsed().as_secs_f64()
+                    ));
+                    on_object(&r);
+                    results.push(r);
+                }
+            }
+        }
+    }
+    Ok(results)
+}
+
+fn f3(x: f64) -> String {
+    format!("{x:.3}")
+}
+
+/// The markdown page.
+pub fn markdown(
+    spec: &MaterialsSpec,
+    results: &[ObjectResult],
+    command: &str,
+    machine: &str,
+) -> String {
+    let mut s = String::from("# Objects of several materials (`brdf-rig bench materials`)\n\n");
+    s += &format!("Command: `{command}`\n\nMachine: {machine}\n\n");
+    s += "Ground truth: neural fits of the MERL materials (Sztrajman et al. 2021), smooth \
+          approximations of the measurements, not measured MERL data; the basis leaves out every \
+          material of the object. Each object: the mesh cut into equal slabs along its height, \
+          one material per slab, rendered with `sim::job_scene`; the reconstruction sees an \
+          SfM-like mesh and runs `--materials auto`. Agreement: share of the visible surface \
+          area whose found material is the true one (best renaming). Per found material: \
+          environment error of ours and of Lambert / Lambert + GGX fitted to the same pixels \
+          against the true material most of its pixels have; ratio = better baseline / ours.\n\n";
+    let multi: Vec<&ObjectResult> = results.iter().filter(|r| r.materials.len() > 1).collect();
+    let single: Vec<&ObjectResult> = results.iter().filter(|r| r.materials.len() == 1).collect();
+    let ratios: Vec<f64> = multi
+        .iter()
+        .flat_map(|r| r.scores.iter().filter_map(|m| m.ratio()))
+        .collect();
+    let gm = |v: &[f64]| (v.iter().map(|x| x.ln()).sum::<f64>() / v.len().max(1) as f64).exp();
+    s += "## Summary\n\n| | value |\n|---|---|\n";
+    s += &format!(
+        "| objects of several materials | {} |\n| count right | {} of {} |\n| agreement >= 0.9 | {} of {} (min {}) |\n",
+        multi.len(),
+        multi
+            .iter()
+            .filter(|r| r.count == r.materials.len())
+            .count(),
+        multi.len(),
+        multi.iter().filter(|r| r.agreement >= 0.9).count(),
+        multi.len(),
+        f3(multi
+            .iter()
+            .map(|r| r.agreement)
+            .fold(f64::INFINITY, f64::min))
+    );
+    s += &format!(
+        "| found materials: ratio gm | {} over {} (worse by > 10 %: {}) |\n",
+        f3(gm(&ratios)),
+        ratios.len(),
+        ratios.iter().filter(|&&r| r < 1.0 / 1.1).count()
+    );
+    s += &format!(
+        "| one-material objects: count 1 | {} of {} |\n",
+        single.iter().filter(|r| r.count == 1).count(),
+        single.len()
+    );
+    let times: Vec<f64> = multi.iter().map(|r| r.seconds / r.seconds_one).collect();
+    s += &format!(
+        "| time / one-material time (several materials) | gm {}, max {} (finding the materials: gm {} of the one-material time) |\n\n",
+        f3(gm(&times)),
+        f3(times.iter().copied().fold(0.0, f64::max)),
+        f3(gm(&multi
+            .iter()
+            .map(|r| r.segment_seconds / r.seconds_one)
+            .collect::<Vec<_>>()))
+    );
+    s += "## Objects\n\n| mesh | materials | rig | seed | count | agreement | found: truth (purity), model, ours / Lambert / L+GGX, ratio | s: all (materials; one-material) |\n|---|---|---|---|---|---|---|---|\n";
+    for r in results {
+        let per: Vec<String> = r
+            .scores
+            .iter()
+            .map(|m| {
+                format!(
+                    "{}: {} ({:.2}), {}, {} / {} / {}, {}",
+                    m.found,
+                    m.truth,
+                    m.purity,
+                    m.model,
+                    f3(m.ours),
+                    m.lambert.map_or("-".into(), f3),
+                    m.lambert_ggx.map_or("-".into(), f3),
+                    m.ratio().map_or("-".into(), |x| format!("{x:.2}"))
+                )
+            })
+            .collect();
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {:.1} ({:.1}; {:.1}) |\n",
+            r.mesh,
+            r.materials.join(" + "),
+            r.rig.label(),
+            r.seed,
+            r.count,
+            f3(r.agreement),
+            per.join("<br>"),
+            r.seconds,
+            r.segment_seconds,
+            r.seconds_one
+        );
+    }
+    let _ = spec;
+    s
+}
