@@ -107,7 +107,7 @@ pub fn split_by_planes(mesh: &Mesh, axis: Vector3<f64>, parts: u32) -> FaceLabel
     let extent = hi - lo;
     let labels = (0..faces)
         .map(|f| {
-            if !(extent > 0.0) {
+            if extent.is_nan() || extent <= 0.0 {
                 return 0;
             }
             let [a, b, c] = mesh.triangle(f);
@@ -161,7 +161,7 @@ pub fn area_agreement(
             *slot += a;
         }
     }
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return f64::NAN;
     }
     let matched = if truth.count <= BRUTE_FORCE_LABELS && found.count <= BRUTE_FORCE_LABELS {
