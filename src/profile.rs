@@ -45,6 +45,21 @@ pub enum ProfileError {
         key: String,
         reason: String,
     },
+    /// Another module's section was asked for and the file is not TOML.
+    #[error("{origin}: {source}")]
+    Toml {
+        origin: String,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
+    /// Another module's section (`[camera]`, `[scene]`) does not fit that module's type.
+    #[error("{origin}: [{section}]: {source}")]
+    Section {
+        origin: String,
+        section: String,
+        #[source]
+        source: Box<toml::de::Error>,
+    },
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -237,7 +252,7 @@ impl Profile {
     pub fn section<T: serde::de::DeserializeOwned + Default>(
         &self,
         key: &str,
-    ) -> Result<T, String> {
+    ) -> Result<T, ProfileError> {
         parse_section(&self.source, &self.origin, key)
     }
 
@@ -455,24 +470,28 @@ fn number(v: f64) -> String {
     }
 }
 
-/// 1-based line of byte `offset`, and the key written on that line (`section.key`).
 /// The top-level section `key` of profile text (see [`Profile::section`]); `origin` names it in
 /// errors.
 pub fn parse_section<T: serde::de::DeserializeOwned + Default>(
     text: &str,
     origin: &str,
     key: &str,
-) -> Result<T, String> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
+) -> Result<T, ProfileError> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| ProfileError::Toml {
+        origin: origin.to_owned(),
+        source: Box::new(e),
+    })?;
     match table.get(key) {
         None => Ok(T::default()),
-        Some(v) => v
-            .clone()
-            .try_into()
-            .map_err(|e: toml::de::Error| format!("{origin}: [{key}]: {e}")),
+        Some(v) => v.clone().try_into().map_err(|e| ProfileError::Section {
+            origin: origin.to_owned(),
+            section: key.to_owned(),
+            source: Box::new(e),
+        }),
     }
 }
 
+/// 1-based line of byte `offset`, and the key written on that line (`section.key`).
 fn locate(text: &str, offset: usize) -> (usize, String) {
     let offset = offset.min(text.len());
     let line = text[..offset].matches('\n').count() + 1;
@@ -690,6 +709,26 @@ mod tests {
         let text = format!("{SIMULATED}\n[camera]\nbackend = \"sim\"\n\n[calibration]\nx = 1\n");
         let p = Profile::parse(&text, "x.toml").unwrap();
         assert!(p.source.contains("[camera]"));
+    }
+
+    #[test]
+    fn a_bad_section_of_another_module_names_the_file_and_section() {
+        #[derive(Debug, Default, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Other {
+            #[allow(dead_code)] // only its absence from the TOML matters
+            size: f64,
+        }
+        let e = parse_section::<Other>("[other]\nsise = 1.0\n", "x.toml", "other").unwrap_err();
+        assert!(matches!(&e, ProfileError::Section { section, .. } if section == "other"));
+        let m = e.to_string();
+        assert!(
+            m.starts_with("x.toml: [other]: ") && m.contains("sise"),
+            "{m}"
+        );
+        let e = parse_section::<Other>("[other\n", "x.toml", "other").unwrap_err();
+        assert!(matches!(e, ProfileError::Toml { .. }), "{e}");
+        assert!(e.to_string().starts_with("x.toml: "), "{e}");
     }
 
     #[test]

@@ -23,6 +23,30 @@
 use serde::Deserialize;
 
 use super::plan::LabGeometry;
+use crate::profile::ProfileError;
+
+/// Why `[camera]` cannot be used. Each names the profile (`origin`) and the key.
+#[derive(Debug, thiserror::Error)]
+pub enum CameraConfigError {
+    /// Not TOML, or a key `[camera]` does not have, or a value of the wrong type.
+    #[error(transparent)]
+    Section(#[from] ProfileError),
+    #[error("{origin}: camera.backend = {backend:?}: must be one of sim, gphoto2, webcam, v4l2")]
+    Backend { origin: String, backend: String },
+    /// A number outside its range; `rule` is the range as the message gives it.
+    #[error("{origin}: camera.{key} must be {rule}")]
+    Range {
+        origin: String,
+        key: &'static str,
+        rule: &'static str,
+    },
+    #[error("{origin}: camera.extra_config[{index}] = {entry:?}: must be key=value")]
+    ExtraConfig {
+        origin: String,
+        index: usize,
+        entry: String,
+    },
+}
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -61,33 +85,41 @@ impl Default for CameraSection {
 }
 
 /// Reads `[camera]` from the whole profile text; `origin` names it in errors.
-pub fn parse_camera_section(text: &str, origin: &str) -> Result<CameraSection, String> {
+pub fn parse_camera_section(text: &str, origin: &str) -> Result<CameraSection, CameraConfigError> {
     let c: CameraSection = crate::profile::parse_section(text, origin, "camera")?;
     if !["sim", "gphoto2", "webcam", "v4l2"].contains(&c.backend.as_str()) {
-        return Err(format!(
-            "{origin}: camera.backend = {:?}: must be one of sim, gphoto2, webcam, v4l2",
-            c.backend
-        ));
+        return Err(CameraConfigError::Backend {
+            origin: origin.to_owned(),
+            backend: c.backend,
+        });
     }
+    let range = |key, rule| {
+        Err(CameraConfigError::Range {
+            origin: origin.to_owned(),
+            key,
+            rule,
+        })
+    };
     if !(c.distance_m > 0.0 && c.distance_m.is_finite()) {
-        return Err(format!("{origin}: camera.distance_m must be positive"));
+        return range("distance_m", "positive");
     }
     if !(c.vertical_fov_deg > 1.0 && c.vertical_fov_deg < 170.0) {
-        return Err(format!(
-            "{origin}: camera.vertical_fov_deg must be in (1, 170)"
-        ));
+        return range("vertical_fov_deg", "in (1, 170)");
     }
     if !(-89.0..=89.0).contains(&c.elevation_deg) {
-        return Err(format!(
-            "{origin}: camera.elevation_deg must be in [-89, 89]"
-        ));
+        return range("elevation_deg", "in [-89, 89]");
     }
-    for (i, kv) in c.extra_config.iter().enumerate() {
-        if !kv.contains('=') {
-            return Err(format!(
-                "{origin}: camera.extra_config[{i}] = {kv:?}: must be key=value"
-            ));
-        }
+    if let Some((index, entry)) = c
+        .extra_config
+        .iter()
+        .enumerate()
+        .find(|(_, kv)| !kv.contains('='))
+    {
+        return Err(CameraConfigError::ExtraConfig {
+            origin: origin.to_owned(),
+            index,
+            entry: entry.clone(),
+        });
     }
     Ok(c)
 }
@@ -124,12 +156,35 @@ mod tests {
 
     #[test]
     fn mistakes_are_named() {
-        let err = parse_camera_section("[camera]\nbackend = \"polaroid\"\n", "p.toml").unwrap_err();
+        let err = parse_camera_section("[camera]\nbackend = \"polaroid\"\n", "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("p.toml") && err.contains("camera.backend"),
             "{err}"
         );
-        let err = parse_camera_section("[camera]\nexposure = 3\n", "p.toml").unwrap_err();
+        let err = parse_camera_section("[camera]\nexposure = 3\n", "p.toml")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("exposure"), "{err}");
+    }
+
+    #[test]
+    fn a_bad_value_names_its_key_and_entry() {
+        let err = parse_camera_section("[camera]\ndistance_m = -1.0\n", "p.toml").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "p.toml: camera.distance_m must be positive"
+        );
+        let err = parse_camera_section("[camera]\nextra_config = [\"a=b\", \"iso\"]\n", "p.toml")
+            .unwrap_err();
+        assert!(matches!(
+            err,
+            CameraConfigError::ExtraConfig { index: 1, .. }
+        ));
+        assert_eq!(
+            err.to_string(),
+            "p.toml: camera.extra_config[1] = \"iso\": must be key=value"
+        );
     }
 }

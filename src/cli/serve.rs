@@ -65,7 +65,7 @@ pub fn run(args: ServeArgs) -> anyhow::Result<ExitCode> {
         Some(f) => {
             let text = std::fs::read_to_string(f)
                 .with_context(|| format!("reading the token file {}", f.display()))?;
-            Some(control::read_token(&text, &f.display().to_string()).map_err(anyhow::Error::msg)?)
+            Some(control::read_token(&text, &f.display().to_string())?)
         }
         None => None,
     };

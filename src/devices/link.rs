@@ -62,6 +62,16 @@ pub struct SerialLink {
     opened_at: Instant,
 }
 
+/// The port cannot be opened (becomes the reason of a [`DeviceError::Disconnected`], which
+/// carries text: a device error is shown or retried, never matched on its cause).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot open {path}: {source}")]
+struct OpenError {
+    path: String,
+    #[source]
+    source: serialport::Error,
+}
+
 /// What went wrong while waiting for one reply.
 enum Wait {
     Timeout,
@@ -88,9 +98,9 @@ impl SerialLink {
             last_io_error: String::new(),
             opened_at: Instant::now(),
         };
-        link.connect().map_err(|reason| DeviceError::Disconnected {
+        link.connect().map_err(|e| DeviceError::Disconnected {
             device: format!("{DEVICE} on {}", link.cfg.path.display()),
-            reason,
+            reason: e.to_string(),
         })?;
         Ok(link)
     }
@@ -112,12 +122,12 @@ impl SerialLink {
         format!("{DEVICE} on {}", self.cfg.path.display())
     }
 
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), OpenError> {
         let path = self.cfg.path.to_string_lossy().into_owned();
         let port = serialport::new(&path, self.cfg.baud)
             .timeout(self.cfg.timeout)
             .open()
-            .map_err(|e| format!("cannot open {path}: {e}"))?;
+            .map_err(|source| OpenError { path, source })?;
         // Whatever waits in the input queue was meant for an earlier connection.
         let _ = port.clear(ClearBuffer::Input);
         self.decoder.clear();

@@ -164,6 +164,8 @@ pub struct SceneResult {
     pub basis_materials: usize,
     pub target_in_basis: bool,
     /// (variant, result) in the order of `AccuracySpec::variants`.
+    // Result<_, String> on purpose: a failed run's message is data the benchmark writes to its
+    // JSON, not an error returned to a caller (here and in `unrefined`, `exact`).
     pub variants: Vec<(Variant, Result<RunResult, String>)>,
     pub lambert: Option<Errors>,
     pub lambert_ggx: Option<Errors>,

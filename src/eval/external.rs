@@ -63,6 +63,8 @@ pub struct ExternalResult {
     /// The reconstruction's seed (trials and held-out folds).
     pub seed: u64,
     pub median_normal_error_deg: Option<f64>,
+    // Result<_, String> on purpose: a failed run's message is data written to the results'
+    // JSON, not an error returned to a caller.
     pub ours: Result<Errors, String>,
     pub model: Option<ModelReport>,
     pub confidence: Option<Level>,

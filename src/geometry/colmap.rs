@@ -35,22 +35,76 @@ pub enum ColmapError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}:{line}: {message}")]
+    /// A bad record of a text model, at its 1-based line.
+    #[error("{path}:{line}: {record}")]
     Line {
         path: PathBuf,
         line: usize,
-        message: String,
+        record: RecordError,
     },
-    #[error("{path}: at byte {offset}: {message}")]
+    /// A bad record of a binary model, at the byte where the record starts (or where the file
+    /// ends).
+    #[error("{path}: at byte {offset}: {record}")]
     Binary {
         path: PathBuf,
         offset: usize,
-        message: String,
+        record: RecordError,
     },
     #[error("{dir}: no COLMAP model (need cameras.txt + images.txt or cameras.bin + images.bin)")]
     NoModel { dir: PathBuf },
     #[error("camera {camera}: {message}")]
     Export { camera: u32, message: String },
+}
+
+/// What is wrong with one record (a line of `cameras.txt`/`images.txt`, an entry of the binary
+/// files); [`ColmapError::Line`] and [`ColmapError::Binary`] say where it is.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum RecordError {
+    #[error("expected {expected}, got `{got}`")]
+    Fields { expected: &'static str, got: String },
+    #[error("{field}: cannot parse `{text}`")]
+    Number { field: &'static str, text: String },
+    #[error("unsupported camera model `{0}`")]
+    ModelName(String),
+    #[error("camera {camera}: unsupported model id {model_id}")]
+    ModelId { camera: u32, model_id: i32 },
+    #[error("camera {camera}: {model} takes {want} parameters, got {got}")]
+    ParamCount {
+        camera: u32,
+        model: &'static str,
+        want: usize,
+        got: usize,
+    },
+    #[error("camera {camera}: non-finite parameter in {params:?}")]
+    NonFiniteParam { camera: u32, params: Vec<f64> },
+    #[error("camera {camera}: focal length and size must be positive")]
+    NotPositive { camera: u32 },
+    #[error("camera {0} defined twice")]
+    DuplicateCamera(u32),
+    /// A pose of a text model (the line names the image).
+    #[error(transparent)]
+    Pose(#[from] PoseError),
+    /// A pose of a binary model, with the id of its image.
+    #[error("image {image}: {pose}")]
+    ImagePose { image: u32, pose: PoseError },
+    #[error("image {image} refers to unknown camera {camera}")]
+    UnknownCamera { image: u32, camera: u32 },
+    #[error("file ends inside {0}")]
+    Truncated(&'static str),
+    #[error("image name not NUL-terminated")]
+    NameNotTerminated,
+    #[error("image name is not UTF-8")]
+    NameNotUtf8,
+}
+
+/// An image pose that is not a rotation and a translation.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum PoseError {
+    /// QW QX QY QZ TX TY TZ as read.
+    #[error("non-finite pose {0:?}")]
+    NonFinite(Vec<f64>),
+    #[error("zero quaternion")]
+    ZeroQuaternion,
 }
 
 /// The COLMAP camera models we map onto `Intrinsics`.
@@ -241,20 +295,21 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let err = |message: String| ColmapError::Line {
+        let err = |record: RecordError| ColmapError::Line {
             path: cam_path.clone(),
             line: i + 1,
-            message,
+            record,
         };
         let tok: Vec<&str> = line.split_whitespace().collect();
         if tok.len() < 4 {
-            return Err(err(format!(
-                "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS, got `{line}`"
-            )));
+            return Err(err(RecordError::Fields {
+                expected: "CAMERA_ID MODEL WIDTH HEIGHT PARAMS",
+                got: line.to_owned(),
+            }));
         }
         let id: u32 = parse(tok[0], "CAMERA_ID").map_err(&err)?;
         let model = CameraModel::from_name(tok[1])
-            .ok_or_else(|| err(format!("unsupported camera model `{}`", tok[1])))?;
+            .ok_or_else(|| err(RecordError::ModelName(tok[1].to_owned())))?;
         let width: usize = parse(tok[2], "WIDTH").map_err(&err)?;
         let height: usize = parse(tok[3], "HEIGHT").map_err(&err)?;
         let params: Vec<f64> = tok[4..]
@@ -264,7 +319,7 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
             .map_err(&err)?;
         let cam = make_camera(id, model, width, height, &params).map_err(&err)?;
         if cameras.insert(id, cam).is_some() {
-            return Err(err(format!("camera {id} defined twice")));
+            return Err(err(RecordError::DuplicateCamera(id)));
         }
     }
 
@@ -277,16 +332,17 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let err = |message: String| ColmapError::Line {
+        let err = |record: RecordError| ColmapError::Line {
             path: img_path.clone(),
             line: i + 1,
-            message,
+            record,
         };
         let tok: Vec<&str> = line.split_whitespace().collect();
         if tok.len() < 10 {
-            return Err(err(format!(
-                "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, got `{line}`"
-            )));
+            return Err(err(RecordError::Fields {
+                expected: "IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME",
+                got: line.to_owned(),
+            }));
         }
         let id: u32 = parse(tok[0], "IMAGE_ID").map_err(&err)?;
         let mut v = [0.0; 7];
@@ -295,11 +351,12 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
         }
         let camera_id: u32 = parse(tok[8], "CAMERA_ID").map_err(&err)?;
         let name = tok[9..].join(" ");
-        let pose = make_pose(&v).map_err(&err)?;
+        let pose = make_pose(&v).map_err(|e| err(e.into()))?;
         if !cameras.contains_key(&camera_id) {
-            return Err(err(format!(
-                "image {id} refers to unknown camera {camera_id}"
-            )));
+            return Err(err(RecordError::UnknownCamera {
+                image: id,
+                camera: camera_id,
+            }));
         }
         images.push(ColmapImage {
             id,
@@ -313,8 +370,11 @@ pub fn read_text(dir: &Path) -> Result<ColmapModel, ColmapError> {
     Ok(ColmapModel { cameras, images })
 }
 
-fn parse<T: std::str::FromStr>(s: &str, what: &str) -> Result<T, String> {
-    s.parse().map_err(|_| format!("{what}: cannot parse `{s}`"))
+fn parse<T: std::str::FromStr>(s: &str, field: &'static str) -> Result<T, RecordError> {
+    s.parse().map_err(|_| RecordError::Number {
+        field,
+        text: s.to_owned(),
+    })
 }
 
 fn make_camera(
@@ -323,23 +383,24 @@ fn make_camera(
     width: usize,
     height: usize,
     params: &[f64],
-) -> Result<ColmapCamera, String> {
+) -> Result<ColmapCamera, RecordError> {
     if params.len() != model.num_params() {
-        return Err(format!(
-            "camera {id}: {} takes {} parameters, got {}",
-            model.name(),
-            model.num_params(),
-            params.len()
-        ));
+        return Err(RecordError::ParamCount {
+            camera: id,
+            model: model.name(),
+            want: model.num_params(),
+            got: params.len(),
+        });
     }
     if params.iter().any(|p| !p.is_finite()) {
-        return Err(format!("camera {id}: non-finite parameter in {params:?}"));
+        return Err(RecordError::NonFiniteParam {
+            camera: id,
+            params: params.to_vec(),
+        });
     }
     let k = model.intrinsics(width, height, params);
     if k.fx <= 0.0 || k.fy <= 0.0 || width == 0 || height == 0 {
-        return Err(format!(
-            "camera {id}: focal length and size must be positive"
-        ));
+        return Err(RecordError::NotPositive { camera: id });
     }
     Ok(ColmapCamera {
         id,
@@ -348,13 +409,13 @@ fn make_camera(
     })
 }
 
-fn make_pose(v: &[f64; 7]) -> Result<Pose, String> {
+fn make_pose(v: &[f64; 7]) -> Result<Pose, PoseError> {
     if v.iter().any(|x| !x.is_finite()) {
-        return Err(format!("non-finite pose {v:?}"));
+        return Err(PoseError::NonFinite(v.to_vec()));
     }
     let q = Quaternion::new(v[0], v[1], v[2], v[3]);
     if q.norm() < 1e-9 {
-        return Err("zero quaternion".into());
+        return Err(PoseError::ZeroQuaternion);
     }
     Ok(Pose {
         rotation: UnitQuaternion::from_quaternion(q),
@@ -370,18 +431,18 @@ struct BinReader<'a> {
 }
 
 impl BinReader<'_> {
-    fn err(&self, offset: usize, message: String) -> ColmapError {
+    fn err(&self, offset: usize, record: RecordError) -> ColmapError {
         ColmapError::Binary {
             path: self.path.to_path_buf(),
             offset,
-            message,
+            record,
         }
     }
 
-    fn take<const N: usize>(&mut self, what: &str) -> Result<[u8; N], ColmapError> {
+    fn take<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], ColmapError> {
         let end = self.pos.checked_add(N).filter(|&e| e <= self.bytes.len());
         let Some(end) = end else {
-            return Err(self.err(self.pos, format!("file ends inside {what}")));
+            return Err(self.err(self.pos, RecordError::Truncated(what)));
         };
         let mut out = [0u8; N];
         out.copy_from_slice(&self.bytes[self.pos..end]);
@@ -389,20 +450,20 @@ impl BinReader<'_> {
         Ok(out)
     }
 
-    fn u32(&mut self, what: &str) -> Result<u32, ColmapError> {
+    fn u32(&mut self, what: &'static str) -> Result<u32, ColmapError> {
         Ok(u32::from_le_bytes(self.take(what)?))
     }
-    fn i32(&mut self, what: &str) -> Result<i32, ColmapError> {
+    fn i32(&mut self, what: &'static str) -> Result<i32, ColmapError> {
         Ok(i32::from_le_bytes(self.take(what)?))
     }
-    fn u64(&mut self, what: &str) -> Result<u64, ColmapError> {
+    fn u64(&mut self, what: &'static str) -> Result<u64, ColmapError> {
         Ok(u64::from_le_bytes(self.take(what)?))
     }
-    fn f64(&mut self, what: &str) -> Result<f64, ColmapError> {
+    fn f64(&mut self, what: &'static str) -> Result<f64, ColmapError> {
         Ok(f64::from_le_bytes(self.take(what)?))
     }
 
-    fn skip(&mut self, n: u64, what: &str) -> Result<(), ColmapError> {
+    fn skip(&mut self, n: u64, what: &'static str) -> Result<(), ColmapError> {
         let end = usize::try_from(n)
             .ok()
             .and_then(|n| self.pos.checked_add(n))
@@ -412,18 +473,18 @@ impl BinReader<'_> {
                 self.pos = e;
                 Ok(())
             }
-            None => Err(self.err(self.pos, format!("file ends inside {what}"))),
+            None => Err(self.err(self.pos, RecordError::Truncated(what))),
         }
     }
 
     fn cstring(&mut self) -> Result<String, ColmapError> {
         let start = self.pos;
         let Some(len) = self.bytes[start..].iter().position(|&b| b == 0) else {
-            return Err(self.err(start, "image name not NUL-terminated".into()));
+            return Err(self.err(start, RecordError::NameNotTerminated));
         };
         self.pos = start + len + 1;
         String::from_utf8(self.bytes[start..start + len].to_vec())
-            .map_err(|_| self.err(start, "image name is not UTF-8".into()))
+            .map_err(|_| self.err(start, RecordError::NameNotUtf8))
     }
 }
 
@@ -449,8 +510,15 @@ pub fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
         let at = r.pos;
         let id = r.u32("a camera id")?;
         let model_id = r.i32("a model id")?;
-        let model = CameraModel::from_id(model_id)
-            .ok_or_else(|| r.err(at, format!("camera {id}: unsupported model id {model_id}")))?;
+        let model = CameraModel::from_id(model_id).ok_or_else(|| {
+            r.err(
+                at,
+                RecordError::ModelId {
+                    camera: id,
+                    model_id,
+                },
+            )
+        })?;
         let width = r.u64("a width")?;
         let height = r.u64("a height")?;
         let mut params = Vec::with_capacity(model.num_params());
@@ -482,11 +550,15 @@ pub fn read_binary(dir: &Path) -> Result<ColmapModel, ColmapError> {
         let name = r.cstring()?;
         let points = r.u64("the 2D point count")?;
         r.skip(points.saturating_mul(24), "the 2D points")?;
-        let pose = make_pose(&v).map_err(|m| r.err(at, format!("image {id}: {m}")))?;
+        let pose =
+            make_pose(&v).map_err(|pose| r.err(at, RecordError::ImagePose { image: id, pose }))?;
         if !cameras.contains_key(&camera_id) {
             return Err(r.err(
                 at,
-                format!("image {id} refers to unknown camera {camera_id}"),
+                RecordError::UnknownCamera {
+                    image: id,
+                    camera: camera_id,
+                },
             ));
         }
         images.push(ColmapImage {
@@ -576,4 +648,46 @@ pub fn write_text(dir: &Path, model: &ColmapModel) -> Result<(), ColmapError> {
             .map_err(|source| ColmapError::Write { path, source })?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bad_text_record_names_its_line_and_field() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("cameras.txt"),
+            "# a comment\n1 PINHOLE 64 48 50 50 32 24\n2 PINHOLE wide 48 50 50 32 24\n",
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("images.txt"), "").unwrap();
+        let e = read_text(dir.path()).unwrap_err();
+        let ColmapError::Line { line, record, .. } = &e else {
+            panic!("{e}");
+        };
+        assert_eq!(*line, 3);
+        assert_eq!(
+            *record,
+            RecordError::Number {
+                field: "WIDTH",
+                text: "wide".into()
+            }
+        );
+        assert!(
+            e.to_string()
+                .ends_with("cameras.txt:3: WIDTH: cannot parse `wide`"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_bad_binary_pose_names_its_image() {
+        let e = RecordError::ImagePose {
+            image: 7,
+            pose: PoseError::ZeroQuaternion,
+        };
+        assert_eq!(e.to_string(), "image 7: zero quaternion");
+    }
 }

@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use crate::capture::camera_config::{CameraSection, parse_camera_section};
+use crate::capture::camera_config::{CameraConfigError, CameraSection, parse_camera_section};
 use crate::capture::plan::LabGeometry;
 use crate::capture::runner::RunOptions;
 use crate::capture::session::SessionHeader;
@@ -20,8 +20,9 @@ use crate::capture::{CaptureError, CapturePlan, Operator, Session, Stage};
 use crate::devices::Camera;
 use crate::profile::Profile;
 use crate::sim::SimHandle;
-use crate::sim::imaging::ObjectScene;
-use crate::sim::scene::{SceneConfig, StageState};
+use crate::sim::imaging::{ObjectScene, SceneError};
+use crate::sim::scene::{SceneConfig, SceneConfigError, StageState};
+use crate::sim::truth::TruthError;
 
 /// Name of the copy of the profile kept in the session folder (a resume uses it).
 pub const PROFILE_COPY: &str = "profile.toml";
@@ -29,11 +30,20 @@ pub const PROFILE_COPY: &str = "profile.toml";
 /// Why a capture cannot start. Each names the file, folder or section concerned.
 #[derive(Debug, thiserror::Error)]
 pub enum StartError {
-    /// `[camera]` or `[scene]` of the profile.
-    #[error("{0}")]
-    Profile(String),
-    #[error("loading the simulated scene of {origin} ([scene] section): {reason}")]
-    Scene { origin: String, reason: String },
+    /// `[camera]` of the profile.
+    #[error(transparent)]
+    Camera(#[from] CameraConfigError),
+    /// `[scene]` of the profile.
+    #[error(transparent)]
+    SceneConfig(#[from] SceneConfigError),
+    #[error("the simulated scene is not loaded")]
+    SceneNotLoaded,
+    #[error("loading the simulated scene of {origin} ([scene] section): {source}")]
+    Scene {
+        origin: String,
+        #[source]
+        source: SceneError,
+    },
     /// The output folder cannot take a new session.
     #[error("{0}")]
     Folder(String),
@@ -46,11 +56,15 @@ pub enum StartError {
     )]
     Backend(String),
     #[error(
-        "writing the simulated ground truth (sim/): {reason}; nothing was captured; the new session folder {dir} was removed"
+        "writing the simulated ground truth (sim/): {source}; nothing was captured; the new session folder {dir} was removed"
     )]
-    GroundTruthNew { dir: PathBuf, reason: String },
+    GroundTruthNew {
+        dir: PathBuf,
+        #[source]
+        source: TruthError,
+    },
     #[error("writing the simulated ground truth (sim/): {0}")]
-    GroundTruth(String),
+    GroundTruth(#[source] TruthError),
     #[error(transparent)]
     Capture(#[from] CaptureError),
 }
@@ -70,10 +84,8 @@ impl CaptureRig {
     /// Reads the profile's `[camera]` and `[scene]` and loads the simulated scene when the
     /// camera is simulated.
     pub fn load(profile: Profile) -> Result<CaptureRig, StartError> {
-        let camera =
-            parse_camera_section(&profile.source, &profile.origin).map_err(StartError::Profile)?;
-        let scene = SceneConfig::from_profile_text(&profile.source, &profile.origin)
-            .map_err(StartError::Profile)?;
+        let camera = parse_camera_section(&profile.source, &profile.origin)?;
+        let scene = SceneConfig::from_profile_text(&profile.source, &profile.origin)?;
         let lab = camera.lab(
             profile
                 .light
@@ -83,10 +95,10 @@ impl CaptureRig {
                 .collect(),
         );
         let object = if camera.backend == "sim" {
-            Some(Arc::new(ObjectScene::load(&scene).map_err(|e| {
+            Some(Arc::new(ObjectScene::load(&scene).map_err(|source| {
                 StartError::Scene {
                     origin: profile.origin.clone(),
-                    reason: e.to_string(),
+                    source,
                 }
             })?))
         } else {
@@ -120,9 +132,7 @@ impl CaptureRig {
                     return Err(StartError::SimCameraWithoutSimRig);
                 };
                 let Some(renderer) = &self.object else {
-                    return Err(StartError::Profile(
-                        "the simulated scene is not loaded".into(),
-                    ));
+                    return Err(StartError::SceneNotLoaded);
                 };
                 Box::new(crate::sim::camera::SimCamera::new(
                     Box::new(handle.clone()),
@@ -204,12 +214,12 @@ impl CaptureRig {
             header,
             &[(PROFILE_COPY, self.profile.source.as_bytes())],
         )?;
-        if let Err(reason) = self.write_ground_truth(dir, plan) {
+        if let Err(source) = self.write_ground_truth(dir, plan) {
             drop(session);
             remove_new_session(dir, was_empty_folder)?;
             return Err(StartError::GroundTruthNew {
                 dir: dir.to_path_buf(),
-                reason,
+                source,
             });
         }
         Ok(session)
@@ -222,11 +232,10 @@ impl CaptureRig {
             .map_err(StartError::GroundTruth)
     }
 
-    fn write_ground_truth(&self, dir: &Path, plan: &CapturePlan) -> Result<(), String> {
+    fn write_ground_truth(&self, dir: &Path, plan: &CapturePlan) -> Result<(), TruthError> {
         match &self.object {
             Some(object) => {
                 crate::sim::truth::write_ground_truth(dir, plan, &self.lab, object, &self.scene)
-                    .map_err(|e| e.to_string())
             }
             None => Ok(()),
         }

@@ -5,7 +5,7 @@
 //! frames are hand-checked in `frame.rs` tests, so the vectors are not only self-consistent.
 
 use super::crc::crc16;
-use super::error::Reject;
+use super::error::{EncodeError, Reject};
 use super::frame::{self, Decoder};
 use super::messages::{
     ChannelState, HelloInfo, NakCode, Packet, Reply, Request, StatusInfo, caps, faults, kind,
@@ -18,6 +18,41 @@ pub enum Vector {
     Frame { wire: Vec<u8>, text: String },
     /// A byte stream and the texts of the frames a receiver must extract from it, in order.
     Stream { wire: Vec<u8>, texts: Vec<String> },
+}
+
+/// A line of a vector file that is not a vector; `line` is 1-based.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum VectorFileError {
+    #[error("line {line}: bad hex: {source}")]
+    Hex {
+        line: usize,
+        #[source]
+        source: hex::FromHexError,
+    },
+    #[error("line {line}: expected 2 or 3 TAB-separated fields")]
+    Fields { line: usize },
+}
+
+/// How a vector disagrees with this codec.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum VectorError {
+    #[error("wire bytes must end with 00")]
+    NoDelimiter,
+    #[error("decoded to {got:?}, expected {expected:?}")]
+    Decoded { got: String, expected: String },
+    /// A frame whose text says it is valid does not parse.
+    #[error(transparent)]
+    Rejected(#[from] Reject),
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+    /// The hex of the bytes the decoded packet encodes to.
+    #[error("re-encodes to {0}")]
+    ReEncoded(String),
+    #[error("extracted {got:?}, expected {expected:?}")]
+    Extracted {
+        got: Vec<String>,
+        expected: Vec<String>,
+    },
 }
 
 fn hex_line(wire: &[u8], text: &str) -> String {
@@ -274,7 +309,7 @@ pub fn reject_file() -> String {
 }
 
 /// Parses a vector file; errors name the 1-based line.
-pub fn parse_file(text: &str) -> Result<Vec<(usize, Vector)>, String> {
+pub fn parse_file(text: &str) -> Result<Vec<(usize, Vector)>, VectorFileError> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let n = i + 1;
@@ -282,7 +317,7 @@ pub fn parse_file(text: &str) -> Result<Vec<(usize, Vector)>, String> {
             continue;
         }
         let fields: Vec<&str> = line.split('\t').collect();
-        let bad_hex = |e| format!("line {n}: bad hex: {e}");
+        let bad_hex = |source| VectorFileError::Hex { line: n, source };
         match fields.as_slice() {
             ["stream", hex, texts] => out.push((
                 n,
@@ -298,7 +333,7 @@ pub fn parse_file(text: &str) -> Result<Vec<(usize, Vector)>, String> {
                     text: (*text).to_owned(),
                 },
             )),
-            _ => return Err(format!("line {n}: expected 2 or 3 TAB-separated fields")),
+            _ => return Err(VectorFileError::Fields { line: n }),
         }
     }
     Ok(out)
@@ -317,21 +352,24 @@ pub fn decode_to_text(wire: &[u8]) -> String {
 
 /// Checks one vector against this codec: the decoded text matches, and for a valid frame,
 /// re-encoding gives the same bytes.
-pub fn check(v: &Vector) -> Result<(), String> {
+pub fn check(v: &Vector) -> Result<(), VectorError> {
     match v {
         Vector::Frame { wire, text } => {
             if wire.last() != Some(&0) {
-                return Err("wire bytes must end with 00".into());
+                return Err(VectorError::NoDelimiter);
             }
             let got = decode_to_text(wire);
             if &got != text {
-                return Err(format!("decoded to {got:?}, expected {text:?}"));
+                return Err(VectorError::Decoded {
+                    got,
+                    expected: text.clone(),
+                });
             }
             if !text.starts_with("REJECT") {
-                let p = frame::parse(&wire[..wire.len() - 1]).map_err(|e| e.to_string())?;
-                let again = frame::encode(&p).map_err(|e| e.to_string())?;
+                let p = frame::parse(&wire[..wire.len() - 1])?;
+                let again = frame::encode(&p)?;
                 if &again != wire {
-                    return Err(format!("re-encodes to {}", hex::encode(again)));
+                    return Err(VectorError::ReEncoded(hex::encode(again)));
                 }
             }
             Ok(())
@@ -346,7 +384,10 @@ pub fn check(v: &Vector) -> Result<(), String> {
                 }
             }
             if &got != texts {
-                return Err(format!("extracted {got:?}, expected {texts:?}"));
+                return Err(VectorError::Extracted {
+                    got,
+                    expected: texts.clone(),
+                });
             }
             Ok(())
         }
@@ -359,4 +400,37 @@ pub fn is_vector_reason(r: &Reject) -> bool {
         r.reason(),
         "cobs" | "crc" | "short" | "long" | "kind" | "length"
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bad_vector_line_is_named() {
+        let e = parse_file("# header\n\n0011\tHELLO\tx\tmore\n").unwrap_err();
+        assert_eq!(e, VectorFileError::Fields { line: 3 });
+        assert_eq!(
+            e.to_string(),
+            "line 3: expected 2 or 3 TAB-separated fields"
+        );
+        let e = parse_file("zz\tHELLO\n").unwrap_err();
+        assert!(matches!(e, VectorFileError::Hex { line: 1, .. }), "{e}");
+        assert!(e.to_string().starts_with("line 1: bad hex: "), "{e}");
+    }
+
+    #[test]
+    fn a_wrong_text_says_what_it_decoded_to() {
+        let v = Vector::Frame {
+            wire: vec![0x01, 0x01],
+            text: "HELLO".into(),
+        };
+        assert_eq!(check(&v), Err(VectorError::NoDelimiter));
+        let v = Vector::Frame {
+            wire: vec![0x01, 0x00],
+            text: "HELLO".into(),
+        };
+        let e = check(&v).unwrap_err().to_string();
+        assert!(e.starts_with("decoded to \"REJECT "), "{e}");
+    }
 }

@@ -116,12 +116,12 @@ pub enum ReconstructError {
         want_w: usize,
         want_h: usize,
     },
-    #[error("job {job}: `light_image[{index}].mask`: {path}: {message}")]
+    #[error("job {job}: `light_image[{index}].mask`: {path}: {problem}")]
     Mask {
         job: PathBuf,
         index: usize,
         path: PathBuf,
-        message: String,
+        problem: MaskError,
     },
     #[error(
         "job {job}: no usable pixel in any light image (mesh seen on {covered} pixels; dropped: {drops:?}); check the light directions, masks and exposure"
@@ -219,11 +219,11 @@ fn load_view_pixels(
         match &spec.mask {
             None => None,
             Some(path) => Some(read_mask(path, image.width(), image.height()).map_err(
-                |message| ReconstructError::Mask {
+                |problem| ReconstructError::Mask {
                     job: job.source.clone(),
                     index,
                     path: path.clone(),
-                    message,
+                    problem,
                 },
             )?),
         };
@@ -295,15 +295,30 @@ fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, 
     })
 }
 
+/// What is wrong with a mask file ([`ReconstructError::Mask`] names the job, image and file).
+#[derive(Debug, thiserror::Error)]
+pub enum MaskError {
+    #[error(transparent)]
+    Read(Box<image::ImageError>),
+    #[error("is {got_w}x{got_h} but its image is {want_w}x{want_h}")]
+    Size {
+        got_w: usize,
+        got_h: usize,
+        want_w: usize,
+        want_h: usize,
+    },
+}
+
 /// A mask image: any format `image` reads; non-zero in any channel = material.
-fn read_mask(path: &Path, width: usize, height: usize) -> Result<Vec<bool>, String> {
-    let img = image::open(path).map_err(|e| e.to_string())?;
+fn read_mask(path: &Path, width: usize, height: usize) -> Result<Vec<bool>, MaskError> {
+    let img = image::open(path).map_err(|e| MaskError::Read(Box::new(e)))?;
     if (img.width() as usize, img.height() as usize) != (width, height) {
-        return Err(format!(
-            "is {}x{} but its image is {width}x{height}",
-            img.width(),
-            img.height()
-        ));
+        return Err(MaskError::Size {
+            got_w: img.width() as usize,
+            got_h: img.height() as usize,
+            want_w: width,
+            want_h: height,
+        });
     }
     let luma = img.to_luma16();
     Ok(luma.pixels().map(|p| p.0[0] > 0).collect())

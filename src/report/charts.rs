@@ -27,10 +27,17 @@ pub const PALETTE: [Rgb; 10] = [
     [23, 190, 207],
 ];
 
+/// What plotters reports when drawing into the SVG string fails.
+pub type DrawError = plotters::drawing::DrawingAreaErrorKind<std::io::Error>;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ChartError {
-    #[error("drawing the chart {title:?}: {message}")]
-    Draw { title: String, message: String },
+    #[error("drawing the chart {title:?}: {source}")]
+    Draw {
+        title: String,
+        #[source]
+        source: DrawError,
+    },
 }
 
 /// One line of a line chart.
@@ -195,7 +202,7 @@ pub fn line_chart(series: &[Series], spec: &ChartSpec) -> Result<String, ChartEr
     if legend_rows > 0 && !all.is_empty() {
         yr = with_legend_headroom(spec, yr, legend_rows);
     }
-    let plot = |root: &DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
+    let plot = |root: &DrawingArea<SVGBackend, Shift>| -> Result<(), DrawError> {
         with_axes(root, spec, xr, yr, |chart| {
             for (k, (s, runs)) in series.iter().zip(&runs).enumerate() {
                 let color = to_color(s.color.unwrap_or(PALETTE[k % PALETTE.len()]));
@@ -236,7 +243,7 @@ pub fn scatter_pareto(
         .iter()
         .map(|&i| ((points[i].x, points[i].y), points[i].label.clone()))
         .collect();
-    let plot = |root: &DrawingArea<SVGBackend, Shift>| -> Result<(), String> {
+    let plot = |root: &DrawingArea<SVGBackend, Shift>| -> Result<(), DrawError> {
         with_axes(root, spec, xr, yr, |chart| {
             chart.circles(&xy, 4, others, Some("settings"))?;
             if !front.is_empty() {
@@ -328,8 +335,8 @@ fn with_axes(
     spec: &ChartSpec,
     xr: (f64, f64),
     yr: (f64, f64),
-    draw: impl Fn(&mut dyn SeriesTarget) -> Result<(), String>,
-) -> Result<(), String> {
+    draw: impl Fn(&mut dyn SeriesTarget) -> Result<(), DrawError>,
+) -> Result<(), DrawError> {
     match (spec.log_x, spec.log_y) {
         (false, false) => axes_and(root, spec, xr.0..xr.1, yr.0..yr.1, &draw),
         (false, true) => axes_and(root, spec, xr.0..xr.1, (yr.0..yr.1).log_scale(), &draw),
@@ -349,8 +356,8 @@ fn axes_and<XS, YS>(
     spec: &ChartSpec,
     xs: XS,
     ys: YS,
-    draw: &dyn Fn(&mut dyn SeriesTarget) -> Result<(), String>,
-) -> Result<(), String>
+    draw: &dyn Fn(&mut dyn SeriesTarget) -> Result<(), DrawError>,
+) -> Result<(), DrawError>
 where
     XS: AsRangedCoord<Value = f64>,
     YS: AsRangedCoord<Value = f64>,
@@ -362,8 +369,7 @@ where
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(64)
-        .build_cartesian_2d(xs, ys)
-        .map_err(|e| e.to_string())?;
+        .build_cartesian_2d(xs, ys)?;
     chart
         .configure_mesh()
         .x_desc(&spec.x_label)
@@ -374,8 +380,7 @@ where
         .axis_desc_style(("sans-serif", 14))
         .light_line_style(BLACK.mix(0.05))
         .bold_line_style(BLACK.mix(0.15))
-        .draw()
-        .map_err(|e| e.to_string())?;
+        .draw()?;
     draw(&mut chart)
 }
 
@@ -388,16 +393,16 @@ trait SeriesTarget {
         style: ShapeStyle,
         dashed: bool,
         label: Option<&str>,
-    ) -> Result<(), String>;
+    ) -> Result<(), DrawError>;
     fn circles(
         &mut self,
         pts: &[(f64, f64)],
         size: u32,
         style: ShapeStyle,
         label: Option<&str>,
-    ) -> Result<(), String>;
-    fn texts(&mut self, items: &[((f64, f64), String)]) -> Result<(), String>;
-    fn legend(&mut self) -> Result<(), String>;
+    ) -> Result<(), DrawError>;
+    fn texts(&mut self, items: &[((f64, f64), String)]) -> Result<(), DrawError>;
+    fn legend(&mut self) -> Result<(), DrawError>;
 }
 
 impl<'a, 'b: 'a, X, Y> SeriesTarget for Chart<'a, 'b, X, Y>
@@ -411,17 +416,14 @@ where
         style: ShapeStyle,
         dashed: bool,
         label: Option<&str>,
-    ) -> Result<(), String> {
+    ) -> Result<(), DrawError> {
         // A lone point (a run between gaps, or a one-point series) would draw nothing as a line.
         let anno = if pts.len() == 1 {
-            self.draw_series(pts.iter().map(|&p| Circle::new(p, 3, style.filled())))
-                .map_err(|e| e.to_string())?
+            self.draw_series(pts.iter().map(|&p| Circle::new(p, 3, style.filled())))?
         } else if dashed {
-            self.draw_series(DashedLineSeries::new(pts.iter().copied(), 6, 4, style))
-                .map_err(|e| e.to_string())?
+            self.draw_series(DashedLineSeries::new(pts.iter().copied(), 6, 4, style))?
         } else {
-            self.draw_series(LineSeries::new(pts.iter().copied(), style))
-                .map_err(|e| e.to_string())?
+            self.draw_series(LineSeries::new(pts.iter().copied(), style))?
         };
         if let Some(l) = label {
             anno.label(l)
@@ -436,10 +438,8 @@ where
         size: u32,
         style: ShapeStyle,
         label: Option<&str>,
-    ) -> Result<(), String> {
-        let anno = self
-            .draw_series(pts.iter().map(|&p| Circle::new(p, size, style)))
-            .map_err(|e| e.to_string())?;
+    ) -> Result<(), DrawError> {
+        let anno = self.draw_series(pts.iter().map(|&p| Circle::new(p, size, style)))?;
         if let Some(l) = label {
             anno.label(l)
                 .legend(move |(x, y)| Circle::new((x + 10, y), size, style));
@@ -447,43 +447,41 @@ where
         Ok(())
     }
 
-    fn texts(&mut self, items: &[((f64, f64), String)]) -> Result<(), String> {
+    fn texts(&mut self, items: &[((f64, f64), String)]) -> Result<(), DrawError> {
         let font = ("sans-serif", 11).into_font().color(&BLACK.mix(0.8));
         self.draw_series(
             items
                 .iter()
                 .map(|(p, t)| EmptyElement::at(*p) + Text::new(t.clone(), (7, -7), font.clone())),
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         Ok(())
     }
 
-    fn legend(&mut self) -> Result<(), String> {
+    fn legend(&mut self) -> Result<(), DrawError> {
         self.configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.4))
             .label_font(("sans-serif", 13))
             .draw()
-            .map_err(|e| e.to_string())
     }
 }
 
 /// Draws into an SVG string.
 fn render(
     spec: &ChartSpec,
-    plot: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<(), String>,
+    plot: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<(), DrawError>,
 ) -> Result<String, ChartError> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (spec.width, spec.height)).into_drawing_area();
-        let err = |message: String| ChartError::Draw {
+        let err = |source| ChartError::Draw {
             title: spec.title.clone(),
-            message,
+            source,
         };
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        root.fill(&WHITE).map_err(err)?;
         plot(&root).map_err(err)?;
-        root.present().map_err(|e| err(e.to_string()))?;
+        root.present().map_err(err)?;
     }
     Ok(svg)
 }

@@ -136,11 +136,19 @@ pub fn sphere_renders(brdf: &dyn Brdf, pixels: usize) -> Avail<Vec<EmbeddedImage
     Avail::Yes(out)
 }
 
+/// Why a PNG file cannot be embedded. The report names the file beside the message.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum EmbedError {
+    #[error(transparent)]
+    Read(#[from] std::io::Error),
+    #[error(transparent)]
+    Decode(#[from] image::ImageError),
+}
+
 /// A PNG file embedded as it is (its size read from the file).
-pub(super) fn embed_png(path: &Path, caption: String) -> Result<EmbeddedImage, String> {
-    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
+pub(super) fn embed_png(path: &Path, caption: String) -> Result<EmbeddedImage, EmbedError> {
+    let bytes = std::fs::read(path)?;
+    let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)?;
     Ok(EmbeddedImage {
         caption,
         width: img.width(),

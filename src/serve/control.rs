@@ -220,16 +220,24 @@ impl Token {
     }
 }
 
+/// A token file that cannot serve; `origin` names the file.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum TokenError {
+    #[error("{origin}: the token (its first line) must have at least 12 characters")]
+    Short { origin: String },
+    #[error("{origin}: the token must be printable text")]
+    NotPrintable { origin: String },
+}
+
 /// Reads a token file: its first line, trimmed; refuses an empty or short token.
-pub fn read_token(text: &str, origin: &str) -> Result<String, String> {
+pub fn read_token(text: &str, origin: &str) -> Result<String, TokenError> {
     let token = text.lines().next().unwrap_or("").trim().to_string();
+    let origin = origin.to_owned();
     if token.chars().count() < 12 {
-        return Err(format!(
-            "{origin}: the token (its first line) must have at least 12 characters"
-        ));
+        return Err(TokenError::Short { origin });
     }
     if token.chars().any(char::is_control) {
-        return Err(format!("{origin}: the token must be printable text"));
+        return Err(TokenError::NotPrintable { origin });
     }
     Ok(token)
 }
@@ -310,7 +318,14 @@ mod tests {
             Err(Refusal::Token)
         );
         assert!(t.check(Some("Bearer correct horse battery")).is_ok());
-        assert!(read_token("short\n", "f").is_err());
+        let e = read_token("short\n", "token.txt").unwrap_err();
+        assert_eq!(
+            e,
+            TokenError::Short {
+                origin: "token.txt".into()
+            }
+        );
+        assert!(e.to_string().starts_with("token.txt: "), "{e}");
         assert_eq!(
             read_token("  a-long-enough-token \nsecond line", "f").unwrap(),
             "a-long-enough-token"

@@ -16,7 +16,7 @@ use std::rc::Rc;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use super::hub::{Command, DeviceEnds, Hub, StartSpec, StopKind};
+use super::hub::{Command, CommandError, DeviceEnds, Hub, StartFailure, StartSpec, StopKind};
 use super::live::{LiveFeed, SharedCamera};
 use super::operator::PageOperator;
 use super::preview::Worker;
@@ -39,6 +39,13 @@ use crate::sim::scene::StageState;
 
 /// How often the rig's state is polled while idle.
 const STATUS_EVERY: Duration = Duration::from_millis(400);
+
+fn read(path: &Path) -> Result<String, StartFailure> {
+    std::fs::read_to_string(path).map_err(|source| StartFailure::Read {
+        path: path.to_owned(),
+        source,
+    })
+}
 
 /// Where things are and how fast the preview goes.
 #[derive(Clone, Debug)]
@@ -114,9 +121,7 @@ impl RigThread {
                         break;
                     }
                     if req.sent.elapsed() > super::hub::STALE_AFTER {
-                        let _ = req.reply.send(Err(
-                            "the rig was busy for too long; nothing was done, ask again".into(),
-                        ));
+                        let _ = req.reply.send(Err(CommandError::Stale));
                         continue;
                     }
                     self.handle(req.command, req.reply, &ends);
@@ -141,7 +146,7 @@ impl RigThread {
     fn handle(
         &mut self,
         command: Command,
-        reply: tokio::sync::oneshot::Sender<Result<String, String>>,
+        reply: tokio::sync::oneshot::Sender<Result<String, CommandError>>,
         ends: &DeviceEnds,
     ) {
         match command {
@@ -152,7 +157,7 @@ impl RigThread {
                 }
                 Err(e) => {
                     self.start_failed(&e);
-                    let _ = reply.send(Err(e));
+                    let _ = reply.send(Err(e.into()));
                 }
             },
             Command::Resume { session, guided } => match self.prepare_resume(&session, guided) {
@@ -162,13 +167,13 @@ impl RigThread {
                 }
                 Err(e) => {
                     self.start_failed(&e);
-                    let _ = reply.send(Err(e));
+                    let _ = reply.send(Err(e.into()));
                 }
             },
             other => {
                 let r = self.rig_command(&other);
                 if let Err(e) = &r {
-                    self.hub.log("error", e.clone());
+                    self.hub.log("error", e.to_string());
                 }
                 let _ = reply.send(r);
             }
@@ -176,7 +181,7 @@ impl RigThread {
     }
 
     /// Light and turntable, while idle.
-    fn rig_command(&mut self, command: &Command) -> Result<String, String> {
+    fn rig_command(&mut self, command: &Command) -> Result<String, CommandError> {
         let busy = match command {
             Command::LightOn { channel, level } => {
                 format!("switching light channel {channel} on at {level}")
@@ -184,7 +189,7 @@ impl RigThread {
             Command::LightOff => "switching the light off".into(),
             Command::Home => "homing the turntable".into(),
             Command::MoveTo { angle_deg } => format!("moving the turntable to {angle_deg} deg"),
-            _ => return Err("not a rig command".into()),
+            _ => return Err(CommandError::NotARigCommand),
         };
         self.hub.update(|s| s.rig.busy = Some(busy.clone()));
         let r = match *command {
@@ -211,7 +216,10 @@ impl RigThread {
             }
             _ => Ok(String::new()),
         }
-        .map_err(|e| format!("{busy}: {e}"));
+        .map_err(|source| CommandError::Device {
+            doing: busy,
+            source,
+        });
         self.hub.update(|s| s.rig.busy = None);
         self.poll_status();
         r
@@ -222,48 +230,47 @@ impl RigThread {
     }
 
     /// The plan the page chose, read again from its file (so an edited plan is checked now).
-    fn load_plan(&self, id: &str) -> Result<(CapturePlan, String), String> {
+    fn load_plan(&self, id: &str) -> Result<(CapturePlan, String), StartFailure> {
         if id == BUILT_IN_PLAN {
-            let plan = parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (built in)")
-                .map_err(|e| e.to_string())?;
+            let plan = parse_plan(DEFAULT_PLAN_TOML, "capture-plans/default.toml (built in)")?;
             return Ok((plan, DEFAULT_PLAN_TOML.to_string()));
         }
         let Some(dir) = &self.settings.plans_dir else {
-            return Err(format!("unknown plan {id:?}"));
+            return Err(StartFailure::UnknownPlan(id.to_owned()));
         };
         // only a plan the server lists: a name in the plans folder, never a path
         let listed = PlanInfo::list(Some(dir), &self.kit.lab, self.rig.light.channel_count());
         if !listed.iter().any(|p| p.id == id) {
-            return Err(format!("unknown plan {id:?} (not in {})", dir.display()));
+            return Err(StartFailure::UnlistedPlan {
+                id: id.to_owned(),
+                dir: dir.clone(),
+            });
         }
         let path = dir.join(id);
-        let plan = load_plan(&path).map_err(|e| e.to_string())?;
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("reading {}: {e}", path.display()))?;
+        let plan = load_plan(&path)?;
+        let text = read(&path)?;
         Ok((plan, text))
     }
 
     /// The checks of `brdf-rig capture`, in its order, for a new session; then the session.
-    fn prepare_new(&mut self, spec: &StartSpec) -> Result<Prepared, String> {
+    fn prepare_new(&mut self, spec: &StartSpec) -> Result<Prepared, StartFailure> {
         let (plan, text) = self.load_plan(&spec.plan_id)?;
         let dir = self.session_dir(&spec.session);
         let was_empty_folder = dir.is_dir();
-        check_output_folder(&dir).map_err(|e| e.to_string())?;
+        check_output_folder(&dir)?;
         check_disk_space(
             &dir,
             plan.shots().len(),
             plan.camera.width,
             plan.camera.height,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         plan.check_rig(self.rig.light.channel_count())
-            .map_err(|e| format!("the plan does not fit the rig: {e}"))?;
+            .map_err(StartFailure::PlanDoesNotFit)?;
         self.begin(&spec.session, &plan.name, spec.guided, false);
         let camera = self.open_capture_camera(&plan, &dir)?;
         let session = self
             .kit
-            .create_session(&dir, &plan, &text, was_empty_folder)
-            .map_err(|e| e.to_string())?;
+            .create_session(&dir, &plan, &text, was_empty_folder)?;
         self.refresh_lists();
         Ok(Prepared {
             session,
@@ -276,24 +283,25 @@ impl RigThread {
     }
 
     /// The checks of `brdf-rig capture --resume` for a session under the sessions folder.
-    fn prepare_resume(&mut self, name: &str, guided: bool) -> Result<Prepared, String> {
+    fn prepare_resume(&mut self, name: &str, guided: bool) -> Result<Prepared, StartFailure> {
         let dir = self.session_dir(name);
         if SessionInfo::read(&dir).is_none() {
-            return Err(format!("{} is not a session folder", dir.display()));
+            return Err(StartFailure::NotASession { dir });
         }
         // The session's light directions and limits are its profile's: resume only on that rig.
         let copy = dir.join(PROFILE_COPY);
-        let theirs = std::fs::read_to_string(&copy)
-            .map_err(|e| format!("reading {}: {e}", copy.display()))?;
+        let theirs = read(&copy)?;
         if theirs != self.kit.profile.source {
-            return Err(format!(
-                "{} was captured with another rig profile than this server's ({}): continue it \
-                 with `{}`, or serve with --profile {}",
-                dir.display(),
-                self.kit.profile.origin,
-                capture_start::resume_command(&dir, self.settings.port_override.as_deref(), false),
-                copy.display()
-            ));
+            return Err(StartFailure::OtherProfile {
+                command: capture_start::resume_command(
+                    &dir,
+                    self.settings.port_override.as_deref(),
+                    false,
+                ),
+                dir,
+                profile: self.kit.profile.origin.clone(),
+                copy,
+            });
         }
         self.hub.log(
             "info",
@@ -302,7 +310,7 @@ impl RigThread {
                 dir.display()
             ),
         );
-        let session = Session::resume(&dir).map_err(|e| e.to_string())?;
+        let session = Session::resume(&dir)?;
         for r in session.repairs() {
             self.hub.log(
                 "warn",
@@ -320,15 +328,12 @@ impl RigThread {
             session.remaining().len(),
             plan.camera.width,
             plan.camera.height,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         plan.check_rig(self.rig.light.channel_count())
-            .map_err(|e| format!("the plan does not fit the rig: {e}"))?;
+            .map_err(StartFailure::PlanDoesNotFit)?;
         self.begin(name, &plan.name, guided, true);
         let camera = self.open_capture_camera(&plan, &dir)?;
-        self.kit
-            .refresh_ground_truth(&dir, &plan)
-            .map_err(|e| e.to_string())?;
+        self.kit.refresh_ground_truth(&dir, &plan)?;
         Ok(Prepared {
             session,
             camera,
@@ -365,11 +370,12 @@ impl RigThread {
         });
     }
 
-    fn start_failed(&mut self, reason: &str) {
+    fn start_failed(&mut self, reason: &StartFailure) {
+        let reason = reason.to_string();
         self.hub.update(|s| {
             if s.capture.phase == Phase::Starting {
                 s.capture.phase = Phase::Failed;
-                s.capture.stop_reason = Some(reason.to_string());
+                s.capture.stop_reason = Some(reason.clone());
             }
             s.log("error", format!("the capture did not start: {reason}"));
         });
@@ -388,18 +394,15 @@ impl RigThread {
         &mut self,
         plan: &CapturePlan,
         dir: &Path,
-    ) -> Result<SharedCamera, String> {
+    ) -> Result<SharedCamera, StartFailure> {
         self.live.set_camera(None);
-        let camera = self
-            .kit
-            .open_camera(
-                plan.camera.width,
-                plan.camera.height,
-                self.sim.as_ref(),
-                &self.stage,
-                &dir.join(".download"),
-            )
-            .map_err(|e| e.to_string())?;
+        let camera = self.kit.open_camera(
+            plan.camera.width,
+            plan.camera.height,
+            self.sim.as_ref(),
+            &self.stage,
+            &dir.join(".download"),
+        )?;
         let shared = SharedCamera::new(camera);
         if self.live_view() {
             self.live.set_camera(Some(shared.clone()));
@@ -670,5 +673,31 @@ pub fn initial_rig_state(rig: &Rig, kit: &CaptureRig) -> RigState {
             })
             .collect(),
         ..RigState::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_start_refused_for_another_profile_names_the_session_and_the_way_on() {
+        let e = StartFailure::OtherProfile {
+            dir: PathBuf::from("/s/a"),
+            profile: "/p/rig.toml".into(),
+            command: "brdf-rig capture --resume /s/a".into(),
+            copy: PathBuf::from("/s/a/profile.toml"),
+        };
+        assert_eq!(
+            e.to_string(),
+            "/s/a was captured with another rig profile than this server's (/p/rig.toml): \
+             continue it with `brdf-rig capture --resume /s/a`, or serve with --profile \
+             /s/a/profile.toml"
+        );
+        let e = CommandError::from(StartFailure::UnlistedPlan {
+            id: "x.toml".into(),
+            dir: PathBuf::from("/plans"),
+        });
+        assert_eq!(e.to_string(), "unknown plan \"x.toml\" (not in /plans)");
     }
 }

@@ -17,12 +17,74 @@ use tokio::sync::{oneshot, watch};
 use super::control::{ClientKey, Control, Refusal, Token};
 use super::preview::Frame;
 use super::state::{PageState, Phase, PreviewSettings};
+use crate::capture::CaptureError;
+use crate::capture::plan::PlanError;
+use crate::pipeline::capture_start::StartError;
 use crate::sim::SimHandle;
+
+/// Why the rig's thread did not do what the page asked. Its text is the page's reply (the
+/// `error` of the JSON body), so it is written for the person at the page.
+#[derive(Debug, thiserror::Error)]
+pub enum CommandError {
+    #[error("the rig's thread has stopped")]
+    Stopped,
+    #[error("the rig was busy for too long; nothing was done, ask again")]
+    Stale,
+    /// A capture command sent where a light or turntable command was expected.
+    #[error("not a rig command")]
+    NotARigCommand,
+    /// A light or turntable command failed; `doing` says what the rig was doing.
+    #[error("{doing}: {source}")]
+    Device {
+        doing: String,
+        #[source]
+        source: crate::devices::DeviceError,
+    },
+    #[error(transparent)]
+    Start(#[from] StartFailure),
+}
+
+/// Why a capture the page asked for did not start: the page's reply and the capture's stop
+/// reason. The checks are `brdf-rig capture`'s, so most are its errors unchanged.
+#[derive(Debug, thiserror::Error)]
+pub enum StartFailure {
+    /// No plans folder, so only the built-in plan exists.
+    #[error("unknown plan {0:?}")]
+    UnknownPlan(String),
+    #[error("unknown plan {id:?} (not in {})", dir.display())]
+    UnlistedPlan { id: String, dir: std::path::PathBuf },
+    #[error("reading {}: {source}", path.display())]
+    Read {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("the plan does not fit the rig: {0}")]
+    PlanDoesNotFit(#[source] PlanError),
+    #[error("{} is not a session folder", dir.display())]
+    NotASession { dir: std::path::PathBuf },
+    /// `command` continues the session from a terminal, on the rig it was captured with.
+    #[error(
+        "{} was captured with another rig profile than this server's ({profile}): continue it with `{command}`, or serve with --profile {}",
+        dir.display(),
+        copy.display()
+    )]
+    OtherProfile {
+        dir: std::path::PathBuf,
+        profile: String,
+        command: String,
+        copy: std::path::PathBuf,
+    },
+    #[error(transparent)]
+    Capture(#[from] CaptureError),
+    #[error(transparent)]
+    Start(#[from] StartError),
+}
 
 /// Something for the rig's thread to do, with where to send the answer.
 pub struct Request {
     pub command: Command,
-    pub reply: oneshot::Sender<Result<String, String>>,
+    pub reply: oneshot::Sender<Result<String, CommandError>>,
     /// Requests older than [`STALE_AFTER`] when the rig's thread gets to them are refused
     /// (the rig was busy: acting late would surprise the person who asked).
     pub sent: Instant,
@@ -294,7 +356,7 @@ impl Hub {
     // ---- commands to the rig's thread ----
 
     /// Sends a command to the rig's thread; the answer arrives on the returned channel.
-    pub fn send(&self, command: Command) -> oneshot::Receiver<Result<String, String>> {
+    pub fn send(&self, command: Command) -> oneshot::Receiver<Result<String, CommandError>> {
         let (tx, rx) = oneshot::channel();
         let req = Request {
             command,
@@ -302,7 +364,7 @@ impl Hub {
             sent: Instant::now(),
         };
         if let Err(mpsc::SendError(req)) = lock(&self.commands).send(req) {
-            let _ = req.reply.send(Err("the rig's thread has stopped".into()));
+            let _ = req.reply.send(Err(CommandError::Stopped));
         }
         rx
     }

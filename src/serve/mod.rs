@@ -172,7 +172,7 @@ impl Server {
         let worker = Arc::new(
             preview::Worker::spawn(pw, ph, move |frame| match frame {
                 Ok(f) => publish_hub.publish_frame(f),
-                Err(e) => publish_hub.log("warn", e),
+                Err(e) => publish_hub.log("warn", e.to_string()),
             })
             .map_err(io("starting the preview thread"))?,
         );
@@ -199,7 +199,7 @@ impl Server {
             sessions_dir: config.sessions_dir.clone(),
         };
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), String>>();
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), ServeError>>();
         let http_hub = hub.clone();
         let http = std::thread::Builder::new()
             .name("brdf-rig-http".into())
@@ -210,7 +210,7 @@ impl Server {
                 {
                     Ok(rt) => rt,
                     Err(e) => {
-                        let _ = ready_tx.send(Err(format!("starting the async runtime: {e}")));
+                        let _ = ready_tx.send(Err(io("starting the async runtime")(e)));
                         return;
                     }
                 };
@@ -218,7 +218,7 @@ impl Server {
                     let listener = match tokio::net::TcpListener::from_std(listener) {
                         Ok(l) => l,
                         Err(e) => {
-                            let _ = ready_tx.send(Err(format!("listening: {e}")));
+                            let _ = ready_tx.send(Err(io("listening")(e)));
                             return;
                         }
                     };
@@ -247,7 +247,7 @@ impl Server {
             Ok(Ok(())) => Ok(server),
             Ok(Err(e)) => {
                 server.shutdown();
-                Err(ServeError::Config(e))
+                Err(e)
             }
             Err(_) => {
                 server.shutdown();

@@ -180,8 +180,15 @@ pub fn picture(image: &LinearImage, saturation: f32, max_w: usize, max_h: usize)
     }
 }
 
+/// Why a preview frame could not be made (the page's log shows it as a warning).
+#[derive(Debug, thiserror::Error)]
+pub enum PreviewError {
+    #[error("encoding the preview as JPEG: {0}")]
+    Jpeg(#[source] image::ImageError),
+}
+
 /// JPEG bytes of an 8-bit RGB picture (quality 1..=100).
-pub fn jpeg(p: &Picture, quality: u8) -> Result<Vec<u8>, String> {
+pub fn jpeg(p: &Picture, quality: u8) -> Result<Vec<u8>, PreviewError> {
     let mut out = Vec::new();
     image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, quality.clamp(1, 100))
         .encode(
@@ -190,12 +197,12 @@ pub fn jpeg(p: &Picture, quality: u8) -> Result<Vec<u8>, String> {
             p.height as u32,
             image::ExtendedColorType::Rgb8,
         )
-        .map_err(|e| format!("encoding the preview as JPEG: {e}"))?;
+        .map_err(PreviewError::Jpeg)?;
     Ok(out)
 }
 
 /// A frame from a job: the picture, its JPEG, the numbers.
-pub fn frame(job: &Job, seq: u64, max_w: usize, max_h: usize) -> Result<Frame, String> {
+pub fn frame(job: &Job, seq: u64, max_w: usize, max_h: usize) -> Result<Frame, PreviewError> {
     let t = std::time::Instant::now();
     let p = picture(&job.image, job.saturation, max_w, max_h);
     let jpeg = jpeg(&p, 80)?;
@@ -229,7 +236,7 @@ impl Worker {
     pub fn spawn(
         max_w: usize,
         max_h: usize,
-        publish: impl Fn(Result<Frame, String>) + Send + 'static,
+        publish: impl Fn(Result<Frame, PreviewError>) + Send + 'static,
     ) -> std::io::Result<Worker> {
         let (jobs, rx) = mpsc::sync_channel::<Job>(1);
         let busy = Arc::new(AtomicBool::new(false));

@@ -39,7 +39,7 @@ use axum::routing::{get, post};
 use serde_json::json;
 
 use super::control::{Refusal, is_local_host};
-use super::hub::{Command, Hub, StopKind};
+use super::hub::{Command, CommandError, Hub, StopKind};
 use super::requests::{
     ClaimRequest, ContinueRequest, LightRequest, PreviewRequest, ResumeRequest, RigLimits,
     StartRequest, TurntableRequest, parse, session_name,
@@ -134,10 +134,10 @@ impl App {
     }
 
     /// Sends a command to the rig's thread and waits for its answer.
-    async fn ask(&self, command: Command) -> Result<String, String> {
+    async fn ask(&self, command: Command) -> Result<String, CommandError> {
         match self.hub.send(command).await {
             Ok(r) => r,
-            Err(_) => Err("the rig's thread has stopped".into()),
+            Err(_) => Err(CommandError::Stopped),
         }
     }
 }
@@ -230,7 +230,7 @@ async fn start(State(app): State<App>, headers: HeaderMap, body: Bytes) -> Answe
     let session = app
         .ask(Command::Start(spec))
         .await
-        .map_err(ApiError::conflict)?;
+        .map_err(|e| ApiError::conflict(e.to_string()))?;
     Ok(Json(json!({"session": session})))
 }
 
@@ -240,7 +240,10 @@ async fn resume(State(app): State<App>, headers: HeaderMap, body: Bytes) -> Answ
         .and_then(|r| r.check())
         .map_err(ApiError::bad)?;
     app.refuse_while_capturing()?;
-    let session = app.ask(command).await.map_err(ApiError::conflict)?;
+    let session = app
+        .ask(command)
+        .await
+        .map_err(|e| ApiError::conflict(e.to_string()))?;
     Ok(Json(json!({"session": session})))
 }
 
@@ -295,7 +298,7 @@ async fn rig_command(app: &App, command: Command) -> Answer {
     let done = app
         .ask(command)
         .await
-        .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e))?;
+        .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
     Ok(Json(json!({"done": done})))
 }
 

@@ -37,10 +37,33 @@ use crate::render::sphere::Sphere;
 /// Why the scene could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("loading the scene mesh {path}: {reason}")]
-    Mesh { path: String, reason: String },
-    #[error("loading the material {path}: {reason} (names are the files in data/merl-nbrdf)")]
-    Material { path: String, reason: String },
+    #[error("loading the scene mesh {path}: {source}")]
+    Mesh {
+        path: String,
+        #[source]
+        source: crate::geometry::mesh_io::MeshIoError,
+    },
+    #[error("loading the scene mesh {path}: {source}")]
+    Place {
+        path: String,
+        #[source]
+        source: PlaceError,
+    },
+    #[error("loading the material {path}: {source} (names are the files in data/merl-nbrdf)")]
+    Material {
+        path: String,
+        #[source]
+        source: crate::brdf::nbrdf::NbrdfError,
+    },
+}
+
+/// Why a loaded mesh cannot be placed on the turntable.
+#[derive(Debug, thiserror::Error)]
+pub enum PlaceError {
+    #[error("the mesh has no extent")]
+    NoExtent,
+    #[error("placing the mesh failed")]
+    Positions,
 }
 
 /// Lambertian reflector: f_r = albedo / pi.
@@ -89,18 +112,18 @@ impl ObjectScene {
     /// scaled to `object_size_m`).
     pub fn load(config: &SceneConfig) -> Result<Self, SceneError> {
         let mesh_path = config.mesh_path();
-        let (mesh, _) = load_mesh(&mesh_path).map_err(|e| SceneError::Mesh {
+        let (mesh, _) = load_mesh(&mesh_path).map_err(|source| SceneError::Mesh {
             path: mesh_path.display().to_string(),
-            reason: e.to_string(),
+            source,
         })?;
         let material_path = config.material_path();
-        let brdf = Nbrdf::load(&material_path).map_err(|e| SceneError::Material {
+        let brdf = Nbrdf::load(&material_path).map_err(|source| SceneError::Material {
             path: material_path.display().to_string(),
-            reason: e.to_string(),
+            source,
         })?;
-        Self::from_parts(mesh, Arc::new(brdf), config).map_err(|reason| SceneError::Mesh {
+        Self::from_parts(mesh, Arc::new(brdf), config).map_err(|source| SceneError::Place {
             path: mesh_path.display().to_string(),
-            reason,
+            source,
         })
     }
 
@@ -109,12 +132,12 @@ impl ObjectScene {
         mut mesh: Mesh,
         brdf: Arc<dyn Brdf>,
         config: &SceneConfig,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PlaceError> {
         let (lo, hi) = mesh.bounds();
         let centre = Point3::from((lo.coords + hi.coords) * 0.5);
         let diag = (hi - lo).norm();
         if diag <= 0.0 {
-            return Err("the mesh has no extent".into());
+            return Err(PlaceError::NoExtent);
         }
         let scale = config.object_size_m / diag;
         let rot = if config.mesh_up == "z" {
@@ -128,7 +151,7 @@ impl ObjectScene {
             .map(|p| Point3::from(rot * ((p - centre) * scale)))
             .collect();
         if !mesh.set_positions(placed) {
-            return Err("placing the mesh failed".into());
+            return Err(PlaceError::Positions);
         }
         let bvh = Bvh::build(&mesh);
         Ok(Self {

@@ -21,6 +21,38 @@ use std::sync::{Arc, Mutex};
 
 use crate::capture::plan::{LabGeometry, Stage, Target};
 use crate::geometry::camera::{Intrinsics, Pose};
+use crate::profile::ProfileError;
+
+/// A value of `[scene]` out of its range; the message names the key as the profile spells it.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneValueError {
+    #[error("scene.{key} = {value}: must be positive")]
+    NotPositive { key: &'static str, value: f64 },
+    #[error("scene.ambient_radiance and scene.read_noise_electrons must be >= 0")]
+    Negative,
+    #[error("scene.pixel_samples = {0}: must be 1 to 16")]
+    PixelSamples(usize),
+    #[error("scene.psf_sigma_px = {0}: must be 0 to 5 pixels")]
+    PsfSigma(f64),
+    #[error("scene.sphere_coat_f0 = {0}: must be in [0, 1)")]
+    CoatF0(f64),
+    #[error("scene.mesh_up = {0:?}: must be \"y\" or \"z\"")]
+    MeshUp(String),
+}
+
+/// Why the `[scene]` section of a profile cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneConfigError {
+    /// Not TOML, or a key `[scene]` does not have, or a value of the wrong type.
+    #[error(transparent)]
+    Section(#[from] ProfileError),
+    /// The value error itself, located in the profile (the same error, not a cause of it).
+    #[error("{origin}: {value}")]
+    Value {
+        origin: String,
+        value: SceneValueError,
+    },
+}
 
 /// The `[scene]` section of a rig profile (all optional).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -86,9 +118,12 @@ impl Default for SceneConfig {
 impl SceneConfig {
     /// Reads and checks the `[scene]` section of the whole profile text (the default scene when
     /// it has none); `origin` names it in errors.
-    pub fn from_profile_text(text: &str, origin: &str) -> Result<Self, String> {
+    pub fn from_profile_text(text: &str, origin: &str) -> Result<Self, SceneConfigError> {
         let scene: SceneConfig = crate::profile::parse_section(text, origin, "scene")?;
-        scene.validate().map_err(|e| format!("{origin}: {e}"))?;
+        scene.validate().map_err(|value| SceneConfigError::Value {
+            origin: origin.to_owned(),
+            value,
+        })?;
         Ok(scene)
     }
 
@@ -108,48 +143,34 @@ impl SceneConfig {
             .join(format!("{}.f32", self.material))
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SceneValueError> {
         let positive = [
-            ("scene.object_size_m", self.object_size_m),
-            ("scene.light_irradiance", self.light_irradiance),
-            ("scene.sphere_radius_m", self.sphere_radius_m),
-            ("scene.white_albedo", self.white_albedo),
-            ("scene.sensitivity", self.sensitivity),
-            ("scene.full_well_electrons", self.full_well_electrons),
+            ("object_size_m", self.object_size_m),
+            ("light_irradiance", self.light_irradiance),
+            ("sphere_radius_m", self.sphere_radius_m),
+            ("white_albedo", self.white_albedo),
+            ("sensitivity", self.sensitivity),
+            ("full_well_electrons", self.full_well_electrons),
         ];
-        for (name, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{name} = {v}: must be positive"));
+        for (key, value) in positive {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(SceneValueError::NotPositive { key, value });
             }
         }
         if !(self.ambient_radiance >= 0.0 && self.read_noise_electrons >= 0.0) {
-            return Err(
-                "scene.ambient_radiance and scene.read_noise_electrons must be >= 0".into(),
-            );
+            return Err(SceneValueError::Negative);
         }
         if !(1..=16).contains(&self.pixel_samples) {
-            return Err(format!(
-                "scene.pixel_samples = {}: must be 1 to 16",
-                self.pixel_samples
-            ));
+            return Err(SceneValueError::PixelSamples(self.pixel_samples));
         }
         if !(0.0..=5.0).contains(&self.psf_sigma_px) {
-            return Err(format!(
-                "scene.psf_sigma_px = {}: must be 0 to 5 pixels",
-                self.psf_sigma_px
-            ));
+            return Err(SceneValueError::PsfSigma(self.psf_sigma_px));
         }
         if !(0.0..1.0).contains(&self.sphere_coat_f0) {
-            return Err(format!(
-                "scene.sphere_coat_f0 = {}: must be in [0, 1)",
-                self.sphere_coat_f0
-            ));
+            return Err(SceneValueError::CoatF0(self.sphere_coat_f0));
         }
         if self.mesh_up != "y" && self.mesh_up != "z" {
-            return Err(format!(
-                "scene.mesh_up = {:?}: must be \"y\" or \"z\"",
-                self.mesh_up
-            ));
+            return Err(SceneValueError::MeshUp(self.mesh_up.clone()));
         }
         Ok(())
     }
@@ -248,7 +269,24 @@ mod tests {
         assert_eq!(s.material, "gold-paint");
         let err =
             SceneConfig::from_profile_text("[scene]\nobject_size_m = -1\n", "p.toml").unwrap_err();
-        assert!(err.contains("scene.object_size_m"), "{err}");
+        assert!(matches!(
+            &err,
+            SceneConfigError::Value {
+                value: SceneValueError::NotPositive {
+                    key: "object_size_m",
+                    ..
+                },
+                ..
+            }
+        ));
+        assert_eq!(
+            err.to_string(),
+            "p.toml: scene.object_size_m = -1: must be positive"
+        );
+        let err = SceneConfig::from_profile_text("[scene]\nmesh_up = \"x\"\n", "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "p.toml: scene.mesh_up = \"x\": must be \"y\" or \"z\"");
     }
 
     fn lab() -> LabGeometry {

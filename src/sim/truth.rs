@@ -28,8 +28,10 @@ use super::imaging::ObjectScene;
 use super::scene::{SceneConfig, SimCameraRig};
 use crate::capture::plan::{CapturePlan, LabGeometry, ShotKind};
 use crate::format::{FormatError, Versioned, version_1};
-use crate::geometry::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, write_text};
-use crate::geometry::mesh_io::{PlyEncoding, write_ply};
+use crate::geometry::colmap::{
+    CameraModel, ColmapCamera, ColmapError, ColmapImage, ColmapModel, write_text,
+};
+use crate::geometry::mesh_io::{MeshIoError, PlyEncoding, write_ply};
 use crate::geometry::sfm_like::{SfmLikeParams, sfm_like};
 
 /// `sim/truth.json`, relative to the session folder.
@@ -90,6 +92,30 @@ pub fn read_truth(session_dir: &Path) -> Result<Truth, FormatError> {
     FORMAT.read(&session_dir.join(TRUTH_FILE))
 }
 
+/// Why the simulated ground truth could not be written; each names its file or folder.
+#[derive(Debug, thiserror::Error)]
+pub enum TruthError {
+    #[error("creating {}: {source}", path.display())]
+    CreateDir {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Truth(#[from] FormatError),
+    #[error(transparent)]
+    Colmap(#[from] ColmapError),
+    #[error(transparent)]
+    Mesh(#[from] MeshIoError),
+}
+
+fn create_dir(path: &Path) -> Result<(), TruthError> {
+    std::fs::create_dir_all(path).map_err(|source| TruthError::CreateDir {
+        path: path.to_owned(),
+        source,
+    })
+}
+
 /// Writes `DIR/sim/` (see the module header).
 pub fn write_ground_truth(
     dir: &Path,
@@ -97,9 +123,9 @@ pub fn write_ground_truth(
     lab: &LabGeometry,
     scene: &ObjectScene,
     config: &SceneConfig,
-) -> Result<(), String> {
+) -> Result<(), TruthError> {
     let sim = dir.join("sim");
-    std::fs::create_dir_all(&sim).map_err(|e| format!("creating {}: {e}", sim.display()))?;
+    create_dir(&sim)?;
     let rig = SimCameraRig::new(lab, plan.camera.width, plan.camera.height);
     let k = rig.intrinsics;
     let q = rig.camera_from_lab.rotation;
@@ -154,9 +180,7 @@ pub fn write_ground_truth(
         sensitivity: config.sensitivity,
         view_angles_deg: view_angles,
     };
-    FORMAT
-        .write(&dir.join(TRUTH_FILE), &truth)
-        .map_err(|e| e.to_string())?;
+    FORMAT.write(&dir.join(TRUTH_FILE), &truth)?;
     let mut cameras = BTreeMap::new();
     cameras.insert(
         1,
@@ -168,15 +192,13 @@ pub fn write_ground_truth(
     );
     let model = ColmapModel { cameras, images };
     let colmap_dir = dir.join(COLMAP_DIR);
-    std::fs::create_dir_all(&colmap_dir)
-        .map_err(|e| format!("creating {}: {e}", colmap_dir.display()))?;
-    write_text(&colmap_dir, &model).map_err(|e| e.to_string())?;
+    create_dir(&colmap_dir)?;
+    write_text(&colmap_dir, &model)?;
     write_ply(
         &sim.join("mesh_true.ply"),
         scene.mesh(),
         PlyEncoding::BinaryLittleEndian,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let sfm = sfm_like(
         scene.mesh(),
         &SfmLikeParams {
@@ -188,7 +210,6 @@ pub fn write_ground_truth(
         &dir.join(MESH_SFM_FILE),
         &sfm,
         PlyEncoding::BinaryLittleEndian,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     Ok(())
 }

@@ -166,7 +166,7 @@ fn served_capture(server: &Server, plan_id: &str, session: &str) -> Result<f64, 
         }))
         .blocking_recv()
         .map_err(|e| BenchError::step("the rig's thread stopped", e))?;
-    answer.map_err(BenchError::Invalid)?;
+    answer.map_err(|e| BenchError::Invalid(e.to_string()))?;
     wait_for("the capture ends", 600, || !hub.phase().is_active())?;
     let s = hub.snapshot();
     if s.capture.phase != Phase::Complete {
