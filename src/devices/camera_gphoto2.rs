@@ -359,24 +359,52 @@ pub fn parse_auto_detect(output: &str) -> Vec<(String, String)> {
     out
 }
 
+/// Why the attached cameras could not be listed.
+#[derive(Debug, thiserror::Error)]
+pub enum ListError {
+    #[error("gphoto2 --auto-detect failed: {stderr}")]
+    Failed { stderr: String },
+    #[error("`{}` is not installed (Debian: apt-get install gphoto2)", program.display())]
+    NotInstalled { program: std::path::PathBuf },
+    #[error("running {}: {source}", program.display())]
+    Run {
+        program: std::path::PathBuf,
+        source: std::io::Error,
+    },
+}
+
 /// Lists attached cameras; an error says why listing was impossible (e.g. gphoto2 missing).
-pub fn list(program: &Path) -> Result<Vec<(String, String)>, String> {
+pub fn list(program: &Path) -> Result<Vec<(String, String)>, ListError> {
     let mut cmd = Command::new(program);
     cmd.arg("--auto-detect");
     match run_with_timeout(&mut cmd, Duration::from_secs(10)) {
         Ok((true, stdout, _)) => Ok(parse_auto_detect(&stdout)),
-        Ok((false, _, stderr)) => Err(format!("gphoto2 --auto-detect failed: {}", stderr.trim())),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(format!(
-            "`{}` is not installed (Debian: apt-get install gphoto2)",
-            program.display()
-        )),
-        Err(e) => Err(format!("running {}: {e}", program.display())),
+        Ok((false, _, stderr)) => Err(ListError::Failed {
+            stderr: stderr.trim().to_string(),
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(ListError::NotInstalled {
+            program: program.to_path_buf(),
+        }),
+        Err(source) => Err(ListError::Run {
+            program: program.to_path_buf(),
+            source,
+        }),
     }
 }
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
+    #[test]
+    fn listing_without_gphoto2_names_the_program_and_the_package() {
+        let e = list(Path::new("/nonexistent/gphoto2")).unwrap_err();
+        assert!(matches!(e, ListError::NotInstalled { .. }), "{e:?}");
+        assert_eq!(
+            e.to_string(),
+            "`/nonexistent/gphoto2` is not installed (Debian: apt-get install gphoto2)"
+        );
+    }
+
     use super::*;
     use crate::imageio::dng::write_minimal_dng;
 

@@ -98,13 +98,11 @@ impl Camera for WebcamCamera {
     }
 }
 
-/// Attached webcams as `(index, name)`.
-pub fn list() -> Result<Vec<(String, String)>, String> {
-    nokhwa::query(ApiBackend::Video4Linux)
-        .map(|cams| {
-            cams.into_iter()
-                .map(|c| (c.index().to_string(), c.human_name()))
-                .collect()
-        })
-        .map_err(|e| e.to_string())
+/// Attached webcams as `(index, name)`; the error is nokhwa's (V4L2 query).
+pub fn list() -> Result<Vec<(String, String)>, nokhwa::NokhwaError> {
+    nokhwa::query(ApiBackend::Video4Linux).map(|cams| {
+        cams.into_iter()
+            .map(|c| (c.index().to_string(), c.human_name()))
+            .collect()
+    })
 }

@@ -32,7 +32,7 @@ pub fn list_all(gphoto2: &Path) -> Vec<BackendListing> {
         Err(e) => BackendListing {
             backend: "gphoto2",
             cameras: Vec::new(),
-            unavailable: Some(e),
+            unavailable: Some(e.to_string()),
         },
     });
     #[cfg(feature = "webcam")]
@@ -45,7 +45,7 @@ pub fn list_all(gphoto2: &Path) -> Vec<BackendListing> {
         Err(e) => BackendListing {
             backend: "webcam",
             cameras: Vec::new(),
-            unavailable: Some(e),
+            unavailable: Some(e.to_string()),
         },
     });
     #[cfg(not(feature = "webcam"))]

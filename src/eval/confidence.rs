@@ -149,14 +149,23 @@ pub fn tune(runs: &[Run], start: &ConfidenceSettings) -> ConfidenceSettings {
     best
 }
 
+/// What is missing from an accuracy grid's JSON.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum GridJsonError {
+    #[error("no \"scenes\" array")]
+    NoScenes,
+    #[error("scenes[{scene}]: no {field}")]
+    Missing { scene: usize, field: &'static str },
+}
+
 /// The runs of an accuracy grid's JSON (`bench accuracy`, `accuracy.json`): the full pipeline
 /// ("all three assumptions") of every scene that produced a result. Errors name the scene and
 /// the field.
-pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, String> {
+pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, GridJsonError> {
     let scenes = v
         .get("scenes")
         .and_then(|s| s.as_array())
-        .ok_or("no \"scenes\" array")?;
+        .ok_or(GridJsonError::NoScenes)?;
     let f = |x: &serde_json::Value, k: &str| x.get(k).and_then(serde_json::Value::as_f64);
     let mut out = Vec::new();
     for (i, sc) in scenes.iter().enumerate() {
@@ -172,10 +181,13 @@ pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, String
             sc.get("rig").map(|r| r.to_string()).unwrap_or_default(),
             name("seed")
         );
-        let variants = sc
-            .get("variants")
-            .and_then(|x| x.as_array())
-            .ok_or(format!("scenes[{i}]: no \"variants\""))?;
+        let variants =
+            sc.get("variants")
+                .and_then(|x| x.as_array())
+                .ok_or(GridJsonError::Missing {
+                    scene: i,
+                    field: "\"variants\"",
+                })?;
         // The full pipeline: the variant with all three assumptions on.
         let all = variants.iter().find(|p| {
             p.get(0).is_some_and(|v| {
@@ -187,13 +199,17 @@ pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, String
         let Some(ok) = all.and_then(|p| p.get(1)).and_then(|r| r.get("Ok")) else {
             continue;
         };
-        let environment = ok
-            .get("chosen")
-            .and_then(|c| f(c, "environment"))
-            .ok_or(format!("scenes[{i}]: no chosen.environment"))?;
-        let c = ok
-            .get("confidence")
-            .ok_or(format!("scenes[{i}]: no confidence"))?;
+        let environment =
+            ok.get("chosen")
+                .and_then(|c| f(c, "environment"))
+                .ok_or(GridJsonError::Missing {
+                    scene: i,
+                    field: "chosen.environment",
+                })?;
+        let c = ok.get("confidence").ok_or(GridJsonError::Missing {
+            scene: i,
+            field: "confidence",
+        })?;
         let baseline = ["lambert", "lambert_ggx"]
             .iter()
             .filter_map(|k| sc.get(*k).and_then(|e| f(e, "environment")))
@@ -207,10 +223,14 @@ pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, String
             baseline,
             trial_disagreement: f(c, "trial_disagreement"),
             held_out_error: f(c, "held_out_error"),
-            theta_d_span_deg: f(c, "theta_d_span_deg")
-                .ok_or(format!("scenes[{i}]: no confidence.theta_d_span_deg"))?,
-            unseen_energy: f(c, "unseen_energy")
-                .ok_or(format!("scenes[{i}]: no confidence.unseen_energy"))?,
+            theta_d_span_deg: f(c, "theta_d_span_deg").ok_or(GridJsonError::Missing {
+                scene: i,
+                field: "confidence.theta_d_span_deg",
+            })?,
+            unseen_energy: f(c, "unseen_energy").ok_or(GridJsonError::Missing {
+                scene: i,
+                field: "confidence.unseen_energy",
+            })?,
         });
     }
     Ok(out)
@@ -270,6 +290,17 @@ pub fn settings_table(s: &ConfidenceSettings) -> String {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_grid_file_without_a_field_names_the_scene_and_the_field() {
+        assert_eq!(
+            super::runs_from_accuracy_json(&serde_json::json!({})).unwrap_err(),
+            super::GridJsonError::NoScenes
+        );
+        let e =
+            super::runs_from_accuracy_json(&serde_json::json!({"scenes": [{}, {}]})).unwrap_err();
+        assert_eq!(e.to_string(), "scenes[0]: no \"variants\"");
+    }
+
     use super::*;
 
     fn run(env: f64, disagreement: f64) -> Run {

@@ -83,11 +83,15 @@ impl Prior for NielsenPrior<'_> {
         out
     }
 
-    fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String> {
+    fn fit(
+        &self,
+        samples: &[Sample],
+        k: usize,
+        eta: f64,
+    ) -> Result<Box<dyn Candidate>, ridge::RidgeError> {
         let (obs, settings) = self.ridge_input(samples, k, eta);
         ridge::reconstruct(self.basis, &obs, &settings)
             .map(|r| Box::new(Fitted(r)) as Box<dyn Candidate>)
-            .map_err(|e| e.to_string())
     }
 
     fn fit_lazy<'a>(
@@ -95,9 +99,9 @@ impl Prior for NielsenPrior<'_> {
         samples: &[Sample],
         k: usize,
         eta: f64,
-    ) -> Result<Box<dyn Candidate + 'a>, String> {
+    ) -> Result<Box<dyn Candidate + 'a>, ridge::RidgeError> {
         let (obs, settings) = self.ridge_input(samples, k, eta);
-        let coefficients = ridge::solve(self.basis, &obs, &settings).map_err(|e| e.to_string())?;
+        let coefficients = ridge::solve(self.basis, &obs, &settings)?;
         Ok(Box::new(Lazy {
             basis: self.basis,
             coefficients,

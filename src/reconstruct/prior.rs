@@ -7,6 +7,7 @@
 //! Convention: a bin is a flat MERL index (`brdf::coords`), reflectance is f_r in 1/sr, RGB.
 
 use crate::brdf::merl::MerlTable;
+use crate::brdf::ridge::RidgeError;
 
 /// One reflectance sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,7 +60,8 @@ pub trait Prior: Send + Sync {
 
     /// Fits a BRDF to the samples with the first `min(k, samples)` components and ridge
     /// weight `eta` (a prior without regularisation may ignore it).
-    fn fit(&self, samples: &[Sample], k: usize, eta: f64) -> Result<Box<dyn Candidate>, String>;
+    fn fit(&self, samples: &[Sample], k: usize, eta: f64)
+    -> Result<Box<dyn Candidate>, RidgeError>;
 
     /// The same fit, for validation: the result is evaluated at a few bins only, so a prior may
     /// skip tabulating it (the Nielsen prior evaluates rows on demand).
@@ -68,7 +70,7 @@ pub trait Prior: Send + Sync {
         samples: &[Sample],
         k: usize,
         eta: f64,
-    ) -> Result<Box<dyn Candidate + 'a>, String> {
+    ) -> Result<Box<dyn Candidate + 'a>, RidgeError> {
         self.fit(samples, k, eta)
             .map(|c| c as Box<dyn Candidate + 'a>)
     }
@@ -176,14 +178,14 @@ pub mod synthetic {
             samples: &[Sample],
             k: usize,
             _eta: f64,
-        ) -> Result<Box<dyn Candidate>, String> {
+        ) -> Result<Box<dyn Candidate>, RidgeError> {
             let k = k.min(samples.len()).min(self.k);
             if k == 0 {
-                return Err("no samples".into());
+                return Err(RidgeError::Empty);
             }
             let a = DMatrix::from_fn(samples.len(), k, |i, j| phi(j, samples[i].bin));
             let ata = a.transpose() * &a + DMatrix::identity(k, k) * 1e-9;
-            let chol = ata.cholesky().ok_or("singular")?;
+            let chol = ata.cholesky().ok_or(RidgeError::Singular)?;
             let mut coeffs = vec![[0.0; 3]; k];
             for ch in 0..3 {
                 let b = DVector::from_fn(samples.len(), |i, _| samples[i].reflectance[ch]);

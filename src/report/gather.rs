@@ -114,6 +114,8 @@ pub struct ReportData {
     pub comparisons: Avail<Vec<ComparisonRow>>,
     /// The normal refinement (`normals`); `None` when it did not run.
     pub normals: Option<NormalsSection>,
+    /// The materials found (`materials`); `None` when the segmentation did not run.
+    pub materials: Option<crate::reconstruct::materials::MaterialsFile>,
 }
 
 /// One alternation of the normal refinement, as shown.
@@ -330,6 +332,7 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             |r| Avail::Yes(ladder_section(r)),
         ),
         normals: rj.and_then(normals_section),
+        materials: rj.and_then(|r| r.materials.clone()),
         comparisons: match (rj, &recon_dir) {
             (Some(r), Some(d)) => comparisons_section(r, d),
             _ => Avail::No("no report.json".into()),
@@ -544,16 +547,21 @@ fn gather_calibration(session: Option<&Path>) -> Avail<Vec<CalibrationEntry>> {
 // ---------------------------------------------------------------------------------------------
 // The BRDF
 
+/// Why a BRDF file to compare with could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadBrdfError {
+    #[error(transparent)]
+    Neural(#[from] crate::brdf::nbrdf::NbrdfError),
+    #[error(transparent)]
+    Merl(#[from] crate::brdf::merl::MerlError),
+}
+
 /// Loads a BRDF file: `.f32` is a neural MERL fit, anything else a MERL table.
-pub fn load_brdf(path: &Path) -> Result<Box<dyn Brdf>, String> {
+pub fn load_brdf(path: &Path) -> Result<Box<dyn Brdf>, LoadBrdfError> {
     if path.extension().is_some_and(|e| e == "f32") {
-        Nbrdf::load(path)
-            .map(|n| Box::new(n) as Box<dyn Brdf>)
-            .map_err(|e| error_chain(&e))
+        Ok(Box::new(Nbrdf::load(path)?))
     } else {
-        MerlTable::read(path)
-            .map(|t| Box::new(t) as Box<dyn Brdf>)
-            .map_err(|e| error_chain(&e))
+        Ok(Box::new(MerlTable::read(path)?))
     }
 }
 
@@ -581,7 +589,8 @@ fn brdf_section(
                 };
                 loaded.push((label, b));
             }
-            Err(e) => missing.push(format!("{label}: {e}")),
+            // the page shows the whole cause chain in one line
+            Err(e) => missing.push(format!("{label}: {}", error_chain(&e))),
         }
     }
     let mut brdfs: Vec<(&str, &dyn Brdf)> = vec![("reconstruction", table)];
@@ -710,10 +719,11 @@ fn fields_as_text<T: serde::Serialize>(section: &T) -> Vec<(String, String)> {
 }
 
 /// The report.json fields that have a section of their own.
-const INTERPRETED: [&str; 12] = [
+const INTERPRETED: [&str; 13] = [
     "format_version",
     "model",
     "normals",
+    "materials",
     "ladder",
     "plausibility",
     "comparisons",
