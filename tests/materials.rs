@@ -184,3 +184,120 @@ fn one_material_is_the_single_material_scene() {
     assert!(e.contains("1 material names for 2"), "{e}");
     assert!(!c.path().join("light").exists());
 }
+
+/// `brdf-rig reconstruct --materials auto` on a two-material Spot (SfM-like mesh, small images,
+/// a coarse basis without either material): two materials found where they are, a MERL table
+/// each, `materials.json` and the labelled `material_map.ply`; the same object made of one
+/// material gives one and writes no per-material files.
+#[test]
+fn reconstruct_finds_two_materials_and_writes_one_table_each() {
+    let mesh = spot();
+    let job_mesh = sfm_like(&mesh, &SfmLikeParams::default());
+    let mats: Vec<Nbrdf> = MATERIALS.iter().map(|n| material(n)).collect();
+    let brdfs: Vec<&dyn Brdf> = mats.iter().map(|m| m as &dyn Brdf).collect();
+    let names: Vec<String> = MATERIALS.iter().map(|n| n.to_string()).collect();
+    let labels = split_by_planes(&mesh, Vector3::y(), 2);
+    let spec = SceneSpec {
+        views: 8,
+        width: 96,
+        height: 72,
+        ..SceneSpec::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let two = dir.path().join("two");
+    let job =
+        write_scene_materials(&two, &mesh, &job_mesh, &brdfs, &labels, &names, &spec).unwrap();
+    let quick = [
+        "--exclude",
+        MATERIALS[0],
+        "--exclude",
+        MATERIALS[1],
+        "--basis-stride",
+        "3,10,10",
+        "--basis-components",
+        "10",
+        "--trials",
+        "3",
+        "--samples",
+        "15",
+        "--materials",
+        "auto",
+    ];
+    let out = dir.path().join("out-two");
+    let run = crate::reconstruct::run_cli(&job.source, &out, &quick);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = brdf_rig::reconstruct::materials::read(&out)
+        .unwrap()
+        .unwrap();
+    assert_eq!(file.count, 2, "{}", file.reason);
+    assert_eq!(file.materials.len(), 2);
+    for m in &file.materials {
+        let table = brdf_rig::brdf::merl::MerlTable::read(&out.join(&m.file)).unwrap();
+        assert!(table.get(0).is_some(), "{} reads back", m.file);
+    }
+    // the map's labels, per face by the majority of its corners, against the truth
+    let mut f = std::io::BufReader::new(std::fs::File::open(out.join(&file.material_map)).unwrap());
+    let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
+        .read_ply(&mut f)
+        .unwrap();
+    let vertex_labels: Vec<u32> = ply.payload["vertex"]
+        .iter()
+        .map(|v| match v["label"] {
+            ply_rs::ply::Property::UChar(l) => u32::from(l),
+            ref other => panic!("label {other:?}"),
+        })
+        .collect();
+    let found: Vec<u32> = mesh
+        .faces()
+        .iter()
+        .map(|t| {
+            let l = t.map(|v| vertex_labels[v as usize]);
+            if l[1] == l[2] { l[1] } else { l[0] }
+        })
+        .collect();
+    let found = FaceLabels::new(found, mesh.faces().len()).unwrap();
+    let agreement = area_agreement(&mesh, &labels, &found, None);
+    assert!(agreement > 0.85, "agreement {agreement}");
+    let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
+    assert_eq!(report.materials.map(|m| m.count), Some(2));
+    // the HTML report shows a section with both materials and their files
+    let page = std::process::Command::new(util::bin())
+        .arg("report")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        page.status.success(),
+        "{}",
+        String::from_utf8_lossy(&page.stderr)
+    );
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("id=\"materials\""), "no materials section");
+    for m in &file.materials {
+        assert!(html.contains(&m.file), "{} not in the report", m.file);
+    }
+
+    // the same object in one material
+    let one = dir.path().join("one");
+    let job = write_scene(&one, &mesh, &job_mesh, &mats[0], &spec).unwrap();
+    let out = dir.path().join("out-one");
+    let run = crate::reconstruct::run_cli(&job.source, &out, &quick);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
+    let m = report.materials.expect("the segmentation ran");
+    assert_eq!(m.count, 1, "{}", m.reason);
+    assert!(
+        brdf_rig::reconstruct::materials::read(&out)
+            .unwrap()
+            .is_none()
+    );
+    assert!(!out.join("material_map.ply").exists());
+}

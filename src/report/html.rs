@@ -128,6 +128,9 @@ pub fn render_html(data: &ReportData) -> String {
     if let Some(n) = &data.normals {
         section_normals(&mut h, n);
     }
+    if let Some(m) = &data.materials {
+        section_materials(&mut h, m);
+    }
     section_comparisons(&mut h, &data.comparisons);
     section_trials(&mut h, &data.trials, &data.components);
     section_timing(&mut h, &data.timing);
@@ -379,6 +382,72 @@ fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
         }
         h.push_str("</table>");
     }
+}
+
+fn section_materials(h: &mut String, m: &crate::reconstruct::materials::MaterialsFile) {
+    h.push_str("<h2 id=\"materials\">Materials</h2>");
+    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+    let _ = write!(
+        h,
+        "<p><b>{} material(s)</b>: {}. Each count was tried on folds of whole light images \
+         (labels from the training images, a Lambert fit per material, error on the \
+         held-out images); the simplest count within noise of the best is kept \
+         (docs/materials.md).</p>",
+        m.count,
+        escape(&m.reason)
+    );
+    h.push_str("<table><tr><th>count tried</th><th>found</th><th>held-out image error</th><th>standard error</th></tr>");
+    for s in &m.scores {
+        let _ = write!(
+            h,
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            if s.found == m.count && s.error.is_some() {
+                " class=\"chosen\""
+            } else {
+                ""
+            },
+            s.asked,
+            s.found,
+            escape(&num(s.error)),
+            escape(&num(s.standard_error))
+        );
+    }
+    h.push_str("</table>");
+    if m.materials.is_empty() {
+        return;
+    }
+    let _ = write!(
+        h,
+        "<p>One BRDF per material, each chosen by its own model ladder; the largest is also \
+         <code>brdf.binary</code>. <code>{}</code> beside <code>report.json</code> is the mesh \
+         with each vertex's material (<code>label</code>, 0 = the first row, and the colour \
+         shown here).</p>",
+        escape(&m.material_map)
+    );
+    h.push_str("<table><tr><th></th><th>material</th><th>pixels</th><th>vertices</th><th>colour of its pixels (r, g, b shares)</th><th>model</th><th>confidence</th><th>held-out error</th><th>file</th></tr>");
+    for (i, e) in m.materials.iter().enumerate() {
+        let c = crate::geometry::mesh_io::LABEL_COLOURS
+            [i % crate::geometry::mesh_io::LABEL_COLOURS.len()];
+        let _ = write!(
+            h,
+            "<tr><td style=\"background:rgb({},{},{})\"></td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}, {:.3}, {:.3}</td><td>{}</td><td>{}: {}</td><td>{}</td><td><code>{}</code></td></tr>",
+            c[0],
+            c[1],
+            c[2],
+            escape(&e.name),
+            e.observed_pixels,
+            e.observed_vertices,
+            e.chromaticity[0],
+            e.chromaticity[1],
+            e.chromaticity[2],
+            escape(&e.model),
+            escape(&e.confidence),
+            escape(&e.confidence_reasons.join("; ")),
+            escape(&num(e.held_out_error)),
+            escape(&e.file)
+        );
+    }
+    h.push_str("</table>");
 }
 
 fn section_comparisons(h: &mut String, rows: &Avail<Vec<ComparisonRow>>) {
