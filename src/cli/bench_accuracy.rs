@@ -89,6 +89,22 @@ pub struct BenchAccuracyArgs {
     pub exact_reference: bool,
 }
 
+/// `--rigs` (spread, one-light) with `--one-light-deg` (in (0, 90) degrees).
+pub fn parse_rigs(rigs: &[String], one_light_deg: f64) -> anyhow::Result<Vec<Rig>> {
+    if !(one_light_deg > 0.0 && one_light_deg < 90.0) {
+        bail!("--one-light-deg must be in (0, 90) degrees, got {one_light_deg}");
+    }
+    rigs.iter()
+        .map(|r| match r.as_str() {
+            "spread" => Ok(Rig::Spread),
+            "one-light" => Ok(Rig::OneLight {
+                alpha_deg: one_light_deg,
+            }),
+            other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
+        })
+        .collect()
+}
+
 pub fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -165,23 +181,7 @@ impl EvalCommon {
 pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
     let scene = a.common.scene_options()?;
     let materials = materials_or_paper(&a.materials);
-    if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
-        bail!(
-            "--one-light-deg must be in (0, 90) degrees, got {}",
-            a.one_light_deg
-        );
-    }
-    let rigs = a
-        .rigs
-        .iter()
-        .map(|r| match r.as_str() {
-            "spread" => Ok(Rig::Spread),
-            "one-light" => Ok(Rig::OneLight {
-                alpha_deg: a.one_light_deg,
-            }),
-            other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let rigs = parse_rigs(&a.rigs, a.one_light_deg)?;
     let mut command = format!(
         "cargo run --release -- bench accuracy --materials {} {}",
         materials.join(","),

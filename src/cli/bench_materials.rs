@@ -10,7 +10,6 @@ use clap::Args;
 
 use super::bench_accuracy::EvalCommon;
 use super::ranges::int_in;
-use brdf_rig::eval::accuracy::Rig;
 use brdf_rig::eval::bench::materials::{self, MaterialsBenchOptions};
 
 #[derive(Args, Debug)]
@@ -44,23 +43,7 @@ pub struct BenchMaterialsArgs {
 
 pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
     let scene = a.common.scene_options()?;
-    if !(a.one_light_deg > 0.0 && a.one_light_deg < 90.0) {
-        bail!(
-            "--one-light-deg must be in (0, 90) degrees, got {}",
-            a.one_light_deg
-        );
-    }
-    let rigs = a
-        .rigs
-        .iter()
-        .map(|r| match r.as_str() {
-            "spread" => Ok(Rig::Spread),
-            "one-light" => Ok(Rig::OneLight {
-                alpha_deg: a.one_light_deg,
-            }),
-            other => bail!("--rigs: unknown rig {other:?} (spread, one-light)"),
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let rigs = super::bench_accuracy::parse_rigs(&a.rigs, a.one_light_deg)?;
     let objects: Vec<Vec<String>> = a
         .objects
         .iter()

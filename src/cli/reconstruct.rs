@@ -59,8 +59,9 @@ pub struct Args {
     /// Ablation: switch off assumption 3 (brightest pixel, n = h).
     #[arg(long)]
     pub no_brightest: bool,
-    /// Materials to leave out of the basis (repeatable), e.g. the one being evaluated.
-    #[arg(long = "exclude")]
+    /// Materials to leave out of the basis (repeatable, or comma-separated), e.g. the one
+    /// being evaluated.
+    #[arg(long = "exclude", value_delimiter = ',')]
     pub exclude: Vec<String>,
     /// Folder of the neural MERL fits the basis is built from.
     #[arg(long, env = "BRDF_RIG_NBRDF_DIR")]

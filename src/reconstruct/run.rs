@@ -2,7 +2,7 @@
 //! (`prepare`), the basis (cache or build), the pure core, the photo/re-render comparison
 //! per light image, and the report (`output::report_of`). Writes nothing; `output::write` does.
 
-use super::compare::{Comparison, compare_image, compare_image_with};
+use super::compare::{Comparison, compare_image_with};
 use super::core::reconstruct_observations;
 use super::job::Job;
 use super::materials::{MaterialError, Materials, material_name, reconstruct_materials};
@@ -144,29 +144,26 @@ pub fn finish(
 
 /// Every light image beside its re-render, each pixel by its own material's table.
 fn comparisons_materials(scene: &Scene, observed: &Observed, m: &Materials) -> Vec<Comparison> {
-    scene
-        .views
-        .iter()
-        .zip(&observed.thumbnails)
-        .filter_map(|(v, thumb)| {
-            let obs: Vec<&Observation> = observed
-                .observations
-                .iter()
-                .filter(|o| o.image == v.index)
-                .collect();
-            Some(compare_image_with(v.index, thumb.as_ref()?, &obs, |o| {
-                m.segmentation
-                    .label_of(&scene.mesh, o)
-                    .and_then(|l| m.results.get(l as usize))
-                    .and_then(|r| r.table.get(o.bin))
-                    .unwrap_or([0.0; 3])
-            }))
-        })
-        .collect()
+    comparisons_with(scene, observed, |o| {
+        m.segmentation
+            .label_of(&scene.mesh, o)
+            .and_then(|l| m.results.get(l as usize))
+            .and_then(|r| r.table.get(o.bin))
+            .unwrap_or([0.0; 3])
+    })
 }
 
 /// Every light image beside its re-render (`compare`).
 fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Comparison> {
+    comparisons_with(scene, observed, |o| table.get(o.bin).unwrap_or([0.0; 3]))
+}
+
+/// Every light image beside its re-render, each pixel's BRDF value from `brdf_of`.
+fn comparisons_with(
+    scene: &Scene,
+    observed: &Observed,
+    brdf_of: impl Fn(&Observation) -> [f64; 3] + Copy,
+) -> Vec<Comparison> {
     scene
         .views
         .iter()
@@ -177,7 +174,7 @@ fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Com
                 .iter()
                 .filter(|o| o.image == v.index)
                 .collect();
-            Some(compare_image(v.index, thumb.as_ref()?, &obs, table))
+            Some(compare_image_with(v.index, thumb.as_ref()?, &obs, brdf_of))
         })
         .collect()
 }
