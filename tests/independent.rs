@@ -253,3 +253,47 @@ fn reconstruct_recovers_the_independent_lambertian() {
         assert!(e_all < max_all, "{mesh}: {e_all}");
     }
 }
+
+/// `--materials auto` on another renderer's one-material scene (Mitsuba's Lambertian Spot, the
+/// realistic mesh): one material is found, and the result is byte for byte the one-material
+/// reconstruction's.
+#[test]
+fn materials_auto_finds_one_material_on_the_independent_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let nbrdf = reduced_nbrdf_dir(dir.path());
+    let run = |mode: &str| {
+        let out = dir.path().join(mode);
+        let o = Command::new(util::bin())
+            .arg("reconstruct")
+            .arg(scene().join("job_realistic.toml"))
+            .arg("--out")
+            .arg(&out)
+            .args(["--basis-stride", "1,4,6", "--basis-components", "40"])
+            .args(["--trials", "4", "--samples", "40"])
+            .args(["--materials", mode])
+            .arg("--nbrdf-dir")
+            .arg(&nbrdf)
+            .env(
+                "BRDF_RIG_CACHE",
+                std::env::temp_dir().join("brdf-rig-test-basis"),
+            )
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{mode}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        out
+    };
+    let (one, auto) = (run("one"), run("auto"));
+    let report = brdf_rig::reconstruct::report_file::read(&auto).unwrap();
+    let m = report.materials.expect("the segmentation ran");
+    assert_eq!(m.count, 1, "{}", m.reason);
+    assert_eq!(
+        std::fs::read(one.join("brdf.binary")).unwrap(),
+        std::fs::read(auto.join("brdf.binary")).unwrap(),
+        "one material found: the same result as without segmentation"
+    );
+    assert!(!auto.join("materials.json").exists());
+}
