@@ -24,9 +24,9 @@
 //!    one-material object gives one.
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
-use super::ladder::subset;
+use super::ladder::{AnalyticCandidate, image_residual, subset};
 use super::observation::{NO_FACE, Observation};
-use crate::brdf::Brdf;
+use super::prior::Candidate;
 use crate::geometry::mesh::Mesh;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -448,35 +448,45 @@ fn label_vertices(
     }
 }
 
-/// Relative image-space error of per-material fits on held-out pixels.
-fn held_out_error(fits: &[Option<Box<dyn Brdf>>], held: &[(u32, &Observation)]) -> Option<f64> {
+/// Relative image-space error of per-material fits on held-out pixels (the ladder's
+/// `image_residual`, summed over the materials).
+fn held_out_error(
+    fits: &[Option<Box<dyn Candidate>>],
+    held: &[(u32, &Observation)],
+) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
-    for (l, o) in held {
-        let fit = fits.get(*l as usize).and_then(|f| f.as_ref())?;
-        let (wi, wo) = super::observation::to_local(&o.normal, &o.light, &o.view);
-        let fr = fit.eval_local(&wi, &wo);
-        #[allow(clippy::needless_range_loop)] // three parallel channel arrays
-        for c in 0..3 {
-            let d = fr[c] * o.irradiance[c] * o.cos_theta_i - o.radiance[c];
-            num += d * d;
-            den += o.radiance[c] * o.radiance[c];
+    for (m, fit) in fits.iter().enumerate() {
+        let own: Vec<Observation> = held
+            .iter()
+            .filter(|(l, _)| *l as usize == m)
+            .map(|(_, o)| **o)
+            .collect();
+        if own.is_empty() {
+            continue;
         }
+        let (n, d) = image_residual(fit.as_deref()?, &own);
+        num += n;
+        den += d;
     }
     (den > 0.0 && num.is_finite()).then(|| (num / den).sqrt())
 }
 
-/// Lambert + GGX per material, each on at most `max` of its pixels; a material with too few
+/// The count's model per material, each on at most `max_fit_pixels` of its pixels; a material with too few
 /// pixels takes the fit of all of them.
 fn fit_per_material(
     labelled: &[(u32, &Observation)],
     count: usize,
     settings: &SegmentSettings,
-) -> Vec<Option<Box<dyn Brdf>>> {
-    let fit = |obs: Vec<Observation>| -> Option<Box<dyn Brdf>> {
+) -> Vec<Option<Box<dyn Candidate>>> {
+    let fit = |obs: Vec<Observation>| -> Option<Box<dyn Candidate>> {
         let obs = subset(&obs, settings.max_fit_pixels, settings.seed ^ 0xF17);
         match settings.count_model {
-            CountModel::Lambert => fit_lambert(&obs).map(|b| Box::new(b) as Box<dyn Brdf>),
-            CountModel::LambertGgx => fit_lambert_ggx(&obs).map(|b| Box::new(b) as Box<dyn Brdf>),
+            CountModel::Lambert => {
+                fit_lambert(&obs).map(|b| Box::new(AnalyticCandidate(b)) as Box<dyn Candidate>)
+            }
+            CountModel::LambertGgx => {
+                fit_lambert_ggx(&obs).map(|b| Box::new(AnalyticCandidate(b)) as Box<dyn Candidate>)
+            }
         }
     };
     (0..count as u32)
@@ -668,6 +678,7 @@ fn choose_count(scores: &[CountScore], min_gain: f64) -> (usize, String) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf::Brdf;
     use crate::brdf::analytic::LambertGgx;
     use crate::reconstruct::observation::Seen;
     use nalgebra::{Point3, Vector3};
