@@ -251,15 +251,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
             ref other => panic!("label {other:?}"),
         })
         .collect();
-    let found: Vec<u32> = mesh
-        .faces()
-        .iter()
-        .map(|t| {
-            let l = t.map(|v| vertex_labels[v as usize]);
-            if l[1] == l[2] { l[1] } else { l[0] }
-        })
-        .collect();
-    let found = FaceLabels::new(found, mesh.faces().len()).unwrap();
+    let found = FaceLabels::from_vertex_labels(&mesh, &vertex_labels);
     let agreement = area_agreement(&mesh, &labels, &found, None);
     assert!(agreement > 0.85, "agreement {agreement}");
     let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();

@@ -117,20 +117,6 @@ fn visible_faces(mesh: &Mesh, spec: &crate::sim::job_scene::SceneSpec) -> Vec<bo
     seen
 }
 
-/// Per face, the label most of its corners carry (the first corner's on a three-way tie).
-fn face_labels_of(mesh: &Mesh, vertex_labels: &[u32]) -> FaceLabels {
-    let labels: Vec<u32> = mesh
-        .faces()
-        .iter()
-        .map(|f| {
-            let l = f.map(|v| vertex_labels.get(v as usize).copied().unwrap_or(0));
-            if l[1] == l[2] { l[1] } else { l[0] }
-        })
-        .collect();
-    let count = labels.iter().max().map_or(1, |m| m + 1);
-    FaceLabels { labels, count }
-}
-
 /// Runs every object. `scratch` receives the scene folders.
 pub fn run(
     spec: &MaterialsSpec,
@@ -211,7 +197,8 @@ pub fn run(
                     let t = Instant::now();
                     let one = reconstruct_observations(&obs, &prior, &core, &mut |_| {})?;
                     let seconds_one = t.elapsed().as_secs_f64();
-                    let found = face_labels_of(&loaded.mesh, &m.segmentation.vertex_labels);
+                    let found =
+                        FaceLabels::from_vertex_labels(&loaded.mesh, &m.segmentation.vertex_labels);
                     let visible = visible_faces(mesh, &scene);
                     let agreement = area_agreement(mesh, &truth_labels, &found, Some(&visible));
                     // each found material against the true material most of its pixels have

@@ -28,6 +28,22 @@ pub struct FaceLabels {
 }
 
 impl FaceLabels {
+    /// Per face, the label most of its corners carry in `vertex_labels` (the first corner's
+    /// when all three differ; a corner past the list counts as label 0): the face labels of a
+    /// per-vertex labelling such as a segmentation's.
+    pub fn from_vertex_labels(mesh: &Mesh, vertex_labels: &[u32]) -> Self {
+        let labels: Vec<u32> = mesh
+            .faces()
+            .iter()
+            .map(|f| {
+                let l = f.map(|v| vertex_labels.get(v as usize).copied().unwrap_or(0));
+                if l[1] == l[2] { l[1] } else { l[0] }
+            })
+            .collect();
+        let count = labels.iter().max().map_or(1, |m| m + 1);
+        Self { labels, count }
+    }
+
     /// Labels for a mesh of `faces` faces; `count` is the largest label plus one.
     pub fn new(labels: Vec<u32>, faces: usize) -> Result<Self, LabelError> {
         if labels.len() != faces {
@@ -248,6 +264,15 @@ mod tests {
         );
         assert!(e.to_string().contains("2 face labels") && e.to_string().contains("4 faces"));
         assert_eq!(FaceLabels::new(vec![], 0).unwrap().count, 1);
+    }
+
+    #[test]
+    fn face_labels_from_vertex_labels_take_the_corners_majority() {
+        let m = strip(2); // vertices 0..6; faces [0,2,3], [0,3,1], [2,4,5], [2,5,3]
+        let v = vec![0, 0, 1, 1, 1, 1];
+        let f = FaceLabels::from_vertex_labels(&m, &v);
+        assert_eq!(f.labels, vec![1, 0, 1, 1]);
+        assert_eq!(f.count, 2);
     }
 
     #[test]
