@@ -43,6 +43,7 @@ pub mod reliable;
 pub mod report_file;
 pub mod run;
 pub mod segment;
+pub mod shared_shape;
 pub mod sweep;
 pub mod trials;
 
