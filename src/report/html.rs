@@ -426,8 +426,7 @@ fn section_materials(h: &mut String, m: &crate::reconstruct::materials::Material
     );
     h.push_str("<table><tr><th></th><th>material</th><th>pixels</th><th>vertices</th><th>colour of its pixels (r, g, b shares)</th><th>model</th><th>confidence</th><th>held-out error</th><th>file</th></tr>");
     for (i, e) in m.materials.iter().enumerate() {
-        let c = crate::geometry::mesh_io::LABEL_COLOURS
-            [i % crate::geometry::mesh_io::LABEL_COLOURS.len()];
+        let c = crate::geometry::labels::label_colour(u32::try_from(i).unwrap_or(u32::MAX));
         let _ = write!(
             h,
             "<tr><td style=\"background:rgb({},{},{})\"></td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}, {:.3}, {:.3}</td><td>{}</td><td>{}: {}</td><td>{}</td><td><code>{}</code></td></tr>",
