@@ -15,6 +15,7 @@
 //!   material's table ([`super::materials`]).
 
 use super::avail::{Avail, error_chain};
+use super::brdf_file::{is_neural, load_brdf};
 use super::charts::{ChartSpec, Series, line_chart};
 use super::images::{EmbeddedImage, png_files, sphere_renders};
 use super::inplane::{self, InPlaneCurve};
@@ -23,7 +24,6 @@ use super::options::ReportOptions;
 use super::session::{CaptureSummary, summarise_session};
 use crate::brdf::Brdf;
 use crate::brdf::merl::MerlTable;
-use crate::brdf::nbrdf::Nbrdf;
 use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
 use crate::reconstruct::ladder::{Family, FoldScheme};
@@ -559,28 +559,6 @@ fn gather_calibration(session: Option<&Path>) -> Avail<Vec<CalibrationEntry>> {
 
 // ---------------------------------------------------------------------------------------------
 // The BRDF
-
-/// Why a BRDF file to compare with could not be loaded.
-#[derive(Debug, thiserror::Error)]
-pub enum LoadBrdfError {
-    #[error(transparent)]
-    Neural(#[from] crate::brdf::nbrdf::NbrdfError),
-    #[error(transparent)]
-    Merl(#[from] crate::brdf::merl::MerlError),
-}
-
-/// Loads a BRDF file: `.f32` is a neural MERL fit, anything else a MERL table.
-pub fn load_brdf(path: &Path) -> Result<Box<dyn Brdf>, LoadBrdfError> {
-    if path.extension().is_some_and(|e| e == "f32") {
-        Ok(Box::new(Nbrdf::load(path)?))
-    } else {
-        Ok(Box::new(MerlTable::read(path)?))
-    }
-}
-
-fn is_neural(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e == "f32")
-}
 
 fn brdf_section(
     table: &MerlTable,

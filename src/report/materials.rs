@@ -8,7 +8,7 @@
 //! `super::html`. Must not touch `report.json` itself (read once by `gather`) nor write anything.
 
 use super::avail::{Avail, error_chain};
-use super::gather::load_brdf;
+use super::brdf_file::load_brdf;
 use super::images::{EmbeddedImage, sphere_renders};
 use super::options::ReportOptions;
 use crate::reconstruct::materials::MaterialsFile;

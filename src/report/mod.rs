@@ -5,10 +5,11 @@
 //! capture, `images` for previews and sphere renders, `materials` for the per-material part)
 //! reads what a folder holds, tolerantly: a missing piece is reported as "not available" with
 //! the reason. `html` renders the page from that, purely. `avail` (a piece or why it is
-//! missing), `options` and `numbers` are the leaves they share. Only the gathering and
-//! [`write_report`] touch files.
+//! missing), `brdf_file` (loading a result or a curve), `options` and `numbers` are the leaves
+//! they share. Only the gathering (with `brdf_file`) and [`write_report`] touch files.
 
 pub mod avail;
+pub mod brdf_file;
 pub mod charts;
 pub mod gather;
 pub mod headless;
