@@ -255,8 +255,8 @@ fn reconstruct_recovers_the_independent_lambertian() {
 }
 
 /// `--materials auto` on another renderer's one-material scene (Mitsuba's Lambertian Spot, the
-/// realistic mesh): one material is found, and the result is byte for byte the one-material
-/// reconstruction's.
+/// realistic mesh): one material is found, and the result (table and comparison panels) is byte
+/// for byte the one-material reconstruction's.
 #[test]
 fn materials_auto_finds_one_material_on_the_independent_scene() {
     let dir = tempfile::tempdir().unwrap();
@@ -288,7 +288,7 @@ fn materials_auto_finds_one_material_on_the_independent_scene() {
     };
     let (one, auto) = (run("one"), run("auto"));
     let report = brdf_rig::reconstruct::report_file::read(&auto).unwrap();
-    let m = report.materials.expect("the segmentation ran");
+    let m = report.materials.as_ref().expect("the segmentation ran");
     assert_eq!(m.count, 1, "{}", m.reason);
     assert_eq!(
         std::fs::read(one.join("brdf.binary")).unwrap(),
@@ -296,4 +296,18 @@ fn materials_auto_finds_one_material_on_the_independent_scene() {
         "one material found: the same result as without segmentation"
     );
     assert!(!auto.join("materials.json").exists());
+    // the photo against re-render panels too: three images, no material map
+    let panels = std::fs::read_dir(one.join("compare")).unwrap();
+    let mut n = 0;
+    for p in panels {
+        let name = p.unwrap().file_name();
+        assert_eq!(
+            std::fs::read(one.join("compare").join(&name)).unwrap(),
+            std::fs::read(auto.join("compare").join(&name)).unwrap(),
+            "{name:?}"
+        );
+        n += 1;
+    }
+    assert!(n > 0, "no panels written");
+    assert!(report.comparisons.iter().all(|c| c.materials.is_empty()));
 }

@@ -255,7 +255,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     let agreement = area_agreement(&mesh, &labels, &found, None);
     assert!(agreement > 0.85, "agreement {agreement}");
     let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
-    assert_eq!(report.materials.map(|m| m.count), Some(2));
+    assert_eq!(report.materials.as_ref().map(|m| m.count), Some(2));
     // the HTML report shows a section with both materials and their files
     let page = std::process::Command::new(util::bin())
         .arg("report")
@@ -272,6 +272,42 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     for m in &file.materials {
         assert!(html.contains(&m.file), "{} not in the report", m.file);
     }
+    // one section per material, each with its three sphere renders embedded
+    let sections = material_sections(&html);
+    assert_eq!(sections.len(), 2);
+    for (i, (s, m)) in sections.iter().zip(&file.materials).enumerate() {
+        assert!(s.contains(&format!("id=\"material-{}\"", i + 1)), "{s}");
+        let reason = brdf_rig::report::html::escape(&m.model_reason);
+        assert!(s.contains(&m.name) && s.contains(&reason), "{}", m.name);
+        assert_eq!(
+            s.matches("<img src=\"data:image/png;base64,").count(),
+            3,
+            "{s}"
+        );
+        assert!(!s.contains("not available"), "{s}");
+    }
+    // the panels have the material map, and the page says so
+    assert!(html.contains("id=\"material-map-legend\""));
+    assert!(html.contains("| material map"));
+    check_material_maps(&out, &report, &file);
+
+    // a material's table gone: its section says so, naming the file; the page is still made
+    std::fs::remove_file(out.join(&file.materials[1].file)).unwrap();
+    let page = std::process::Command::new(util::bin())
+        .arg("report")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(page.status.success());
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let sections = material_sections(&html);
+    assert_eq!(sections[0].matches("<img").count(), 3);
+    assert_eq!(sections[1].matches("<img").count(), 0);
+    let hole = format!(
+        "not available: {}",
+        out.join(&file.materials[1].file).display()
+    );
+    assert!(sections[1].contains(&hole), "{}", sections[1]);
 
     // the same object in one material
     let one = dir.path().join("one");
@@ -284,7 +320,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         String::from_utf8_lossy(&run.stderr)
     );
     let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
-    let m = report.materials.expect("the segmentation ran");
+    let m = report.materials.as_ref().expect("the segmentation ran");
     assert_eq!(m.count, 1, "{}", m.reason);
     assert!(
         brdf_rig::reconstruct::materials::read(&out)
@@ -292,4 +328,87 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
             .is_none()
     );
     assert!(!out.join("material_map.ply").exists());
+    // one material: the three-image panels, no per-material errors
+    for c in &report.comparisons {
+        assert!(c.materials.is_empty());
+        let panel = image::open(out.join(&c.file)).unwrap();
+        assert_eq!(panel.width(), 3 * spec.width as u32, "{}", c.file);
+    }
+}
+
+/// The `<section class="material">` elements of a report page, in order.
+fn material_sections(html: &str) -> Vec<&str> {
+    html.split("<section class=\"material\"")
+        .skip(1)
+        .map(|s| &s[..s.find("</section>").unwrap()])
+        .collect()
+}
+
+/// Each panel of a two-material result is four images wide; its fourth, the material map,
+/// shows both materials in their palette colours (`geometry::labels::label_colour`), each where
+/// the photo has that material's colour: the mean chromaticity of the photo's pixels under a
+/// map colour is nearer its own material's (materials.json) than the other's. The per-material
+/// pixels in report.json add up to no more than the image's.
+fn check_material_maps(
+    out: &std::path::Path,
+    report: &brdf_rig::reconstruct::report_file::Report,
+    file: &brdf_rig::reconstruct::materials::MaterialsFile,
+) {
+    use brdf_rig::geometry::labels::label_colour;
+    use brdf_rig::imageio::srgb_decode;
+    let linear = |p: [u8; 3]| p.map(|c| f64::from(srgb_decode(f32::from(c) / 255.0)));
+    let shares = |p: [f64; 3]| {
+        let s = p[0] + p[1] + p[2];
+        p.map(|c| c / s)
+    };
+    let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>();
+    let palette: Vec<[f64; 3]> = (0..2).map(|l| shares(linear(label_colour(l)))).collect();
+    let mut photo_sum = [[0.0f64; 3]; 2];
+    let mut full = [0usize; 2];
+    assert!(!report.comparisons.is_empty());
+    for c in &report.comparisons {
+        assert_eq!(c.materials.len(), 2, "{}", c.file);
+        let labelled: usize = c.materials.iter().map(|m| m.observed_pixels).sum();
+        assert!(
+            labelled <= c.observed_pixels && (labelled > 0) == (c.observed_pixels > 0),
+            "{}: {labelled} labelled of {} observed",
+            c.file,
+            c.observed_pixels
+        );
+        let panel = image::open(out.join(&c.file)).unwrap().to_rgb8();
+        let w = panel.width() / 4;
+        assert_eq!(panel.width(), 4 * w, "{}: four images", c.file);
+        for y in 0..panel.height() {
+            for x in 0..w {
+                let m = panel.get_pixel(3 * w + x, y).0;
+                if m.iter().all(|&v| v < 2) {
+                    continue; // black: no shading to read a colour from
+                }
+                let hue = shares(linear(m));
+                let Some(l) = (0..2).find(|&l| dist(hue, palette[l]) < 1e-3) else {
+                    continue; // the grey of unobserved pixels
+                };
+                if m == label_colour(l as u32) {
+                    full[l] += 1;
+                }
+                let p = linear(panel.get_pixel(x, y).0);
+                for ch in 0..3 {
+                    photo_sum[l][ch] += p[ch];
+                }
+            }
+        }
+    }
+    assert!(
+        full[0] > 0 && full[1] > 0,
+        "palette colours at full shading: {full:?}"
+    );
+    for (l, &sum) in photo_sum.iter().enumerate() {
+        let seen = shares(sum);
+        let own = file.materials[l].chromaticity;
+        let other = file.materials[1 - l].chromaticity;
+        assert!(
+            dist(seen, own) < dist(seen, other),
+            "under the map's colour {l} the photo is {seen:?}: own {own:?}, other {other:?}"
+        );
+    }
 }

@@ -5,12 +5,30 @@
 //! Conventions: one label per face, in face order, numbered `0..count`; a label is only a name
 //! (label 2 of a segmentation need not be label 2 of the truth), so comparisons match labels up
 //! first. Areas are triangle areas in the mesh's units; a vertex's label is the label covering
-//! most of the area of its incident faces. Pure: no file I/O (the truth file is written and read
-//! by `sim::truth_labels`); depends only on `mesh`.
+//! most of the area of its incident faces; its display colour is [`label_colour`]. Pure: no
+//! file I/O (the truth file is written and read by `sim::truth_labels`); depends only on `mesh`.
 
 use super::mesh::Mesh;
 use nalgebra::Vector3;
 use thiserror::Error;
+
+/// The display colour of labels 0, 1, 2, ... (then repeating), 8-bit sRGB: distinct hues (the
+/// Okabe-Ito palette, designed to stay distinct with the common colour-vision deficiencies,
+/// without its black and its blue). One palette for every picture of labels: the vertex colours of
+/// `material_map.ply`, the material map of the comparison panels, the report's swatches.
+pub const LABEL_COLOURS: [[u8; 3]; 6] = [
+    [230, 159, 0],
+    [86, 180, 233],
+    [0, 158, 115],
+    [213, 94, 0],
+    [204, 121, 167],
+    [240, 228, 66],
+];
+
+/// The colour of `label` ([`LABEL_COLOURS`], repeating past its end).
+pub fn label_colour(label: u32) -> [u8; 3] {
+    LABEL_COLOURS[label as usize % LABEL_COLOURS.len()]
+}
 
 /// Why labels could not be attached to a mesh.
 #[derive(Debug, Error, PartialEq)]

@@ -6,8 +6,9 @@
 //! properties (colours, normals in the file) are ignored: normals are recomputed from the
 //! geometry so every source gives the same shading. Every error names the file; content errors
 //! also name the element (see [`MeshError`]). Writers are atomic (temp file, fsync, rename).
-//! Depends only on `mesh` (and `crate::atomic`'s write).
+//! Depends only on `mesh`, the label colours of `labels` (and `crate::atomic`'s write).
 
+use super::labels::label_colour;
 use super::mesh::{Mesh, MeshError, MeshReport};
 use crate::atomic::write_atomic;
 use nalgebra::Point3;
@@ -242,19 +243,8 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<(), 
     write_ply_with(path, mesh, None, encoding)
 }
 
-/// Colours of labels 0, 1, 2, ... in [`write_ply_labelled`] (then repeating): distinct hues a
-/// mesh viewer shows as they are.
-pub const LABEL_COLOURS: [[u8; 3]; 6] = [
-    [230, 159, 0],
-    [86, 180, 233],
-    [0, 158, 115],
-    [213, 94, 0],
-    [204, 121, 167],
-    [240, 228, 66],
-];
-
 /// As [`write_ply`], with a `uchar label` per vertex and its colour (`red green blue`, from
-/// [`LABEL_COLOURS`]) so a mesh viewer shows the labels. Labels above 255 are written as 255;
+/// [`label_colour`]) so a mesh viewer shows the labels. Labels above 255 are written as 255;
 /// `labels` shorter than the vertices leaves the rest at 0.
 pub fn write_ply_labelled(
     path: &Path,
@@ -292,7 +282,7 @@ fn write_ply_with(
     out.extend_from_slice(header.as_bytes());
     let label_of = |i: usize| -> Option<[u8; 4]> {
         let l = labels?.get(i).copied().unwrap_or(0);
-        let c = LABEL_COLOURS[l as usize % LABEL_COLOURS.len()];
+        let c = label_colour(l);
         Some([u8::try_from(l).unwrap_or(u8::MAX), c[0], c[1], c[2]])
     };
     let verts = mesh

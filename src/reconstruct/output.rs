@@ -114,6 +114,7 @@ pub(super) fn report_of(
                     .as_ref()
                     .and_then(|l| l.chosen().image_errors.get(c.image).copied().flatten()),
                 observed_pixels: c.observed,
+                materials: c.materials.clone(),
             })
             .collect(),
         confidence: core.confidence.clone(),

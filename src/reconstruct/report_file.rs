@@ -46,13 +46,19 @@ pub struct ComparisonReport {
     pub image: usize,
     /// The light image.
     pub photo: PathBuf,
-    /// The panel (photo | re-render | error), relative to the folder of `report.json`.
+    /// The panel (photo | re-render | error, and the material map with several materials),
+    /// relative to the folder of `report.json`.
     pub file: String,
     /// Relative error of the re-render over the image's observed pixels.
     pub fit_error: f64,
     /// The chosen model's error on this image while it (or its blocks) was held out.
     pub held_out_error: Option<f64>,
     pub observed_pixels: usize,
+    /// With several materials: per material (in the order of `materials.materials`), its
+    /// pixels in this image and their error; the panel then has a fourth image, the material
+    /// map. Absent for one material, and in reports written before it existed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<super::compare::MaterialFit>,
 }
 
 /// The panel file of light image `index`, relative to the output folder.

@@ -2,7 +2,7 @@
 //! (`prepare`), the basis (cache or build), the pure core, the photo/re-render comparison
 //! per light image, and the report (`output::report_of`). Writes nothing; `output::write` does.
 
-use super::compare::{Comparison, compare_image_with};
+use super::compare::{Comparison, Thumbnail, compare_image_materials, compare_image_with};
 use super::core::reconstruct_observations;
 use super::job::Job;
 use super::materials::{MaterialError, Materials, material_name, reconstruct_materials};
@@ -142,27 +142,29 @@ pub fn finish(
     })
 }
 
-/// Every light image beside its re-render, each pixel by its own material's table.
+/// Every light image beside its re-render, each pixel by its own material's table, with the
+/// material map (`compare::compare_image_materials`).
 fn comparisons_materials(scene: &Scene, observed: &Observed, m: &Materials) -> Vec<Comparison> {
-    comparisons_with(scene, observed, |o| {
-        m.segmentation
-            .label_of(&scene.mesh, o)
-            .and_then(|l| m.results.get(l as usize))
-            .and_then(|r| r.table.get(o.bin))
-            .unwrap_or([0.0; 3])
+    let tables: Vec<&MerlTable> = m.results.iter().map(|r| &r.table).collect();
+    comparisons_with(scene, observed, |index, thumb, obs| {
+        compare_image_materials(index, thumb, obs, &tables, |o| {
+            m.segmentation.label_of(&scene.mesh, o)
+        })
     })
 }
 
 /// Every light image beside its re-render (`compare`).
 fn comparisons(scene: &Scene, observed: &Observed, table: &MerlTable) -> Vec<Comparison> {
-    comparisons_with(scene, observed, |o| table.get(o.bin).unwrap_or([0.0; 3]))
+    comparisons_with(scene, observed, |index, thumb, obs| {
+        compare_image_with(index, thumb, obs, |o| table.get(o.bin).unwrap_or([0.0; 3]))
+    })
 }
 
-/// Every light image beside its re-render, each pixel's BRDF value from `brdf_of`.
+/// Every light image with a thumbnail, compared by `compare(index, thumbnail, its pixels)`.
 fn comparisons_with(
     scene: &Scene,
     observed: &Observed,
-    brdf_of: impl Fn(&Observation) -> [f64; 3] + Copy,
+    compare: impl Fn(usize, &Thumbnail, &[&Observation]) -> Comparison,
 ) -> Vec<Comparison> {
     scene
         .views
@@ -174,7 +176,7 @@ fn comparisons_with(
                 .iter()
                 .filter(|o| o.image == v.index)
                 .collect();
-            Some(compare_image_with(v.index, thumb.as_ref()?, &obs, brdf_of))
+            Some(compare(v.index, thumb.as_ref()?, &obs))
         })
         .collect()
 }

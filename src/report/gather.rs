@@ -11,9 +11,11 @@
 //!   ([`super::session`]); `calibration.json` through its owner `pipeline::calibration_file`.
 //! - reconstruction output: `brdf.binary` (MERL table) and `report.json` through its owner
 //!   `reconstruct::report_file` (the typed record `brdf-rig reconstruct` writes; a file of another
-//!   version says so), plus any `*.png` renders beside them.
+//!   version says so), plus any `*.png` renders beside them, and with several materials each
+//!   material's table ([`super::materials`]).
 
 use super::avail::{Avail, error_chain};
+use super::brdf_file::{is_neural, load_brdf};
 use super::charts::{ChartSpec, Series, line_chart};
 use super::images::{EmbeddedImage, png_files, sphere_renders};
 use super::inplane::{self, InPlaneCurve};
@@ -22,7 +24,6 @@ use super::options::ReportOptions;
 use super::session::{CaptureSummary, summarise_session};
 use crate::brdf::Brdf;
 use crate::brdf::merl::MerlTable;
-use crate::brdf::nbrdf::Nbrdf;
 use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
 use crate::reconstruct::ladder::{Family, FoldScheme};
@@ -114,8 +115,9 @@ pub struct ReportData {
     pub comparisons: Avail<Vec<ComparisonRow>>,
     /// The normal refinement (`normals`); `None` when it did not run.
     pub normals: Option<NormalsSection>,
-    /// The materials found (`materials`); `None` when the segmentation did not run.
-    pub materials: Option<crate::reconstruct::materials::MaterialsFile>,
+    /// The materials found (`materials`) with, per material, its sphere renders and its
+    /// pixels per light image; `None` when the segmentation did not run.
+    pub materials: Option<super::materials::MaterialsSection>,
 }
 
 /// One alternation of the normal refinement, as shown.
@@ -164,6 +166,8 @@ pub struct LadderSection {
 /// One light image beside its re-render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ComparisonRow {
+    /// Index of the light image in the job.
+    pub index: usize,
     pub image: EmbeddedImage,
     pub fit_error: Option<f64>,
     pub held_out_error: Option<f64>,
@@ -332,7 +336,10 @@ pub fn gather(dir: &Path, opts: &ReportOptions) -> Result<ReportData, super::Rep
             |r| Avail::Yes(ladder_section(r)),
         ),
         normals: rj.and_then(normals_section),
-        materials: rj.and_then(|r| r.materials.clone()),
+        materials: match (rj, &recon_dir) {
+            (Some(r), Some(d)) => super::materials::gather_materials(r, d, opts),
+            _ => None,
+        },
         comparisons: match (rj, &recon_dir) {
             (Some(r), Some(d)) => comparisons_section(r, d),
             _ => Avail::No("no report.json".into()),
@@ -417,12 +424,18 @@ fn comparisons_section(r: &Report, recon_dir: &Path) -> Avail<Vec<ComparisonRow>
     let mut bad = Vec::new();
     for c in &r.comparisons {
         let caption = format!(
-            "light image {}: {} | re-render | error (red: re-render brighter)",
+            "light image {}: {} | re-render | error (red: re-render brighter){}",
             c.image,
-            c.photo.display()
+            c.photo.display(),
+            if c.materials.is_empty() {
+                ""
+            } else {
+                " | material map"
+            }
         );
         match super::images::embed_png(&recon_dir.join(&c.file), caption) {
             Ok(image) => rows.push(ComparisonRow {
+                index: c.image,
                 image,
                 fit_error: Some(c.fit_error),
                 held_out_error: c.held_out_error,
@@ -546,28 +559,6 @@ fn gather_calibration(session: Option<&Path>) -> Avail<Vec<CalibrationEntry>> {
 
 // ---------------------------------------------------------------------------------------------
 // The BRDF
-
-/// Why a BRDF file to compare with could not be loaded.
-#[derive(Debug, thiserror::Error)]
-pub enum LoadBrdfError {
-    #[error(transparent)]
-    Neural(#[from] crate::brdf::nbrdf::NbrdfError),
-    #[error(transparent)]
-    Merl(#[from] crate::brdf::merl::MerlError),
-}
-
-/// Loads a BRDF file: `.f32` is a neural MERL fit, anything else a MERL table.
-pub fn load_brdf(path: &Path) -> Result<Box<dyn Brdf>, LoadBrdfError> {
-    if path.extension().is_some_and(|e| e == "f32") {
-        Ok(Box::new(Nbrdf::load(path)?))
-    } else {
-        Ok(Box::new(MerlTable::read(path)?))
-    }
-}
-
-fn is_neural(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e == "f32")
-}
 
 fn brdf_section(
     table: &MerlTable,

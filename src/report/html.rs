@@ -8,8 +8,10 @@ use super::gather::{
     CalibrationEntry, ComparisonRow, ComponentsSection, LadderSection, ReportData, TrialsSection,
 };
 use super::images::EmbeddedImage;
+use super::materials::{MaterialDetail, MaterialsSection};
 use super::numbers::fmt_num;
 use super::session::CaptureSummary;
+use crate::geometry::labels::label_colour;
 use base64::Engine;
 use std::fmt::Write as _;
 
@@ -39,7 +41,8 @@ figcaption{font-size:.8em;max-width:320px}.charts{display:flex;flex-wrap:wrap;ga
 .charts figure{margin:0}.charts svg{max-width:100%;height:auto}\
 pre{background:#f7f7f7;padding:.5em;overflow:auto;max-height:20em}.chosen{background:#e8f4e8}\
 .hole{display:inline-block;width:200px;height:200px;border:2px dashed #c66;color:#a33;\
-padding:1em;box-sizing:border-box}";
+padding:1em;box-sizing:border-box}.swatch{display:inline-block;width:1em;height:1em;\
+border:1px solid #888;vertical-align:middle;margin-right:.4em}";
 
 /// After load, marks `<body>` with `data-images-ok` (every image decoded) and counts, so a
 /// headless browser test can check the page rendered.
@@ -131,7 +134,7 @@ pub fn render_html(data: &ReportData) -> String {
     if let Some(m) = &data.materials {
         section_materials(&mut h, m);
     }
-    section_comparisons(&mut h, &data.comparisons);
+    section_comparisons(&mut h, &data.comparisons, data.materials.as_ref());
     section_trials(&mut h, &data.trials, &data.components);
     section_timing(&mut h, &data.timing);
 
@@ -384,7 +387,18 @@ fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
     }
 }
 
-fn section_materials(h: &mut String, m: &crate::reconstruct::materials::MaterialsFile) {
+/// A small square of a material's colour (`geometry::labels::label_colour`).
+fn swatch(h: &mut String, label: usize) {
+    let c = label_colour(u32::try_from(label).unwrap_or(u32::MAX));
+    let _ = write!(
+        h,
+        "<span class=\"swatch\" style=\"background:rgb({},{},{})\"></span>",
+        c[0], c[1], c[2]
+    );
+}
+
+fn section_materials(h: &mut String, section: &MaterialsSection) {
+    let m = &section.file;
     h.push_str("<h2 id=\"materials\">Materials</h2>");
     let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
     let _ = write!(
@@ -421,19 +435,17 @@ fn section_materials(h: &mut String, m: &crate::reconstruct::materials::Material
         "<p>One BRDF per material, each chosen by its own model ladder; the largest is also \
          <code>brdf.binary</code>. <code>{}</code> beside <code>report.json</code> is the mesh \
          with each vertex's material (<code>label</code>, 0 = the first row, and the colour \
-         shown here).</p>",
+         shown here, also the colour of the material map beside each re-render).</p>",
         escape(&m.material_map)
     );
     h.push_str("<table><tr><th></th><th>material</th><th>pixels</th><th>vertices</th><th>colour of its pixels (r, g, b shares)</th><th>model</th><th>confidence</th><th>held-out error</th><th>file</th></tr>");
     for (i, e) in m.materials.iter().enumerate() {
-        let c = crate::geometry::mesh_io::LABEL_COLOURS
-            [i % crate::geometry::mesh_io::LABEL_COLOURS.len()];
+        h.push_str("<tr><td>");
+        swatch(h, i);
         let _ = write!(
             h,
-            "<tr><td style=\"background:rgb({},{},{})\"></td><td>{}</td><td>{}</td><td>{}</td><td>{:.3}, {:.3}, {:.3}</td><td>{}</td><td>{}: {}</td><td>{}</td><td><code>{}</code></td></tr>",
-            c[0],
-            c[1],
-            c[2],
+            "</td><td><a href=\"#material-{}\">{}</a></td><td>{}</td><td>{}</td><td>{:.3}, {:.3}, {:.3}</td><td>{}</td><td>{}</td><td>{}</td><td><code>{}</code></td></tr>",
+            i + 1,
             escape(&e.name),
             e.observed_pixels,
             e.observed_vertices,
@@ -442,15 +454,104 @@ fn section_materials(h: &mut String, m: &crate::reconstruct::materials::Material
             e.chromaticity[2],
             escape(&e.model),
             escape(&e.confidence),
-            escape(&e.confidence_reasons.join("; ")),
             escape(&num(e.held_out_error)),
             escape(&e.file)
         );
     }
     h.push_str("</table>");
+    for (i, e) in m.materials.iter().enumerate() {
+        section_material(h, i, e, section.details.get(i));
+    }
 }
 
-fn section_comparisons(h: &mut String, rows: &Avail<Vec<ComparisonRow>>) {
+/// One material's own section: its facts, its BRDF on spheres and its pixels per light image.
+fn section_material(
+    h: &mut String,
+    i: usize,
+    e: &crate::reconstruct::materials::MaterialEntry,
+    detail: Option<&MaterialDetail>,
+) {
+    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+    let _ = write!(
+        h,
+        "<section class=\"material\" id=\"material-{}\"><h3>",
+        i + 1
+    );
+    swatch(h, i);
+    let _ = write!(h, "{}</h3>", escape(&e.name));
+    // the reasons name their level themselves ("medium: ...")
+    let why_confidence = if e.confidence_reasons.is_empty() {
+        "trials agree, the fit explains held-back pixels, theta_d well covered".to_string()
+    } else {
+        e.confidence_reasons.join("; ")
+    };
+    kv_table(
+        h,
+        &[
+            ("label in material_map.ply".into(), i.to_string()),
+            ("observed pixels".into(), e.observed_pixels.to_string()),
+            ("observed vertices".into(), e.observed_vertices.to_string()),
+            (
+                "colour of its pixels (r, g, b shares)".into(),
+                format!(
+                    "{:.3}, {:.3}, {:.3}",
+                    e.chromaticity[0], e.chromaticity[1], e.chromaticity[2]
+                ),
+            ),
+            ("model".into(), e.model.clone()),
+            ("why this model".into(), e.model_reason.clone()),
+            ("confidence".into(), e.confidence.clone()),
+            ("why this confidence".into(), why_confidence),
+            ("held-out error".into(), num(e.held_out_error)),
+            ("file".into(), e.file.clone()),
+        ],
+    );
+    let Some(d) = detail else {
+        na(h, "internal: no details gathered for this material");
+        h.push_str("</section>");
+        return;
+    };
+    match &d.spheres {
+        Avail::No(why) => {
+            na(h, why);
+            h.push_str("<div class=\"hole\">sphere renders not available</div>");
+        }
+        Avail::Yes(imgs) => {
+            h.push_str(
+                "<p>Its BRDF on the spheres of the result's section (same view and lights; \
+                 its own exposure).</p><div>",
+            );
+            for img in imgs {
+                figure(h, img);
+            }
+            h.push_str("</div>");
+        }
+    }
+    if !d.comparisons.is_empty() {
+        h.push_str(
+            "<table><tr><th>light image</th><th>its pixels there</th>\
+             <th>error of the re-render on them</th></tr>",
+        );
+        for c in &d.comparisons {
+            let _ = write!(
+                h,
+                "<tr><td><a href=\"#compare-{}\">{}</a></td><td>{}</td><td>{}</td></tr>",
+                c.image,
+                c.image,
+                c.observed_pixels,
+                escape(&num(c.fit_error))
+            );
+        }
+        h.push_str("</table>");
+    }
+    h.push_str("</section>");
+}
+
+fn section_comparisons(
+    h: &mut String,
+    rows: &Avail<Vec<ComparisonRow>>,
+    materials: Option<&MaterialsSection>,
+) {
     h.push_str("<h2 id=\"compare\">Photo against re-render</h2>");
     match rows {
         Avail::No(why) => na(h, why),
@@ -462,8 +563,24 @@ fn section_comparisons(h: &mut String, rows: &Avail<Vec<ComparisonRow>>) {
                  where the re-render is brighter, blue where darker, on the photo's scale). \
                  No ground truth is needed to read it.</p>",
             );
+            if let Some(m) = materials.filter(|m| !m.file.materials.is_empty()) {
+                h.push_str(
+                    "<p id=\"material-map-legend\">Several materials: each pixel is \
+                     re-rendered with its own material's BRDF, and a fourth image is the \
+                     material map of the view, each observed pixel in its material's colour \
+                     (the colours of <code>material_map.ply</code>), shaded as the re-render; \
+                     dark grey where no pixel was used. ",
+                );
+                for (i, e) in m.file.materials.iter().enumerate() {
+                    swatch(h, i);
+                    let _ = write!(h, "{} ", escape(&e.name));
+                }
+                h.push_str("</p>");
+            }
             for r in rows {
+                let _ = write!(h, "<div id=\"compare-{}\">", r.index);
                 figure(h, &r.image);
+                h.push_str("</div>");
                 let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
                 let _ = write!(
                     h,

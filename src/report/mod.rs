@@ -2,18 +2,21 @@
 //! page summarising a capture session or a reconstruction.
 //!
 //! `inplane` and `charts` are pure (data in, SVG strings out). `gather` (with `session` for the
-//! capture and `images` for previews and sphere renders) reads what a folder holds, tolerantly:
-//! a missing piece is reported as "not available" with the reason. `html` renders the page from
-//! that, purely. `avail` (a piece or why it is missing), `options` and `numbers` are the leaves
-//! they share. Only the gathering and [`write_report`] touch files.
+//! capture, `images` for previews and sphere renders, `materials` for the per-material part)
+//! reads what a folder holds, tolerantly: a missing piece is reported as "not available" with
+//! the reason. `html` renders the page from that, purely. `avail` (a piece or why it is
+//! missing), `brdf_file` (loading a result or a curve), `options` and `numbers` are the leaves
+//! they share. Only the gathering (with `brdf_file`) and [`write_report`] touch files.
 
 pub mod avail;
+pub mod brdf_file;
 pub mod charts;
 pub mod gather;
 pub mod headless;
 pub mod html;
 pub mod images;
 pub mod inplane;
+pub mod materials;
 pub mod numbers;
 pub mod options;
 pub mod session;
