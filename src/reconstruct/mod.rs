@@ -28,6 +28,7 @@ pub mod confidence;
 pub mod core;
 pub mod job;
 pub mod ladder;
+pub mod mask_labels;
 pub mod materials;
 pub mod nielsen;
 pub mod observation;
