@@ -1,27 +1,26 @@
 //! Material labels given by the job's label masks (`light_image[i].labels`, issue #17): one
-//! light image's label mask decoded and checked, the votes its observed pixels cast for the
-//! mesh's vertices, and the per-vertex labels those votes fix for the segmentation
+//! light image's label mask decoded and checked, the votes its pixels cast for the mesh's
+//! vertices, and the per-vertex labels those votes fix for the segmentation
 //! (`segment::segment_with_labels`), which labels only the vertices left free.
 //!
 //! Conventions: a label mask has the size of its light image and holds one whole number per
 //! pixel: 0 gives no label (the automatic segmentation decides there), `v` in 1..=255 says
-//! "material `v`". Only observed pixels vote: a pixel the job's `mask` removes, or that is
-//! dropped (shadowed, grazing, saturated, black, thinned by the reduction), casts no vote. An
-//! observation votes for the corner of its face nearest to where it was seen, the vertex
-//! through which the segmentation gives it its material (`Segmentation::label_of`), so a
-//! vertex's votes are the pixels whose material it decides. A vertex takes the label most of
-//! its votes give; a tie between two labels fixes nothing (the masks disagree there, so the
-//! segmentation decides). The labels that fix at least one vertex become the given materials,
-//! numbered densely in the order of their mask values (mask values 2 and 5 are materials 0
-//! and 1 of the segmentation).
+//! "material `v`". Every labelled pixel where the mesh is seen (the face the view's z-buffer
+//! names) and that the job's `mask` keeps votes for the three corners of that face, whether or
+//! not the pixel is observed: a label is a statement about the surface, so a shadowed,
+//! saturated or thinned-out pixel's label counts too, and all three corners, so that a mesh
+//! finer than the pixels is still covered where the labels are drawn. A vertex takes the
+//! label most of its votes give; a tie between two labels fixes nothing (the masks disagree
+//! there, so the segmentation decides). The labels that fix at least one vertex become the
+//! given materials, numbered densely in the order of their mask values (mask values 2 and 5
+//! are materials 0 and 1 of the segmentation).
 //!
-//! Pure: decodes an image already in memory; reading the file is `prepare`'s.
+//! Pure: decodes an image already in memory, reads the view's faces through a function;
+//! reading the files and rasterising are `prepare`'s.
 
-use super::observation::Observation;
-use super::segment::nearest_corner;
 use crate::geometry::mesh::Mesh;
 use image::DynamicImage;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// The largest label a mask may hold (`material_map.ply` stores a label in one byte, and 255
 /// materials are already far more than a core per material can fit in reasonable time).
@@ -179,18 +178,36 @@ impl LabelVotes {
         self.counts.is_empty()
     }
 
-    /// The votes of one view: every observation of `observations` (all from the view whose
-    /// label mask is `labels`) whose pixel has a label votes for the nearest corner of its face.
-    pub fn add_view(&mut self, mesh: &Mesh, observations: &[Observation], labels: &LabelImage) {
-        for o in observations {
-            let (Some(label), Some(v)) = (
-                labels.get(o.x as usize, o.y as usize),
-                nearest_corner(mesh, o),
-            ) else {
+    /// The votes of one view: every pixel with a label in `labels`, where `face_at(x, y)`
+    /// names the mesh face the pixel sees and `mask` (row-major, the job's pixel mask) keeps
+    /// it, votes for the three corners of that face.
+    pub fn add_view(
+        &mut self,
+        mesh: &Mesh,
+        labels: &LabelImage,
+        mask: Option<&[bool]>,
+        face_at: impl Fn(usize, usize) -> Option<u32>,
+    ) {
+        let mut per_face: HashMap<(u32, u32), u32> = HashMap::new();
+        for y in 0..labels.height {
+            for x in 0..labels.width {
+                let Some(label) = labels.get(x, y) else {
+                    continue;
+                };
+                let kept =
+                    mask.is_none_or(|m| m.get(y * labels.width + x).copied().unwrap_or(false));
+                if let (true, Some(face)) = (kept, face_at(x, y)) {
+                    *per_face.entry((face, label)).or_insert(0) += 1;
+                }
+            }
+        }
+        for ((face, label), n) in per_face {
+            let Some(corners) = mesh.faces().get(face as usize) else {
                 continue;
             };
-            let Ok(v) = u32::try_from(v) else { continue };
-            *self.counts.entry((v, label)).or_insert(0) += 1;
+            for &v in corners {
+                *self.counts.entry((v, label)).or_insert(0) += n;
+            }
         }
     }
 
@@ -237,9 +254,8 @@ impl LabelVotes {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::reconstruct::observation::Seen;
     use image::{GrayImage, ImageBuffer, Luma, Rgb, RgbImage};
-    use nalgebra::{Point3, Vector3};
+    use nalgebra::Point3;
 
     #[test]
     fn decodes_grey_8_and_16_bit_and_refuses_what_is_not_a_label() {
@@ -293,41 +309,37 @@ mod tests {
             .0
     }
 
-    fn seen_at(face: u32, x: f64, y: f64, px: u32) -> Observation {
-        let seen = Seen {
-            face,
-            position: Point3::new(x, y, 0.0),
-            ..Seen::pixel(0, px, 0, Vector3::z())
-        };
-        Observation::new(seen, Vector3::z(), Vector3::z(), [0.1; 3], [1.0; 3]).unwrap()
-    }
-
     #[test]
-    fn a_vertex_takes_the_majority_of_its_pixels_and_ties_fix_nothing() {
+    fn a_vertex_takes_the_majority_of_the_pixels_on_its_faces_and_ties_fix_nothing() {
         let mesh = square();
-        // a 6x1 label image: pixels 0..6 with labels 0, 5, 5, 2, 2, 9
+        // 6x1 pixels with labels 0, 5, 5, 2, 2, 9; pixels 0..3 see face 0, 3..5 face 1, 5 none
         let img = GrayImage::from_raw(6, 1, vec![0, 5, 5, 2, 2, 9]).unwrap();
         let labels = LabelImage::decode(&DynamicImage::ImageLuma8(img), 6, 1).unwrap();
-        let obs = [
-            seen_at(0, 0.1, 0.0, 0), // vertex 0, no label: no vote
-            seen_at(0, 0.9, 0.1, 1), // vertex 1: 5
-            seen_at(0, 0.9, 0.2, 2), // vertex 1: 5
-            seen_at(0, 0.8, 0.1, 3), // vertex 1: 2 (outvoted)
-            seen_at(1, 0.1, 0.9, 4), // vertex 3: 2
-            seen_at(1, 0.2, 0.9, 5), // vertex 3: 9 (a tie with 2)
-            seen_at(1, 0.9, 0.9, 3), // vertex 2: 2
-        ];
+        let face_at = |x: usize, _y: usize| match x {
+            0..=2 => Some(0),
+            3 | 4 => Some(1),
+            _ => None,
+        };
         let mut votes = LabelVotes::default();
         assert!(votes.is_empty());
-        votes.add_view(&mesh, &obs, &labels);
+        votes.add_view(&mesh, &labels, None, face_at);
+        // face 0 [0, 1, 2]: two votes for 5; face 1 [0, 2, 3]: two for 2; pixel 5 sees nothing
+        // vertex 0 and 2: 5 twice, 2 twice (a tie); vertex 1: 5; vertex 3: 2
         let fixed = votes.fixed(4).unwrap();
-        // labels 2 and 5 fix vertices (9 only ties): materials 0 and 1, by mask value
         assert_eq!(fixed.mask_labels, vec![2, 5]);
-        assert_eq!(fixed.vertex, vec![None, Some(1), Some(0), None]);
-        assert_eq!(fixed.ties, 1);
+        assert_eq!(fixed.vertex, vec![None, Some(1), None, Some(0)]);
+        assert_eq!(fixed.ties, 2);
         assert_eq!(fixed.vertices_of(0), 1);
+        // the pixel mask removes pixel 4: face 1 has one vote left, still for 2
+        let mut masked = LabelVotes::default();
+        let mask = [true, true, true, true, false, true];
+        masked.add_view(&mesh, &labels, Some(&mask), face_at);
+        let fixed = masked.fixed(4).unwrap();
+        assert_eq!(fixed.vertex, vec![Some(1), Some(1), Some(1), Some(0)]);
+        // a second view adds its votes: vertex 3 now 2 twice
+        masked.add_view(&mesh, &labels, Some(&mask), |x, _| (x == 3).then_some(1));
+        assert_eq!(masked.fixed(4).unwrap().vertex[3], Some(0));
         // no labelled pixel: nothing fixed
-        let none = LabelVotes::default();
-        assert_eq!(none.fixed(4), None);
+        assert_eq!(LabelVotes::default().fixed(4), None);
     }
 }

@@ -142,7 +142,7 @@ impl Segmentation {
 }
 
 /// The vertex of `o`'s face nearest to where it was seen.
-pub(crate) fn nearest_corner(mesh: &Mesh, o: &Observation) -> Option<usize> {
+fn nearest_corner(mesh: &Mesh, o: &Observation) -> Option<usize> {
     if o.face == NO_FACE {
         return None;
     }
