@@ -144,12 +144,21 @@ pub fn reconstruct_materials(
             .iter()
             .map(|&i| std::mem::take(&mut groups[i]))
             .collect();
+        let named = |i: usize| match mask_labels[i] {
+            Some(l) => format!("{} (mask label {l})", material_name(i)),
+            None => material_name(i),
+        };
+        // A given material whose every pixel was dropped (labels drawn only where the object
+        // is in shadow, say) has nothing to fit: said before any core runs, not after.
+        if let Some(i) = groups.iter().position(Vec::is_empty) {
+            return Err(MaterialError::Core {
+                name: named(i),
+                source: CoreError::NoObservations,
+            });
+        }
         for (i, obs) in groups.iter().enumerate() {
             let name = material_name(i);
-            let named = match mask_labels[i] {
-                Some(l) => format!("{name} (mask label {l})"),
-                None => name.clone(),
-            };
+            let named = named(i);
             progress(&format!("{named}: {} pixels", obs.len()));
             let core = reconstruct_observations(obs, prior, core_settings, progress).map_err(
                 |source| MaterialError::Core {
