@@ -214,6 +214,9 @@ impl LabelVotes {
     /// Each vertex's majority label, for a mesh of `vertices` vertices; `None` when no vertex
     /// is fixed (no vote, or only ties).
     pub fn fixed(&self, vertices: usize) -> Option<FixedLabels> {
+        if self.counts.is_empty() {
+            return None;
+        }
         let mut winner: Vec<Option<u32>> = vec![None; vertices];
         let mut ties = 0;
         let mut entries = self.counts.iter().peekable();

@@ -3,11 +3,12 @@
 //! `run` chains this with the pure core. Touches files (as `output` and `report_file` do);
 //! every error names the file and the field.
 //!
-//! Images are streamed: [`prepare`] reads one light image, observes it (`sweep`: z-buffer,
-//! reduction, shadow rays for the kept pixels), keeps its thumbnail for the comparison and lets
-//! it go before reading the next, so memory follows the observations, not the sensor. The
-//! normal refinement, which works on every pixel of every view, holds the images instead
-//! ([`load_scene`], [`observe_scene_with`]).
+//! Images are streamed: [`prepare`] reads one light image (and its pixel and label masks),
+//! observes it (`sweep`: z-buffer, reduction, shadow rays for the kept pixels; the label
+//! mask's votes from the same z-buffer, `mask_labels`), keeps its thumbnail for the comparison
+//! and lets it go before reading the next, so memory follows the observations, not the
+//! sensor. The normal refinement, which works on every pixel of every view, holds the images
+//! instead ([`load_scene`], [`observe_scene_with`]).
 
 use super::compare::Thumbnail;
 use super::core::{CoreError, CoreSettings};
