@@ -21,15 +21,15 @@ use brdf_rig::sim::job_scene::{
 };
 use nalgebra::Vector3;
 
-const MATERIALS: [&str; 2] = ["green-latex", "pink-fabric"];
+pub const MATERIALS: [&str; 2] = ["green-latex", "pink-fabric"];
 
-fn spot() -> Mesh {
+pub fn spot() -> Mesh {
     load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj"))
         .unwrap()
         .0
 }
 
-fn material(name: &str) -> Nbrdf {
+pub fn material(name: &str) -> Nbrdf {
     Nbrdf::load(
         &util::shared_data()
             .join("merl-nbrdf")

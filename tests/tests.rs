@@ -25,6 +25,7 @@ mod formats;
 mod geometry;
 mod imports;
 mod independent;
+mod label_masks;
 mod materials;
 mod observe_sweep;
 mod raw_input;

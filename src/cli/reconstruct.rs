@@ -108,7 +108,9 @@ pub struct Args {
     pub max_tilt: f64,
     /// Materials of the object: `one` (the paper's assumption) or `auto` (find them in the
     /// images, choose how many on held-out images, fit one BRDF each: materials/NAME.binary,
-    /// materials.json, material_map.ply; docs/materials.md).
+    /// materials.json, material_map.ply; docs/materials.md). Label masks in the job
+    /// (`labels = ...`) fix materials where they label the object, with either: `one` then
+    /// gives exactly the masks' materials, `auto` may add more.
     #[arg(long, value_enum, default_value = "one")]
     pub materials: MaterialsArg,
     /// With `--materials auto`: the largest number of materials tried (1 to 8).
@@ -264,8 +266,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(m) = &output.report.materials {
         errln!("materials: {} ({})", m.count, m.reason);
         for e in &m.materials {
+            let given = e
+                .mask_label
+                .map_or(String::new(), |l| format!(" (mask label {l})"));
             errln!(
-                "  {}: {} pixels, {}, confidence {}; wrote {}",
+                "  {}{given}: {} pixels, {}, confidence {}; wrote {}",
                 e.name,
                 e.observed_pixels,
                 e.model,

@@ -188,6 +188,7 @@ pub fn run(
                     let (m, cores) = reconstruct_materials(
                         &loaded.mesh,
                         &obs,
+                        None,
                         &prior,
                         &core,
                         &spec.segment,

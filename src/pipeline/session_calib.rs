@@ -427,6 +427,7 @@ fn write_light_images(
             light_dir_camera: Vector3::new(d[0], d[1], d[2]),
             irradiance: cal.irradiance,
             mask: None,
+            labels: None,
         });
     }
     if light_images.is_empty() {

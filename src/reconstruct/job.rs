@@ -12,12 +12,21 @@
 //! light_dir_camera = [x, y, z]   # unit vector towards the light, camera axes (x right, y down, z forward)
 //! irradiance = [r, g, b]
 //! mask = "masks/view_00.png"     # optional, non-zero = material
+//! labels = "masks/labels_00.png" # optional: material labels, 0 = not given, v = material v
 //! ```
 //!
 //! Conventions: relative paths are relative to the folder holding the job file; the light
 //! direction points from the surface towards the light, in the camera axes of COLMAP (x right,
 //! y down, z forward). Unknown keys are tolerated (later versions add keys) and reported as
 //! warnings. A `format_version` other than [`JOB_FORMAT_VERSION`] is an error naming the file.
+//!
+//! The two masks: `mask` removes pixels (0 = not the object; any non-zero value, soft masks
+//! included, keeps the pixel). `labels` names materials (an 8- or 16-bit
+//! grey image, `reconstruct::mask_labels`): 0 leaves a pixel to the automatic segmentation,
+//! `v` in 1..=255 says it shows material `v`; the vertices the labelled pixels see are fixed to
+//! that material (docs/materials.md, "Label masks"). Both have the light image's size; an image
+//! may have either, both or neither. `labels` was added within version 1: a tool that predates
+//! it warns that the key is unknown and ignores it.
 //!
 //! This module owns the format: [`JobFile`] is the file as serde reads and writes it (with the
 //! `toml` crate, so strings are escaped as TOML escapes them), [`Job`] the checked job with its
@@ -83,6 +92,8 @@ pub struct LightImageEntry {
     pub irradiance: [f64; 3],
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mask: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub labels: Option<String>,
 }
 
 /// One single-light image of the job.
@@ -98,6 +109,8 @@ pub struct LightImageSpec {
     pub irradiance: [f64; 3],
     /// Optional mask, resolved; non-zero = material.
     pub mask: Option<PathBuf>,
+    /// Optional material label mask, resolved; 0 = no label given, `v` = material `v`.
+    pub labels: Option<PathBuf>,
 }
 
 /// A parsed and checked job; paths are resolved.
@@ -113,7 +126,14 @@ pub struct Job {
 }
 
 const TOP_KEYS: [&str; 4] = ["format_version", "mesh", "cameras", "light_image"];
-const IMAGE_KEYS: [&str; 5] = ["file", "camera", "light_dir_camera", "irradiance", "mask"];
+const IMAGE_KEYS: [&str; 6] = [
+    "file",
+    "camera",
+    "light_dir_camera",
+    "irradiance",
+    "mask",
+    "labels",
+];
 /// A light direction further than this from unit length is an error, closer is renormalised.
 const UNIT_TOLERANCE: f64 = 0.05;
 
@@ -219,12 +239,17 @@ impl Job {
                     ),
                 ));
             }
+            let labels = match &e.labels {
+                Some(l) => Some(nonempty(f("labels"), l)?),
+                None => None,
+            };
             light_images.push(LightImageSpec {
                 file: path,
                 camera: e.camera.clone(),
                 light_dir_camera: dir / norm,
                 irradiance: e.irradiance,
                 mask: e.mask.as_ref().map(|m| base.join(m)),
+                labels,
             });
         }
         Ok(Self {
@@ -265,6 +290,7 @@ impl Job {
                     light_dir_camera: li.light_dir_camera.into(),
                     irradiance: li.irradiance,
                     mask: li.mask.as_deref().map(&rel),
+                    labels: li.labels.as_deref().map(&rel),
                 })
                 .collect(),
         }
@@ -312,6 +338,7 @@ camera = "view_00.exr"
 light_dir_camera = [0.0, 0.0, -1.0]
 irradiance = [1.0, 2, 3.0]
 mask = "masks/view_00.png"
+labels = "masks/labels_00.png"
 [[light_image]]
 file = "/abs/view_01.exr"
 camera = "view_01.exr"
@@ -328,6 +355,8 @@ irradiance = [1.0, 1.0, 1.0]
         let a = &job.light_images[0];
         assert_eq!(a.file, PathBuf::from("/data/light/view_00.exr"));
         assert_eq!(a.mask, Some(PathBuf::from("/data/masks/view_00.png")));
+        assert_eq!(a.labels, Some(PathBuf::from("/data/masks/labels_00.png")));
+        assert_eq!(job.light_images[1].labels, None);
         assert_eq!(a.irradiance, [1.0, 2.0, 3.0]);
         assert_eq!(job.light_images[1].file, PathBuf::from("/abs/view_01.exr"));
         assert!((job.light_images[1].light_dir_camera.norm() - 1.0).abs() < 1e-12);
@@ -343,8 +372,8 @@ irradiance = [1.0, 1.0, 1.0]
         .unwrap();
         for (a, b) in again.light_images.iter().zip(&job.light_images) {
             assert_eq!(
-                (&a.file, &a.camera, a.irradiance, &a.mask),
-                (&b.file, &b.camera, b.irradiance, &b.mask)
+                (&a.file, &a.camera, a.irradiance, &a.mask, &a.labels),
+                (&b.file, &b.camera, b.irradiance, &b.mask, &b.labels)
             );
             assert!((a.light_dir_camera - b.light_dir_camera).norm() < 1e-12);
         }
@@ -380,6 +409,18 @@ irradiance = [1.0, 1.0, 1.0]
         assert!(err_of(no_images).contains("light_image"));
         let wrong_type = GOOD.replace("camera = \"view_00.exr\"", "camera = 7");
         assert!(err_of(&wrong_type).contains("light_image[0].camera"));
+        let labels_number = GOOD.replace("labels = \"masks/labels_00.png\"", "labels = 2");
+        let e = err_of(&labels_number);
+        assert!(
+            e.contains("job.toml") && e.contains("light_image[0].labels"),
+            "{e}"
+        );
+        let labels_empty = GOOD.replace("labels = \"masks/labels_00.png\"", "labels = \" \"");
+        let e = err_of(&labels_empty);
+        assert!(
+            e.contains("light_image[0].labels") && e.contains("empty"),
+            "{e}"
+        );
     }
 
     #[test]

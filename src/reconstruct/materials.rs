@@ -1,13 +1,20 @@
-//! Several materials on one object (issue #17): the segmentation (`segment`), one BRDF per
-//! material by the whole core (model ladder, trials, plausibility, confidence), and the owner of
-//! `materials.json`, its name, version and the names of the files beside it. The per-material
-//! fits are pure; only [`write`] and [`read`] touch files.
+//! Several materials on one object (issue #17): the segmentation (`segment`), with the
+//! materials the job's label masks give fixed where they give them (`mask_labels`), one BRDF
+//! per material by the whole core (model ladder, trials, plausibility, confidence), and the
+//! owner of `materials.json`, its name, version and the names of the files beside it. The
+//! per-material fits are pure; only [`write`] and [`read`] touch files.
+//!
+//! `materials.json` version 1 gained `mask_labels` (top level) and `mask_label`,
+//! `mask_vertices` (per material) when label masks came; they read as "no label mask" when
+//! absent, which is what a file written before them means, and a reader that predates them
+//! ignores them, so the version stayed 1.
 
 use super::confidence::Confidence;
 use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_observations};
+use super::mask_labels::FixedLabels;
 use super::observation::Observation;
 use super::prior::Prior;
-use super::segment::{CountScore, SegmentSettings, Segmentation, segment};
+use super::segment::{CountScore, SegmentSettings, Segmentation, segment_with_labels};
 use crate::brdf::merl::MerlTable;
 use crate::format::{FormatError, Versioned};
 use crate::geometry::mesh::Mesh;
@@ -48,6 +55,10 @@ pub struct MaterialResult {
     pub observed_vertices: usize,
     /// Mean chromaticity of its pixels (r, g, b shares).
     pub chromaticity: [f64; 3],
+    /// The label the job's masks give it (`None`: found by the segmentation).
+    pub mask_label: Option<u32>,
+    /// Vertices the masks fixed to it.
+    pub mask_vertices: usize,
     /// Its result as written (`materials/NAME.binary`).
     pub table: MerlTable,
     pub model: ModelReport,
@@ -58,6 +69,9 @@ pub struct MaterialResult {
 /// largest first (by observed pixels; the labels are renumbered to that order).
 pub struct Materials {
     pub segmentation: Segmentation,
+    /// Per material of `segmentation` (its order): the label the job's masks give it, `None`
+    /// for a material the segmentation found.
+    pub mask_labels: Vec<Option<u32>>,
     pub results: Vec<MaterialResult>,
     /// Seconds spent finding the materials (not fitting them).
     pub segment_seconds: f64,
@@ -66,13 +80,14 @@ pub struct Materials {
     pub mesh: Mesh,
 }
 
-/// Finds the materials of `mesh` from `observations`; when there is more than one, runs the
-/// core on each material's pixels and returns the cores too (in the order of `results`). With
-/// one material `results` is empty: the caller runs the core on every pixel as without
-/// segmentation.
+/// Finds the materials of `mesh` from `observations`, the vertices `fixed` by the job's label
+/// masks kept on their materials; when there is more than one, runs the core on each
+/// material's pixels and returns the cores too (in the order of `results`). With one material
+/// `results` is empty: the caller runs the core on every pixel as without segmentation.
 pub fn reconstruct_materials(
     mesh: &Mesh,
     observations: &[Observation],
+    fixed: Option<&FixedLabels>,
     prior: &dyn Prior,
     core_settings: &CoreSettings,
     settings: &SegmentSettings,
@@ -80,8 +95,19 @@ pub fn reconstruct_materials(
 ) -> Result<(Materials, Vec<CoreOutput>), MaterialError> {
     let t = std::time::Instant::now();
     progress("materials (segmentation, count chosen on held-out images)");
-    let mut segmentation = segment(mesh, observations, settings);
+    let mut segmentation = segment_with_labels(
+        mesh,
+        observations,
+        settings,
+        fixed.map_or(&[][..], |f| &f.vertex[..]),
+    );
     let segment_seconds = t.elapsed().as_secs_f64();
+    let mut mask_labels: Vec<Option<u32>> = (0..segmentation.count)
+        .map(|i| {
+            let given = i < segmentation.given;
+            fixed.and_then(|f| f.mask_labels.get(i).copied().filter(|_| given))
+        })
+        .collect();
     let mut results = Vec::new();
     let mut cores = Vec::new();
     if segmentation.count > 1 {
@@ -109,16 +135,34 @@ pub fn reconstruct_materials(
             .iter()
             .map(|&i| segmentation.chromaticity[i])
             .collect();
+        segmentation.fixed_vertices = order
+            .iter()
+            .map(|&i| segmentation.fixed_vertices[i])
+            .collect();
+        mask_labels = order.iter().map(|&i| mask_labels[i]).collect();
         let groups: Vec<Vec<Observation>> = order
             .iter()
             .map(|&i| std::mem::take(&mut groups[i]))
             .collect();
+        let named = |i: usize| match mask_labels[i] {
+            Some(l) => format!("{} (mask label {l})", material_name(i)),
+            None => material_name(i),
+        };
+        // A given material whose every pixel was dropped (labels drawn only where the object
+        // is in shadow, say) has nothing to fit: said before any core runs, not after.
+        if let Some(i) = groups.iter().position(Vec::is_empty) {
+            return Err(MaterialError::Core {
+                name: named(i),
+                source: CoreError::NoObservations,
+            });
+        }
         for (i, obs) in groups.iter().enumerate() {
             let name = material_name(i);
-            progress(&format!("{name}: {} pixels", obs.len()));
+            let named = named(i);
+            progress(&format!("{named}: {} pixels", obs.len()));
             let core = reconstruct_observations(obs, prior, core_settings, progress).map_err(
                 |source| MaterialError::Core {
-                    name: name.clone(),
+                    name: named,
                     source,
                 },
             )?;
@@ -127,6 +171,8 @@ pub fn reconstruct_materials(
                 observed_pixels: obs.len(),
                 observed_vertices: segmentation.observed_vertices[i],
                 chromaticity: segmentation.chromaticity[i],
+                mask_label: mask_labels[i],
+                mask_vertices: segmentation.fixed_vertices[i],
                 table: core.table.clone(),
                 model: core.model.clone(),
                 confidence: core.confidence.clone(),
@@ -137,6 +183,7 @@ pub fn reconstruct_materials(
     Ok((
         Materials {
             segmentation,
+            mask_labels,
             results,
             segment_seconds,
             settings: *settings,
@@ -166,6 +213,12 @@ pub struct MaterialEntry {
     pub observed_vertices: usize,
     /// Mean chromaticity of its pixels (r, g, b shares).
     pub chromaticity: [f64; 3],
+    /// The label the job's label masks give it; `None` when the segmentation found it.
+    #[serde(default)]
+    pub mask_label: Option<u32>,
+    /// Vertices the label masks fixed to it (the rest joined it by the segmentation).
+    #[serde(default)]
+    pub mask_vertices: usize,
     /// The model the ladder chose (its label) and why.
     pub model: String,
     pub model_reason: String,
@@ -185,6 +238,10 @@ pub struct MaterialsFile {
     /// Every count tried, with its held-out image error.
     pub scores: Vec<CountScore>,
     pub settings: SegmentSettings,
+    /// The labels the job's label masks give (ascending), each a material; empty without
+    /// label masks.
+    #[serde(default)]
+    pub mask_labels: Vec<u32>,
     /// The mesh with a per-vertex `label` (0-based, the order of `materials`), relative to
     /// the folder of `materials.json`.
     pub material_map: String,
@@ -200,6 +257,11 @@ impl MaterialsFile {
             reason: m.segmentation.reason.clone(),
             scores: m.segmentation.scores.clone(),
             settings: m.settings,
+            mask_labels: {
+                let mut l: Vec<u32> = m.mask_labels.iter().flatten().copied().collect();
+                l.sort_unstable();
+                l
+            },
             material_map: MATERIAL_MAP_FILE.to_string(),
             materials: m
                 .results
@@ -210,6 +272,8 @@ impl MaterialsFile {
                     observed_pixels: r.observed_pixels,
                     observed_vertices: r.observed_vertices,
                     chromaticity: r.chromaticity,
+                    mask_label: r.mask_label,
+                    mask_vertices: r.mask_vertices,
                     model: model_label(&r.model),
                     model_reason: r.model.reason.clone(),
                     confidence: r.confidence.level.to_string(),

@@ -10,7 +10,9 @@
 //! - [`prior`]: what a BRDF prior offers (sample selection, ridge fit), [`nielsen`] the real one;
 //! - [`components`]: the number of basis components, by validation on held-back pixels;
 //! - [`trials`]: random trials, chosen by cosine similarity with the captured images;
-//! - [`refine`]: optional: the mesh's normals refined from the images before all of the above.
+//! - [`refine`]: optional: the mesh's normals refined from the images before all of the above;
+//! - [`segment`], [`mask_labels`], [`materials`]: objects of several materials (issue #17):
+//!   found in the images, fixed where the job's label masks give them, one BRDF each.
 //!
 //! [`core`] chains the pure steps on observations; [`prepare`] loads a job's files and
 //! observes them; [`run`] runs everything on a job; [`output`] fills the report and writes the
@@ -28,6 +30,7 @@ pub mod confidence;
 pub mod core;
 pub mod job;
 pub mod ladder;
+pub mod mask_labels;
 pub mod materials;
 pub mod nielsen;
 pub mod observation;

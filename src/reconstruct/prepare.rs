@@ -3,15 +3,17 @@
 //! `run` chains this with the pure core. Touches files (as `output` and `report_file` do);
 //! every error names the file and the field.
 //!
-//! Images are streamed: [`prepare`] reads one light image, observes it (`sweep`: z-buffer,
-//! reduction, shadow rays for the kept pixels), keeps its thumbnail for the comparison and lets
-//! it go before reading the next, so memory follows the observations, not the sensor. The
-//! normal refinement, which works on every pixel of every view, holds the images instead
-//! ([`load_scene`], [`observe_scene_with`]).
+//! Images are streamed: [`prepare`] reads one light image (and its pixel and label masks),
+//! observes it (`sweep`: z-buffer, reduction, shadow rays for the kept pixels; the label
+//! mask's votes from the same z-buffer, `mask_labels`), keeps its thumbnail for the comparison
+//! and lets it go before reading the next, so memory follows the observations, not the
+//! sensor. The normal refinement, which works on every pixel of every view, holds the images
+//! instead ([`load_scene`], [`observe_scene_with`]).
 
 use super::compare::Thumbnail;
 use super::core::{CoreError, CoreSettings};
 use super::job::{Job, JobError};
+use super::mask_labels::{LabelImage, LabelMaskError, LabelVotes};
 use super::nielsen::NielsenSettings;
 use super::observe::{
     DropCounts, ImageCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
@@ -58,7 +60,8 @@ pub struct Settings {
     /// Refine the mesh's normals from the images first (`reconstruct::refine`); `None` = off.
     pub refine: Option<RefineSettings>,
     /// Find the object's materials and fit one BRDF each (`reconstruct::materials`); `None` =
-    /// one material, as the paper assumes.
+    /// one material, as the paper assumes, unless the job's label masks give materials: then
+    /// exactly those (`run::finish`).
     pub materials: Option<super::segment::SegmentSettings>,
 }
 
@@ -123,6 +126,13 @@ pub enum ReconstructError {
         path: PathBuf,
         problem: MaskError,
     },
+    #[error("job {job}: `light_image[{index}].labels`: {path}: {problem}")]
+    Labels {
+        job: PathBuf,
+        index: usize,
+        path: PathBuf,
+        problem: LabelMaskError,
+    },
     #[error(
         "job {job}: no usable pixel in any light image (mesh seen on {covered} pixels; dropped: {drops:?}); check the light directions, masks and exposure"
     )]
@@ -158,6 +168,10 @@ pub struct View {
     pub mask: Option<Vec<bool>>,
     /// The mask file the job names, if any.
     pub mask_file: Option<PathBuf>,
+    /// The material label mask, when held (and the job names one).
+    pub labels: Option<LabelImage>,
+    /// The label mask file the job names, if any.
+    pub labels_file: Option<PathBuf>,
     pub light_world: nalgebra::Vector3<f64>,
     pub irradiance: [f64; 3],
     /// Clip level of this image, if any (known once the image has been read).
@@ -184,10 +198,16 @@ pub fn load_scene_streamed(job: &Job, settings: &Settings) -> Result<Scene, Reco
     load_scene_with(job, settings, false)
 }
 
-/// The pixels of one light image: image, mask and clip level, checked against its camera.
-type ViewPixels = (LinearImage, Option<Vec<bool>>, Option<f64>);
+/// The pixels of one light image, checked against its camera.
+struct ViewPixels {
+    image: LinearImage,
+    mask: Option<Vec<bool>>,
+    labels: Option<LabelImage>,
+    /// Clip level.
+    saturation: Option<f64>,
+}
 
-/// Reads light image `index` of `job` (and its mask), checking its size against `intrinsics`.
+/// Reads light image `index` of `job` (and its masks), checking its size against `intrinsics`.
 fn load_view_pixels(
     job: &Job,
     index: usize,
@@ -227,10 +247,26 @@ fn load_view_pixels(
                 },
             )?),
         };
+    let labels = match &spec.labels {
+        None => None,
+        Some(path) => Some(read_labels(path, image.width(), image.height()).map_err(
+            |problem| ReconstructError::Labels {
+                job: job.source.clone(),
+                index,
+                path: path.clone(),
+                problem,
+            },
+        )?),
+    };
     let saturation = settings
         .saturation
         .or(samples.clip_level(settings.png_scale).map(f64::from));
-    Ok((image, mask, saturation))
+    Ok(ViewPixels {
+        image,
+        mask,
+        labels,
+        saturation,
+    })
 }
 
 fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, ReconstructError> {
@@ -268,11 +304,11 @@ fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, 
                 known,
             });
         };
-        let (image, mask, saturation) = if hold {
-            let (i, m, s) = load_view_pixels(job, index, &intrinsics, settings)?;
-            (Some(i), m, s)
+        let (image, mask, labels, saturation) = if hold {
+            let p = load_view_pixels(job, index, &intrinsics, settings)?;
+            (Some(p.image), p.mask, p.labels, p.saturation)
         } else {
-            (None, None, None)
+            (None, None, None, None)
         };
         views.push(View {
             index,
@@ -282,6 +318,8 @@ fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, 
             image,
             mask,
             mask_file: spec.mask.clone(),
+            labels,
+            labels_file: spec.labels.clone(),
             light_world: pose.dir_to_world(&spec.light_dir_camera),
             irradiance: spec.irradiance,
             saturation,
@@ -324,6 +362,20 @@ fn read_mask(path: &Path, width: usize, height: usize) -> Result<Vec<bool>, Mask
     Ok(luma.pixels().map(|p| p.0[0] > 0).collect())
 }
 
+/// A material label mask (`reconstruct::mask_labels`): an 8- or 16-bit grey image of the
+/// light image's size; JPEG is refused (lossy: the values change near every edge).
+fn read_labels(path: &Path, width: usize, height: usize) -> Result<LabelImage, LabelMaskError> {
+    let read = |e: image::ImageError| LabelMaskError::Read(Box::new(e));
+    let reader = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| read(image::ImageError::IoError(e)))?;
+    if reader.format() == Some(image::ImageFormat::Jpeg) {
+        return Err(LabelMaskError::Lossy);
+    }
+    let img = reader.decode().map_err(read)?;
+    LabelImage::decode(&img, width, height)
+}
+
 /// Observations of every view.
 pub struct Observed {
     pub observations: Vec<Observation>,
@@ -332,6 +384,9 @@ pub struct Observed {
     /// Per view (as `images`): the photo downsampled for the comparison panel; `None` for a
     /// view whose image was not at hand.
     pub thumbnails: Vec<Option<Thumbnail>>,
+    /// The votes of the pixels the job's label masks label, for the vertices of the faces
+    /// they see (`mask_labels`); empty when the job has none.
+    pub label_votes: LabelVotes,
 }
 
 impl Observed {
@@ -341,6 +396,7 @@ impl Observed {
             images: Vec::with_capacity(capacity),
             dropped: DropCounts::default(),
             thumbnails: Vec::with_capacity(capacity),
+            label_votes: LabelVotes::default(),
         }
     }
 
@@ -417,35 +473,47 @@ impl MeshAids {
     }
 }
 
-/// Observes one view from its pixels (`sweep`; a view the z-buffer cannot take is ray-cast
-/// with a shadow ray per pixel, then reduced) and takes its thumbnail.
-/// [`observe_one`] on a view whose image (and mask) the scene holds.
-fn observe_held(
-    mesh: &Mesh,
-    aids: &MeshAids,
-    view: &View,
-    image: &LinearImage,
-    settings: &ObserveSettings,
-) -> (ViewSweep, Thumbnail) {
-    observe_one(
-        mesh,
-        aids,
-        view,
-        image,
-        view.mask.as_deref(),
-        view.saturation,
-        settings,
-    )
+/// One light image's pixels as [`observe_one`] reads them.
+struct ViewPixelsRef<'a> {
+    image: &'a LinearImage,
+    mask: Option<&'a [bool]>,
+    labels: Option<&'a LabelImage>,
+    saturation: Option<f64>,
 }
 
+impl ViewPixels {
+    fn as_ref(&self) -> ViewPixelsRef<'_> {
+        ViewPixelsRef {
+            image: &self.image,
+            mask: self.mask.as_deref(),
+            labels: self.labels.as_ref(),
+            saturation: self.saturation,
+        }
+    }
+}
+
+impl View {
+    /// The pixels this view holds (`None` when streamed).
+    fn held(&self) -> Option<ViewPixelsRef<'_>> {
+        Some(ViewPixelsRef {
+            image: self.image.as_ref()?,
+            mask: self.mask.as_deref(),
+            labels: self.labels.as_ref(),
+            saturation: self.saturation,
+        })
+    }
+}
+
+/// Observes one view from its pixels (`sweep`; a view the z-buffer cannot take is ray-cast
+/// with a shadow ray per pixel, then reduced) and takes its thumbnail; a labelled pixel votes
+/// into `votes` for the corners of the face it sees (`mask_labels`).
 fn observe_one(
     mesh: &Mesh,
     aids: &MeshAids,
     view: &View,
-    image: &LinearImage,
-    mask: Option<&[bool]>,
-    saturation: Option<f64>,
+    px: ViewPixelsRef<'_>,
     settings: &ObserveSettings,
+    votes: &mut LabelVotes,
 ) -> (ViewSweep, Thumbnail) {
     let r = Rasteriser::new(
         mesh,
@@ -457,27 +525,35 @@ fn observe_one(
     let centre = view.pose.centre();
     let input = ViewInput {
         image_index: view.index,
-        image,
-        mask,
+        image: px.image,
+        mask: px.mask,
         camera_centre: centre,
         light_world: view.light_world,
         irradiance: view.irradiance,
     };
     let s = ObserveSettings {
-        saturation: settings.saturation.or(saturation),
+        saturation: settings.saturation.or(px.saturation),
         ..*settings
     };
     let sweep = match r.faces() {
-        Some(faces) => sweep_view(mesh, &aids.bvh, &r, &faces, &input, &s),
+        Some(faces) => {
+            if let Some(labels) = px.labels {
+                votes.add_view(mesh, labels, px.mask, |x, y| faces.face(x, y));
+            }
+            sweep_view(mesh, &aids.bvh, &r, &faces, &input, &s)
+        }
         None => {
             let gbuf = r.gbuffer_ray_cast();
+            if let Some(labels) = px.labels {
+                votes.add_view(mesh, labels, px.mask, |x, y| gbuf.get(x, y).map(|f| f.face));
+            }
             let lit = shadow_mask(mesh, &aids.bvh, &gbuf, &centre, &view.light_world);
             let surface = surface_pixels(&gbuf, &lit);
             let (obs, dropped) = observe_view(&input, &surface, &s);
             reduced(obs, dropped, &surface, &gbuf, &s)
         }
     };
-    (sweep, Thumbnail::of(image, COMPARISON_WIDTH))
+    (sweep, Thumbnail::of(px.image, COMPARISON_WIDTH))
 }
 
 /// Rasterises the mesh from every light camera (z-buffer, per-vertex mean curvature, shadow
@@ -488,9 +564,16 @@ pub fn observe_scene(scene: &Scene, settings: &ObserveSettings) -> Observed {
     let aids = MeshAids::new(&scene.mesh);
     let mut observed = Observed::new(scene.views.len());
     for view in &scene.views {
-        match &view.image {
-            Some(image) => {
-                let (sweep, thumb) = observe_held(&scene.mesh, &aids, view, image, settings);
+        match view.held() {
+            Some(px) => {
+                let (sweep, thumb) = observe_one(
+                    &scene.mesh,
+                    &aids,
+                    view,
+                    px,
+                    settings,
+                    &mut observed.label_votes,
+                );
                 observed.push(&view.file, sweep, Some(thumb));
             }
             None => observed.push(&view.file, ViewSweep::default(), None),
@@ -516,22 +599,22 @@ pub fn observe_scene_streamed(
             scene.views.len(),
             view.file.display()
         ));
-        let (sweep, thumb) = match &view.image {
-            Some(image) => observe_held(&scene.mesh, &aids, view, image, &settings.observe),
+        let loaded;
+        let px = match view.held() {
+            Some(px) => px,
             None => {
-                let (image, mask, saturation) =
-                    load_view_pixels(job, view.index, &view.intrinsics, settings)?;
-                observe_one(
-                    &scene.mesh,
-                    &aids,
-                    view,
-                    &image,
-                    mask.as_deref(),
-                    saturation,
-                    &settings.observe,
-                )
+                loaded = load_view_pixels(job, view.index, &view.intrinsics, settings)?;
+                loaded.as_ref()
             }
         };
+        let (sweep, thumb) = observe_one(
+            &scene.mesh,
+            &aids,
+            view,
+            px,
+            &settings.observe,
+            &mut observed.label_votes,
+        );
         observed.push(&view.file, sweep, Some(thumb));
     }
     Ok(observed)
@@ -590,6 +673,13 @@ pub fn observe_scene_with(
             settings: &s,
         });
         let sweep = reduced(obs, dropped, &surface, &gbuf, &s);
+        if let Some(labels) = &view.labels {
+            observed
+                .label_votes
+                .add_view(&scene.mesh, labels, view.mask.as_deref(), |x, y| {
+                    gbuf.get(x, y).map(|f| f.face)
+                });
+        }
         observed.push(
             &view.file,
             sweep,
@@ -692,6 +782,22 @@ pub fn prepare(
                 c.dropped
             ));
         }
+    }
+    let labelled: Vec<String> = job
+        .light_images
+        .iter()
+        .enumerate()
+        .filter(|(_, li)| li.labels.is_some())
+        .map(|(i, _)| i.to_string())
+        .collect();
+    if !labelled.is_empty() && observed.label_votes.is_empty() {
+        scene.warnings.push(format!(
+            "{}: the label masks of light images {} label no observed pixel: they give no \
+             material (check that the labels, 1 to 255, are drawn on the object where it is \
+             lit and not masked out)",
+            job.source.display(),
+            labelled.join(", ")
+        ));
     }
     if observed.observations.is_empty() {
         return Err(ReconstructError::NoLitPixels {

@@ -1,6 +1,8 @@
-//! Which material each part of the surface is, from the observations alone (issue #17): no
-//! mask, no ground truth. Pure: observations and the mesh in, labels and the evidence out;
-//! it must not read files or fit the basis (the per-material BRDFs are `core`'s job).
+//! Which material each part of the surface is, from the observations (issue #17), and from
+//! the materials the job's label masks give where they give them (per vertex, `mask_labels`;
+//! [`segment_with_labels`]): no ground truth. Pure: observations, the mesh and the given
+//! labels in, labels and the evidence out; it must not read files or fit the basis (the
+//! per-material BRDFs are `core`'s job).
 //!
 //! 1. **Features per vertex that do not depend on the normals' error**: each observation
 //!    belongs to the nearest corner of the face it saw; a vertex pools the observations of
@@ -131,6 +133,10 @@ pub struct Segmentation {
     pub observed_vertices: Vec<usize>,
     /// Per material: the mean chromaticity (r, g, b shares) of its pixels.
     pub chromaticity: Vec<[f64; 3]>,
+    /// Per material: the vertices whose label was given (fixed), not found.
+    pub fixed_vertices: Vec<usize>,
+    /// Materials `0..given` are the given ones ([`segment_with_labels`]), in their order.
+    pub given: usize,
     /// Every count tried.
     pub scores: Vec<CountScore>,
     /// Why this count (one sentence).
@@ -249,18 +255,24 @@ fn between(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> f64 {
 }
 
 /// Weighted k-means with k-means++ seeding and restarts; the centres of the best restart.
+/// `given`: centres that stay where they are (the given materials, first in the result); the
+/// others are seeded and moved among them, up to `k` in all.
 fn kmeans(
     points: &[[f64; 3]],
     weight: &[f64],
     k: usize,
+    given: &[[f64; 3]],
     restarts: usize,
     seed: u64,
 ) -> Vec<[f64; 3]> {
-    let k = k.min(points.len()).max(1);
+    let k = k.min(given.len() + points.len()).max(1);
     let mut best: Option<(f64, Vec<[f64; 3]>)> = None;
     for r in 0..restarts.max(1) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (r as u64).wrapping_mul(0x9E37_79B9));
-        let mut centres = vec![points[rng.gen_range(0..points.len())]];
+        let mut centres = given.to_vec();
+        if centres.iter().all(|c| !c[0].is_finite()) {
+            centres.push(points[rng.gen_range(0..points.len())]);
+        }
         while centres.len() < k {
             let d: Vec<f64> = points
                 .iter()
@@ -302,8 +314,9 @@ fn kmeans(
             let moved: Vec<[f64; 3]> = sums
                 .iter()
                 .zip(&centres)
-                .map(|(s, old)| {
-                    if s[3] > 0.0 {
+                .enumerate()
+                .map(|(j, (s, old))| {
+                    if j >= given.len() && s[3] > 0.0 {
                         [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
                     } else {
                         *old
@@ -334,14 +347,26 @@ fn nearest(centres: &[[f64; 3]], p: &[f64; 3]) -> (usize, f64) {
 }
 
 /// Labels every vertex: nearest centre where observed, then ICM sweeps with the Potts cost
-/// (unobserved vertices take their neighbours' majority).
-fn smooth_labels(f: &Features, nb: &[Vec<u32>], centres: &[[f64; 3]], smoothness: f64) -> Vec<u32> {
+/// (unobserved vertices take their neighbours' majority). A vertex `fixed` to a material keeps
+/// it (and pulls its neighbours through the Potts cost).
+fn smooth_labels(
+    f: &Features,
+    nb: &[Vec<u32>],
+    centres: &[[f64; 3]],
+    smoothness: f64,
+    fixed: &[Option<u32>],
+) -> Vec<u32> {
     let n = f.slot.len();
     let none = u32::MAX;
+    let fixed_of = |v: usize| fixed.get(v).copied().flatten();
     let mut labels: Vec<u32> = f
         .slot
         .iter()
-        .map(|s| s.map_or(none, |i| nearest(centres, &f.points[i]).0 as u32))
+        .enumerate()
+        .map(|(v, s)| match fixed_of(v) {
+            Some(l) => l,
+            None => s.map_or(none, |i| nearest(centres, &f.points[i]).0 as u32),
+        })
         .collect();
     // Unobserved vertices: breadth-first from the observed ones.
     let mut frontier: Vec<usize> = (0..n).filter(|&v| labels[v] != none).collect();
@@ -365,7 +390,7 @@ fn smooth_labels(f: &Features, nb: &[Vec<u32>], centres: &[[f64; 3]], smoothness
     }
     for _ in 0..10 {
         let mut changed = 0;
-        for v in 0..n {
+        for v in (0..n).filter(|&v| fixed_of(v).is_none()) {
             let data = |k: usize| {
                 f.slot[v].map_or(0.0, |i| {
                     f.weight[i].min(8.0) * dist2(&f.points[i], &centres[k])
@@ -395,26 +420,45 @@ fn smooth_labels(f: &Features, nb: &[Vec<u32>], centres: &[[f64; 3]], smoothness
 }
 
 /// Labels for `asked` materials from these observations; small or close materials merged.
-/// Returns the vertex labels (0..found) and, per found material, its centre.
+/// Returns the vertex labels (0..found) and the count found. The materials given by `fixed`
+/// (per vertex; [`given_count`] of them) are materials `0..given`: their centres are their
+/// fixed vertices' mean features, they are never merged away, and their vertices keep them;
+/// `asked` counts them, so only the rest are found by k-means among the free vertices.
 fn label_vertices(
     f: &Features,
     nb: &[Vec<u32>],
     asked: usize,
     settings: &SegmentSettings,
+    fixed: &[Option<u32>],
 ) -> (Vec<u32>, usize) {
     let n = f.slot.len();
-    if asked <= 1 || f.points.len() < 2 * asked {
+    let given = given_count(fixed);
+    if given == 0 && (asked <= 1 || f.points.len() < 2 * asked) {
         return (vec![0; n], 1);
     }
-    let mut centres = kmeans(
-        &f.points,
-        &f.weight,
-        asked,
-        settings.restarts,
-        settings.seed,
-    );
+    let is_fixed = |v: usize| fixed.get(v).copied().flatten().is_some();
+    let free: Vec<usize> = (0..n)
+        .filter(|&v| !is_fixed(v))
+        .filter_map(|v| f.slot[v])
+        .collect();
+    let extra = asked.saturating_sub(given);
+    let given_centres = given_centres(f, fixed, given);
+    let mut centres = if extra == 0 || free.len() < 2 * extra {
+        given_centres
+    } else {
+        let points: Vec<[f64; 3]> = free.iter().map(|&i| f.points[i]).collect();
+        let weight: Vec<f64> = free.iter().map(|&i| f.weight[i]).collect();
+        kmeans(
+            &points,
+            &weight,
+            given + extra,
+            &given_centres,
+            settings.restarts,
+            settings.seed,
+        )
+    };
     loop {
-        let labels = smooth_labels(f, nb, &centres, settings.smoothness);
+        let labels = smooth_labels(f, nb, &centres, settings.smoothness, fixed);
         let observed = f.slot.iter().filter(|s| s.is_some()).count().max(1);
         let mut counts = vec![0usize; centres.len()];
         for (v, s) in f.slot.iter().enumerate() {
@@ -422,18 +466,26 @@ fn label_vertices(
                 counts[labels[v] as usize] += 1;
             }
         }
-        // The weakest material: too small, or too close to another to be a material.
-        let small = (0..centres.len())
+        // The weakest found material (a given one is never dropped): too small, or too close
+        // to another to be a material.
+        let small = (given..centres.len())
             .filter(|&j| (counts[j] as f64) < settings.min_share * observed as f64)
             .min_by_key(|&j| counts[j]);
+        let dropped_of = |(a, b): (usize, usize)| {
+            if a < given || counts[b] <= counts[a] {
+                b
+            } else {
+                a
+            }
+        };
         let close = (0..centres.len())
-            .flat_map(|a| ((a + 1)..centres.len()).map(move |b| (a, b)))
+            .flat_map(|a| ((a + 1).max(given)..centres.len()).map(move |b| (a, b)))
             .filter(|&(a, b)| dist2(&centres[a], &centres[b]) < settings.merge_distance.powi(2))
-            .min_by_key(|&(a, b)| counts[a].min(counts[b]))
-            .map(|(a, b)| if counts[a] < counts[b] { a } else { b });
+            .min_by_key(|&p| counts[dropped_of(p)])
+            .map(dropped_of);
         // A blend: a smaller material lying on the segment between two others (within
         // `merge_distance`), as the mixed pixels where two materials meet do.
-        let blend = (0..centres.len())
+        let blend = (given..centres.len())
             .filter(|&c| {
                 (0..centres.len()).any(|a| {
                     (0..centres.len()).any(|b| {
@@ -455,6 +507,53 @@ fn label_vertices(
         }
         centres.remove(drop);
     }
+}
+
+/// The number of given materials in per-vertex fixed labels (`0..given`, dense).
+fn given_count(fixed: &[Option<u32>]) -> usize {
+    fixed.iter().flatten().max().map_or(0, |&m| m as usize + 1)
+}
+
+/// The centre of each given material: the pixel-weighted median, per feature, of its fixed
+/// vertices that were observed here (a median, so that a label drawn over a little of a
+/// neighbouring material does not move the material's centre); infinitely far (never the
+/// nearest) when none was observed.
+fn given_centres(f: &Features, fixed: &[Option<u32>], given: usize) -> Vec<[f64; 3]> {
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); given];
+    for (v, l) in fixed.iter().enumerate() {
+        if let (Some(l), Some(Some(i))) = (l, f.slot.get(v)) {
+            members[*l as usize].push(*i);
+        }
+    }
+    members
+        .iter()
+        .map(|m| {
+            let median = |c: usize| {
+                let mut values: Vec<(f64, f64)> =
+                    m.iter().map(|&i| (f.points[i][c], f.weight[i])).collect();
+                weighted_median(&mut values)
+            };
+            match (median(0), median(1), median(2)) {
+                (Some(a), Some(b), Some(c)) => [a, b, c],
+                _ => [f64::INFINITY; 3],
+            }
+        })
+        .collect()
+}
+
+/// The weighted median of `(value, weight)` pairs: the smallest value at which the weights
+/// below and at it reach half of the total; `None` when there is no positive weight.
+fn weighted_median(values: &mut [(f64, f64)]) -> Option<f64> {
+    values.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = values.iter().map(|v| v.1).sum();
+    if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let mut acc = 0.0;
+    values.iter().find_map(|&(x, w)| {
+        acc += w;
+        (acc >= 0.5 * total).then_some(x)
+    })
 }
 
 /// Relative image-space error of per-material fits on held-out pixels (the ladder's
@@ -529,6 +628,25 @@ fn mean_se(v: &[f64]) -> (f64, f64) {
 
 /// Finds the materials of the surface (see the module header).
 pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> Segmentation {
+    segment_with_labels(mesh, obs, settings, &[])
+}
+
+/// [`segment`] with some vertices' materials given: `fixed[v] = Some(m)` keeps vertex `v` on
+/// material `m` (dense, `0..given`; the job's label masks, `mask_labels`). The given materials
+/// are materials `0..given` of the result, whatever the count; their centres are their fixed
+/// vertices' mean features; the free vertices join the nearest material in feature space with
+/// the same Potts smoothing. Counts from `given` (at least 1) to `max_materials` (or `given`,
+/// if more) are tried and chosen by the same held-out rule, so a material the labels do not
+/// name is added only when the held-out images call for it. The fixed labels hold in every
+/// fold (they are the user's statement about the surface, not image data). Empty `fixed`:
+/// exactly [`segment`].
+pub fn segment_with_labels(
+    mesh: &Mesh,
+    obs: &[Observation],
+    settings: &SegmentSettings,
+    fixed: &[Option<u32>],
+) -> Segmentation {
+    let given = given_count(fixed);
     let nb = mesh.vertex_neighbours();
     let mut images: Vec<usize> = obs.iter().map(|o| o.image).collect();
     images.sort_unstable();
@@ -552,8 +670,10 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
     };
     let mut scores = Vec::new();
     let mut full = Vec::new();
-    for asked in 1..=settings.max_materials.max(1) {
-        let (labels, found) = label_vertices(&all_features, &nb, asked, settings);
+    let first = given.max(1);
+    let last = settings.max_materials.max(first);
+    for asked in first..=last {
+        let (labels, found) = label_vertices(&all_features, &nb, asked, settings, fixed);
         if asked > 1 && full.iter().any(|(_, f, _)| *f == found) {
             // merging gave a count already tried: nothing new to score
             scores.push(CountScore {
@@ -565,28 +685,33 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
             });
             continue;
         }
-        let fold_errors: Vec<Option<f64>> = fold_features
-            .par_iter()
-            .enumerate()
-            .map(|(k, train_features)| {
-                let train: Vec<Observation> =
-                    obs.iter().filter(|o| fold_of(o) != k).copied().collect();
-                let (train_labels, train_found) =
-                    label_vertices(train_features, &nb, asked, settings);
-                let label = |o: &Observation| {
-                    nearest_corner(mesh, o).and_then(|v| train_labels.get(v).copied())
-                };
-                let labelled: Vec<(u32, &Observation)> =
-                    train.iter().filter_map(|o| Some((label(o)?, o))).collect();
-                let held: Vec<(u32, &Observation)> = obs
-                    .iter()
-                    .filter(|o| fold_of(o) == k)
-                    .filter_map(|o| Some((label(o)?, o)))
-                    .collect();
-                let fits = fit_per_material(&labelled, train_found, settings);
-                held_out_error(&fits, &held)
-            })
-            .collect();
+        // a single count needs no score
+        let fold_errors: Vec<Option<f64>> = if first == last {
+            Vec::new()
+        } else {
+            fold_features
+                .par_iter()
+                .enumerate()
+                .map(|(k, train_features)| {
+                    let train: Vec<Observation> =
+                        obs.iter().filter(|o| fold_of(o) != k).copied().collect();
+                    let (train_labels, train_found) =
+                        label_vertices(train_features, &nb, asked, settings, fixed);
+                    let label = |o: &Observation| {
+                        nearest_corner(mesh, o).and_then(|v| train_labels.get(v).copied())
+                    };
+                    let labelled: Vec<(u32, &Observation)> =
+                        train.iter().filter_map(|o| Some((label(o)?, o))).collect();
+                    let held: Vec<(u32, &Observation)> = obs
+                        .iter()
+                        .filter(|o| fold_of(o) == k)
+                        .filter_map(|o| Some((label(o)?, o)))
+                        .collect();
+                    let fits = fit_per_material(&labelled, train_found, settings);
+                    held_out_error(&fits, &held)
+                })
+                .collect()
+        };
         let scored: Vec<f64> = fold_errors.iter().flatten().copied().collect();
         let (error, standard_error) = if scored.len() == fold_errors.len() && !scored.is_empty() {
             let (m, s) = mean_se(&scored);
@@ -603,12 +728,43 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
         });
         full.push((scores.len() - 1, found, labels));
     }
-    let (chosen, reason) = choose_count(&scores, settings.min_gain);
+    let scored = scores.iter().any(|s| s.error.is_some());
+    let (chosen, reason) = if given > 0 && !scored {
+        let why = if first == last {
+            format!(
+                "no other count was tried (at most {} asked)",
+                settings.max_materials
+            )
+        } else {
+            "no other count could be scored on held-out images".to_string()
+        };
+        (
+            0,
+            format!("the job's label masks give {given} material(s); {why}"),
+        )
+    } else {
+        let (c, r) = choose_count(&scores, settings.min_gain);
+        match given {
+            0 => (c, r),
+            _ => (
+                c,
+                format!("{r}; the job's label masks give {given} of them"),
+            ),
+        }
+    };
     let (_, count, vertex_labels) = full
         .iter()
         .find(|(i, _, _)| *i == chosen)
         .cloned()
         .unwrap_or((0, 1, vec![0; mesh.positions().len()]));
+    let mut fixed_vertices = vec![0usize; count];
+    for (v, l) in vertex_labels.iter().enumerate() {
+        if fixed.get(v).copied().flatten().is_some()
+            && let Some(c) = fixed_vertices.get_mut(*l as usize)
+        {
+            *c += 1;
+        }
+    }
     let mut observed_vertices = vec![0usize; count];
     let mut sums = vec![[0.0f64; 3]; count];
     let mut seen = vec![false; mesh.positions().len()];
@@ -642,6 +798,8 @@ pub fn segment(mesh: &Mesh, obs: &[Observation], settings: &SegmentSettings) -> 
         vertex_labels,
         observed_vertices,
         chromaticity,
+        fixed_vertices,
+        given,
         scores,
         reason,
     }
@@ -748,6 +906,22 @@ mod tests {
     /// surface's true normal is the grid's tilted by up to 6 degrees per face (a photogrammetry
     /// mesh's error: the observations keep the grid's +z) and each pixel has 3 % noise.
     fn scene(mesh: &Mesh, materials: &[LambertGgx], split: f64, images: usize) -> Vec<Observation> {
+        let last = materials.len() - 1;
+        scene_by(
+            mesh,
+            materials,
+            |c| if c.x < split { 0 } else { 1.min(last) },
+            images,
+        )
+    }
+
+    /// [`scene`] with the material of a face given by `material_of` its centroid.
+    fn scene_by(
+        mesh: &Mesh,
+        materials: &[LambertGgx],
+        material_of: impl Fn(&Point3<f64>) -> usize,
+        images: usize,
+    ) -> Vec<Observation> {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut obs = Vec::new();
         let view = Vector3::z();
@@ -768,11 +942,7 @@ mod tests {
             for (fi, _) in mesh.faces().iter().enumerate() {
                 let t = mesh.triangle(fi);
                 let c = Point3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0);
-                let m = if c.x < split {
-                    0
-                } else {
-                    1.min(materials.len() - 1)
-                };
+                let m = material_of(&c);
                 let n = tilts[fi];
                 let (wi, wo) = super::super::observation::to_local(&n, &light, &view);
                 let fr = materials[m].eval_local(&wi, &wo);
@@ -843,6 +1013,8 @@ mod tests {
             vertex_labels: vec![0; 16],
             observed_vertices: vec![16],
             chromaticity: vec![[1.0 / 3.0; 3]],
+            fixed_vertices: vec![0],
+            given: 0,
             scores: Vec::new(),
             reason: String::new(),
         };
@@ -855,5 +1027,139 @@ mod tests {
         )
         .expect("a valid observation");
         assert_eq!(s.label_of(&mesh, &o), None);
+    }
+
+    /// Per grid vertex: `Some(m)` where `given` says so.
+    fn fixed_where(mesh: &Mesh, given: impl Fn(&Point3<f64>) -> Option<u32>) -> Vec<Option<u32>> {
+        mesh.positions().iter().map(given).collect()
+    }
+
+    #[test]
+    fn fixed_labels_survive_and_free_vertices_join_the_material_of_their_colour() {
+        let mesh = grid(16);
+        let red = ggx([0.35, 0.08, 0.1], 0.3);
+        let green = ggx([0.05, 0.25, 0.1], 0.2);
+        let obs = scene(&mesh, &[red, green], 7.5, 6);
+        // Given: a strip at each end with its own colour, and a block inside the red half
+        // labelled green: the labels contradict the colours there.
+        let block = |p: &Point3<f64>| (3.0..=4.0).contains(&p.x) && (3.0..=5.0).contains(&p.y);
+        let fixed = fixed_where(&mesh, |p| {
+            if p.x <= 1.0 {
+                Some(0)
+            } else if p.x >= 14.0 || block(p) {
+                Some(1)
+            } else {
+                None
+            }
+        });
+        for max_materials in [1, 4] {
+            let settings = SegmentSettings {
+                max_materials,
+                ..SegmentSettings::default()
+            };
+            let s = segment_with_labels(&mesh, &obs, &settings, &fixed);
+            assert_eq!(
+                s.count, 2,
+                "max {max_materials}: {} / {:?}",
+                s.reason, s.scores
+            );
+            assert_eq!(s.given, 2);
+            assert!(s.reason.contains("label masks"), "{}", s.reason);
+            for (v, f) in fixed.iter().enumerate() {
+                if let Some(m) = f {
+                    assert_eq!(s.vertex_labels[v], *m, "fixed vertex {v} moved");
+                }
+            }
+            assert_eq!(
+                s.fixed_vertices.iter().sum::<usize>(),
+                fixed.iter().flatten().count()
+            );
+            // every free vertex away from the colour boundary and from the contradicting block
+            // takes the given material of its colour
+            let near_block =
+                |p: &Point3<f64>| (2.0..=5.0).contains(&p.x) && (2.0..=6.0).contains(&p.y);
+            let wrong: Vec<usize> = mesh
+                .positions()
+                .iter()
+                .enumerate()
+                .filter(|(v, p)| fixed[*v].is_none() && (p.x - 7.5).abs() > 1.5 && !near_block(p))
+                .filter(|(v, p)| s.vertex_labels[*v] != u32::from(p.x > 7.5))
+                .map(|(v, _)| v)
+                .collect();
+            assert!(
+                wrong.is_empty(),
+                "max {max_materials}: wrong free vertices {wrong:?}"
+            );
+        }
+        // no fixed labels: exactly the automatic segmentation
+        let settings = SegmentSettings::default();
+        assert_eq!(
+            segment_with_labels(&mesh, &obs, &settings, &[]),
+            segment(&mesh, &obs, &settings)
+        );
+    }
+
+    #[test]
+    fn a_colour_the_labels_do_not_name_is_added_only_by_the_held_out_rule() {
+        let mesh = grid(16);
+        let bands = [
+            ggx([0.35, 0.08, 0.1], 0.3),
+            ggx([0.05, 0.25, 0.1], 0.2),
+            ggx([0.06, 0.08, 0.35], 0.25),
+        ];
+        let band = |p: &Point3<f64>| (p.x / 5.0).floor().min(2.0) as usize;
+        let obs = scene_by(&mesh, &bands, band, 6);
+        // labels on part of the first two bands; the third is never labelled
+        let fixed = fixed_where(&mesh, |p| match p.x {
+            x if x <= 2.0 => Some(0),
+            x if (6.0..=8.0).contains(&x) => Some(1),
+            _ => None,
+        });
+        let blue: Vec<usize> = (0..mesh.positions().len())
+            .filter(|&v| mesh.positions()[v].x >= 11.0)
+            .collect();
+        // --materials auto: the blue band is a third material, found, not given
+        let s = segment_with_labels(&mesh, &obs, &SegmentSettings::default(), &fixed);
+        assert_eq!(s.count, 3, "{} / {:?}", s.reason, s.scores);
+        assert_eq!(s.given, 2);
+        assert!(
+            blue.iter().all(|&v| s.vertex_labels[v] == 2),
+            "{:?}",
+            s.vertex_labels
+        );
+        assert_eq!(s.fixed_vertices[2], 0);
+        // one material asked (the default): only the given ones; the blue band joins one whole
+        let one = SegmentSettings {
+            max_materials: 1,
+            ..SegmentSettings::default()
+        };
+        let s = segment_with_labels(&mesh, &obs, &one, &fixed);
+        assert_eq!(s.count, 2, "{}", s.reason);
+        assert!(
+            s.scores.iter().all(|c| c.fold_errors.is_empty()),
+            "one count, no folds"
+        );
+        let l = s.vertex_labels[blue[0]];
+        assert!(blue.iter().all(|&v| s.vertex_labels[v] == l));
+        for (v, f) in fixed.iter().enumerate() {
+            if let Some(m) = f {
+                assert_eq!(s.vertex_labels[v], *m);
+            }
+        }
+    }
+
+    #[test]
+    fn weighted_median_is_the_middle_of_the_weight() {
+        assert_eq!(weighted_median(&mut []), None);
+        assert_eq!(
+            weighted_median(&mut [(3.0, 1.0), (1.0, 1.0), (2.0, 1.0)]),
+            Some(2.0)
+        );
+        // a heavy value wins over several light ones
+        assert_eq!(
+            weighted_median(&mut [(5.0, 4.0), (1.0, 1.0), (2.0, 1.0)]),
+            Some(5.0)
+        );
+        assert_eq!(weighted_median(&mut [(1.0, 0.0)]), None);
     }
 }

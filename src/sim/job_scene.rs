@@ -215,6 +215,7 @@ pub fn write_scene_materials(
             light_dir_camera: l_cam,
             irradiance: spec.irradiance,
             mask: None,
+            labels: None,
         });
     }
     std::fs::create_dir_all(dir.join("sparse"))?;
