@@ -205,6 +205,26 @@ fn truth_label_masks_on_three_images_give_the_two_materials_at_least_as_well_as_
         assert!(named > 0.9, "{name}: truth 0 under mask label 1: {named}");
         let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
         assert_eq!(report.materials.map(|m| m.mask_labels), Some(vec![1, 2]));
+        // the HTML report says which material each label mask gave
+        let page = std::process::Command::new(crate::util::bin())
+            .arg("report")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            page.status.success(),
+            "{}",
+            String::from_utf8_lossy(&page.stderr)
+        );
+        let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+        for m in &file.materials {
+            let l = m.mask_label.unwrap();
+            assert!(
+                html.contains(&format!("the job&#39;s label masks (label {l};"))
+                    || html.contains(&format!("the job's label masks (label {l};")),
+                "{name}: the report does not name mask label {l}"
+            );
+        }
     }
 }
 

@@ -492,6 +492,17 @@ fn section_material(
             ("observed pixels".into(), e.observed_pixels.to_string()),
             ("observed vertices".into(), e.observed_vertices.to_string()),
             (
+                "found by".into(),
+                match e.mask_label {
+                    Some(l) => format!(
+                        "the job's label masks (label {l}; {} vertices fixed by them, the rest \
+                         joined by the segmentation)",
+                        e.mask_vertices
+                    ),
+                    None => "the segmentation (no label mask names it)".into(),
+                },
+            ),
+            (
                 "colour of its pixels (r, g, b shares)".into(),
                 format!(
                     "{:.3}, {:.3}, {:.3}",
