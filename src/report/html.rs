@@ -404,9 +404,9 @@ fn section_materials(h: &mut String, section: &MaterialsSection) {
     let _ = write!(
         h,
         "<p><b>{} material(s)</b>: {}. Each count was tried on folds of whole light images \
-         (labels from the training images, a Lambert fit per material, error on the \
-         held-out images); the simplest count within noise of the best is kept \
-         (docs/materials.md).</p>",
+         (labels from the training images; one reflectance shape shared by the object \
+         times a colour per material, fitted to them; error on the held-out images); the \
+         simplest count within noise (or 5 %) of the best is kept (docs/materials.md).</p>",
         m.count,
         escape(&m.reason)
     );
