@@ -4,42 +4,20 @@
 //! `one`; a label that contradicts the colours is obeyed; a mask of zeros changes nothing;
 //! a bad label mask stops the job with an error naming the job file, the field and the file.
 
-use crate::materials::{MATERIALS, material, spot};
+use crate::materials::{MATERIALS, two_material_scene};
 use crate::reconstruct::{QUICK_ARGS, run_cli, write_small_job};
-use brdf_rig::brdf::Brdf;
-use brdf_rig::brdf::nbrdf::Nbrdf;
 use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::labels::{FaceLabels, area_agreement, face_area, split_by_planes};
 use brdf_rig::geometry::mesh::Mesh;
 use brdf_rig::geometry::raster::Rasteriser;
-use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
 use brdf_rig::reconstruct::Job;
 use brdf_rig::reconstruct::materials::{self, MaterialsFile};
-use brdf_rig::sim::job_scene::{SceneSpec, view_geometry, write_scene_materials};
+use brdf_rig::sim::job_scene::{SceneSpec, view_geometry};
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
 /// The light images that get a label mask: a few of the eight.
 const LABELLED_VIEWS: [usize; 3] = [0, 3, 6];
-
-/// The scene of `tests/materials.rs`'s reconstruction: Spot cut along its height into
-/// green-latex (label 0, below) and pink-fabric, 8 views at 96x72, the SfM-like mesh.
-fn two_material_scene(dir: &Path) -> (Mesh, FaceLabels, SceneSpec, Job) {
-    let mesh = spot();
-    let job_mesh = sfm_like(&mesh, &SfmLikeParams::default());
-    let mats: Vec<Nbrdf> = MATERIALS.iter().map(|n| material(n)).collect();
-    let brdfs: Vec<&dyn Brdf> = mats.iter().map(|m| m as &dyn Brdf).collect();
-    let names: Vec<String> = MATERIALS.iter().map(|n| n.to_string()).collect();
-    let labels = split_by_planes(&mesh, Vector3::y(), 2);
-    let spec = SceneSpec {
-        views: 8,
-        width: 96,
-        height: 72,
-        ..SceneSpec::default()
-    };
-    let job = write_scene_materials(dir, &mesh, &job_mesh, &brdfs, &labels, &names, &spec).unwrap();
-    (mesh, labels, spec, job)
-}
 
 /// Per pixel of view `i`, the truth mesh's face it sees (the rasterised face ids).
 fn face_ids(mesh: &Mesh, spec: &SceneSpec, i: usize) -> Vec<Option<u32>> {

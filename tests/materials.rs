@@ -185,12 +185,11 @@ fn one_material_is_the_single_material_scene() {
     assert!(!c.path().join("light").exists());
 }
 
-/// `brdf-rig reconstruct --materials auto` on a two-material Spot (SfM-like mesh, small images,
-/// a coarse basis without either material): two materials found where they are, a MERL table
-/// each, `materials.json` and the labelled `material_map.ply`; the same object made of one
-/// material gives one and writes no per-material files.
-#[test]
-fn reconstruct_finds_two_materials_and_writes_one_table_each() {
+/// The scene of the reconstruction below (and of `tests/label_masks.rs`): Spot cut along its height into
+/// green-latex (label 0, below) and pink-fabric, 8 views at 96x72, the SfM-like mesh.
+pub fn two_material_scene(
+    dir: &std::path::Path,
+) -> (Mesh, FaceLabels, SceneSpec, brdf_rig::reconstruct::Job) {
     let mesh = spot();
     let job_mesh = sfm_like(&mesh, &SfmLikeParams::default());
     let mats: Vec<Nbrdf> = MATERIALS.iter().map(|n| material(n)).collect();
@@ -203,10 +202,18 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         height: 72,
         ..SceneSpec::default()
     };
+    let job = write_scene_materials(dir, &mesh, &job_mesh, &brdfs, &labels, &names, &spec).unwrap();
+    (mesh, labels, spec, job)
+}
+
+/// `brdf-rig reconstruct --materials auto` on a two-material Spot (SfM-like mesh, small images,
+/// a coarse basis without either material): two materials found where they are, a MERL table
+/// each, `materials.json` and the labelled `material_map.ply`; the same object made of one
+/// material gives one and writes no per-material files.
+#[test]
+fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     let dir = tempfile::tempdir().unwrap();
-    let two = dir.path().join("two");
-    let job =
-        write_scene_materials(&two, &mesh, &job_mesh, &brdfs, &labels, &names, &spec).unwrap();
+    let (mesh, labels, spec, job) = two_material_scene(&dir.path().join("two"));
     // one --exclude with both names, comma-separated
     let exclude = MATERIALS.join(",");
     let quick = [
@@ -311,7 +318,8 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
 
     // the same object in one material
     let one = dir.path().join("one");
-    let job = write_scene(&one, &mesh, &job_mesh, &mats[0], &spec).unwrap();
+    let job_mesh = sfm_like(&mesh, &SfmLikeParams::default());
+    let job = write_scene(&one, &mesh, &job_mesh, &material(MATERIALS[0]), &spec).unwrap();
     let out = dir.path().join("out-one");
     let run = crate::reconstruct::run_cli(&job.source, &out, &quick);
     assert!(
