@@ -4,7 +4,7 @@
 //! `one`; a label that contradicts the colours is obeyed; a mask of zeros changes nothing;
 //! a bad label mask stops the job with an error naming the job file, the field and the file.
 
-use crate::materials::{MATERIALS, two_material_scene};
+use crate::materials::{MATERIALS, map_face_labels, two_material_scene};
 use crate::reconstruct::{QUICK_ARGS, run_cli, write_small_job};
 use brdf_rig::geometry::bvh::Bvh;
 use brdf_rig::geometry::labels::{FaceLabels, area_agreement, face_area, split_by_planes};
@@ -63,18 +63,8 @@ fn with_label_masks(
 /// The materials found and the face labels of the map (`material_map.ply`).
 fn found(out: &Path, mesh: &Mesh) -> (MaterialsFile, FaceLabels) {
     let file = materials::read(out).unwrap().expect("materials.json");
-    let mut f = std::io::BufReader::new(std::fs::File::open(out.join(&file.material_map)).unwrap());
-    let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
-        .read_ply(&mut f)
-        .unwrap();
-    let vertex_labels: Vec<u32> = ply.payload["vertex"]
-        .iter()
-        .map(|v| match v["label"] {
-            ply_rs::ply::Property::UChar(l) => u32::from(l),
-            ref other => panic!("label {other:?}"),
-        })
-        .collect();
-    (file, FaceLabels::from_vertex_labels(mesh, &vertex_labels))
+    let faces = map_face_labels(&out.join(&file.material_map), mesh);
+    (file, faces)
 }
 
 /// Share of the area of the faces `which` whose found material is the one the masks label

@@ -185,6 +185,23 @@ fn one_material_is_the_single_material_scene() {
     assert!(!c.path().join("light").exists());
 }
 
+/// The face labels of a `material_map.ply`, read by a peer's PLY reader (ply-rs): each face
+/// takes the majority label of its corners.
+pub fn map_face_labels(path: &std::path::Path, mesh: &Mesh) -> FaceLabels {
+    let mut f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
+        .read_ply(&mut f)
+        .unwrap();
+    let vertex_labels: Vec<u32> = ply.payload["vertex"]
+        .iter()
+        .map(|v| match v["label"] {
+            ply_rs::ply::Property::UChar(l) => u32::from(l),
+            ref other => panic!("label {other:?}"),
+        })
+        .collect();
+    FaceLabels::from_vertex_labels(mesh, &vertex_labels)
+}
+
 /// The scene of the reconstruction below (and of `tests/label_masks.rs`): Spot cut along its height into
 /// green-latex (label 0, below) and pink-fabric, 8 views at 96x72, the SfM-like mesh.
 pub fn two_material_scene(
@@ -247,18 +264,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         assert!(table.get(0).is_some(), "{} reads back", m.file);
     }
     // the map's labels, per face by the majority of its corners, against the truth
-    let mut f = std::io::BufReader::new(std::fs::File::open(out.join(&file.material_map)).unwrap());
-    let ply = ply_rs::parser::Parser::<ply_rs::ply::DefaultElement>::new()
-        .read_ply(&mut f)
-        .unwrap();
-    let vertex_labels: Vec<u32> = ply.payload["vertex"]
-        .iter()
-        .map(|v| match v["label"] {
-            ply_rs::ply::Property::UChar(l) => u32::from(l),
-            ref other => panic!("label {other:?}"),
-        })
-        .collect();
-    let found = FaceLabels::from_vertex_labels(&mesh, &vertex_labels);
+    let found = map_face_labels(&out.join(&file.material_map), &mesh);
     let agreement = area_agreement(&mesh, &labels, &found, None);
     assert!(agreement > 0.85, "agreement {agreement}");
     let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
