@@ -18,6 +18,7 @@ use super::segment::{CountScore, SegmentSettings, Segmentation, segment_with_lab
 use crate::brdf::merl::MerlTable;
 use crate::format::{FormatError, Versioned};
 use crate::geometry::mesh::Mesh;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -156,16 +157,38 @@ pub fn reconstruct_materials(
                 source: CoreError::NoObservations,
             });
         }
-        for (i, obs) in groups.iter().enumerate() {
+        // The materials' cores are independent: they run side by side (each is parallel
+        // inside too), each saying its progress into its own list, replayed in order after.
+        progress(&format!(
+            "fitting {} materials side by side: {}",
+            groups.len(),
+            groups
+                .iter()
+                .enumerate()
+                .map(|(i, obs)| format!("{} {} pixels", named(i), obs.len()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        let fitted: Vec<(Vec<String>, Result<CoreOutput, CoreError>)> = groups
+            .par_iter()
+            .map(|obs| {
+                let mut said = Vec::new();
+                let core = reconstruct_observations(obs, prior, core_settings, &mut |m: &str| {
+                    said.push(m.to_string())
+                });
+                (said, core)
+            })
+            .collect();
+        for (i, ((said, core), obs)) in fitted.into_iter().zip(&groups).enumerate() {
             let name = material_name(i);
             let named = named(i);
-            progress(&format!("{named}: {} pixels", obs.len()));
-            let core = reconstruct_observations(obs, prior, core_settings, progress).map_err(
-                |source| MaterialError::Core {
-                    name: named,
-                    source,
-                },
-            )?;
+            for m in &said {
+                progress(&format!("{named}: {m}"));
+            }
+            let core = core.map_err(|source| MaterialError::Core {
+                name: named,
+                source,
+            })?;
             results.push(MaterialResult {
                 name,
                 observed_pixels: obs.len(),
