@@ -58,8 +58,8 @@ pub struct SegmentSettings {
     /// chosen over a simpler one, however small the folds' spread (near-identical fits give
     /// paired differences with a vanishing standard error). 5 %: with the shared-shape count
     /// model, the splits of one material gained 1.6-3.2 % (Mitsuba's painted metal, whose
-    /// regions a realistic mesh tilts differently) and the true materials of the study 9.7 % or
-    /// more (docs/materials.md).
+    /// regions a realistic mesh tilts differently), the true materials of the study 9.7 % or
+    /// more in 35 of 36 objects (3.7 % in the one whose count it misses; docs/materials.md).
     pub min_gain: f64,
     /// k-means restarts.
     pub restarts: usize,
@@ -91,7 +91,9 @@ impl Default for SegmentSettings {
     }
 }
 
-/// The model fitted per material when a count is scored on held-out images.
+/// The model fitted per material when a count is scored on held-out images. The two older
+/// models stay selectable in the settings: `materials.json` files written by session 17 name
+/// `lambert`, and read back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum CountModel {

@@ -7,8 +7,9 @@
 //! colour, lowers the held-out error as it should. Pure: observations in, a candidate per
 //! material out; no I/O, no basis.
 //!
-//! Fitted by alternating least squares in image space (each pixel weighted by its
-//! `(E cos theta_i)^2`, as the analytic baselines): per-material scales with the shape held,
+//! Fitted by alternating least squares in image space (each pixel's squared residual in `f`
+//! weighted by `(E cos theta_i)^2`: the analytic baselines' `pixel_weight`, with each pixel's
+//! own irradiance since the lights differ): per-material scales with the shape held,
 //! then the shape cell by cell with the scales held. A cell no training pixel saw takes the
 //! mean of the seen cells of its `theta_h` row, else of every seen cell.
 
