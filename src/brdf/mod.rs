@@ -8,6 +8,7 @@
 //! - `nbrdf`: the neural fits of the 100 MERL materials (approximations, not measured data);
 //! - `basis` / `basis_cache`: the PCA prior (Nielsen et al. 2015) and its disk cache;
 //! - `sampling`: optimal sample bins by condition number;
+//! - `rank_one`: the condition number of a matrix with one more row, for many rows at once;
 //! - `ridge`: reconstruction from observations;
 //! - `metrics`: relative, cosine-weighted and near-specular errors;
 //! - `analytic`: Lambert and Lambert + GGX baselines with least-squares fits.
@@ -31,6 +32,7 @@ pub mod coords;
 pub mod merl;
 pub mod metrics;
 pub mod nbrdf;
+pub mod rank_one;
 pub mod ridge;
 pub mod sampling;
 
