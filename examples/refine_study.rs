@@ -6,8 +6,8 @@
 //!
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
-//! iters, sweeps, step, tilt, sigma, smooth, anchor, cg, cgtol, minpx, gain, movecos, fitcos, facecap,
-//! final
+//! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
+//! fitcos, facecap, final
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
@@ -33,6 +33,7 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "tilt" => s.max_tilt_deg = f,
             "sigma" => s.residual_sigma = f,
             "smooth" => s.smooth_deg = f,
+            "smooth_normals" => s.smooth_normals = f,
             "anchor" => s.anchor_deg = f,
             "cg" => s.cg_iterations = f as usize,
             "cgtol" => s.cg_tolerance = f,

@@ -18,6 +18,7 @@
 
 use nalgebra::Vector3;
 use std::f64::consts::{FRAC_PI_2, PI};
+use std::sync::OnceLock;
 
 /// Number of `theta_h` bins.
 pub const THETA_H_BINS: usize = 90;
@@ -157,10 +158,29 @@ impl MerlBin {
         }
     }
 
+    /// `centre().to_directions()` with the centre angles' sines and cosines looked up (computed
+    /// once per process): the same values, bit for bit, without the six trigonometric calls a
+    /// bin costs (tabulating a model evaluates all 1.46 million bins, often several times).
+    pub fn centre_directions(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let t = centre_trig();
+        let (sh, ch) = t.theta_h[self.theta_h.min(THETA_H_BINS - 1)];
+        let (st, ct) = t.theta_d[self.theta_d.min(THETA_D_BINS - 1)];
+        let (sp, cp) = t.phi_d[self.phi_d.min(PHI_D_BINS - 1)];
+        let d = Vector3::new(st * cp, st * sp, ct);
+        // `rotate_y` by theta_h, then `rotate_z` by phi_h = 0 (an identity, written out so the
+        // rounding matches `to_directions`).
+        let wi = Vector3::new(ch * d.x + sh * d.z, d.y, -sh * d.x + ch * d.z);
+        let wi = Vector3::new(wi.x - 0.0 * wi.y, 0.0 * wi.x + wi.y, wi.z);
+        let h = Vector3::new(ch * 0.0 + sh * 1.0, 0.0, -sh * 0.0 + ch * 1.0);
+        let h = Vector3::new(h.x - 0.0 * h.y, 0.0 * h.x + h.y, h.z);
+        let wo = 2.0 * wi.dot(&h) * h - wi;
+        (wi, wo)
+    }
+
     /// `cos(theta_i) cos(theta_o)` at the bin centre (negative when a direction is below the
     /// horizon).
     pub fn centre_cosines(&self) -> (f64, f64) {
-        let (wi, wo) = self.centre().to_directions();
+        let (wi, wo) = self.centre_directions();
         (wi.z, wo.z)
     }
 
@@ -169,6 +189,38 @@ impl MerlBin {
         let (ci, co) = self.centre_cosines();
         ci > 0.0 && co > 0.0
     }
+}
+
+/// Sines and cosines of the bin centres' angles, per axis (`MerlBin::centre`'s angles).
+struct CentreTrig {
+    theta_h: Vec<(f64, f64)>,
+    theta_d: Vec<(f64, f64)>,
+    phi_d: Vec<(f64, f64)>,
+}
+
+fn centre_trig() -> &'static CentreTrig {
+    static TRIG: OnceLock<CentreTrig> = OnceLock::new();
+    TRIG.get_or_init(|| {
+        let at = |theta_h: usize, theta_d: usize, phi_d: usize| {
+            MerlBin {
+                theta_h,
+                theta_d,
+                phi_d,
+            }
+            .centre()
+        };
+        CentreTrig {
+            theta_h: (0..THETA_H_BINS)
+                .map(|i| at(i, 0, 0).theta_h.sin_cos())
+                .collect(),
+            theta_d: (0..THETA_D_BINS)
+                .map(|i| at(0, i, 0).theta_d.sin_cos())
+                .collect(),
+            phi_d: (0..PHI_D_BINS)
+                .map(|i| at(0, 0, i).phi_d.sin_cos())
+                .collect(),
+        }
+    })
 }
 
 /// The MERL bin index of a pair of directions.
@@ -190,6 +242,14 @@ mod tests {
 
     fn close(a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
         (a - b).norm() < 1e-12
+    }
+
+    #[test]
+    fn looked_up_centre_directions_equal_the_computed_ones_bit_for_bit() {
+        for index in (0..MERL_BINS).step_by(7) {
+            let b = MerlBin::from_index(index).unwrap();
+            assert_eq!(b.centre_directions(), b.centre().to_directions(), "{b:?}");
+        }
     }
 
     #[test]

@@ -95,7 +95,7 @@ impl MerlTable {
     /// horizon get no data.
     pub fn tabulate(brdf: &dyn Brdf) -> Self {
         Self::from_fn(|bin| {
-            let (wi, wo) = bin.centre().to_directions();
+            let (wi, wo) = bin.centre_directions();
             (wi.z > 0.0 && wo.z > 0.0).then(|| brdf.eval_local(&wi, &wo))
         })
     }
@@ -283,7 +283,7 @@ mod tests {
             theta_d: 30,
             phi_d: 50,
         };
-        let (wi, wo) = bin.centre().to_directions();
+        let (wi, wo) = bin.centre_directions();
         let (got, want) = (table.eval_local(&wi, &wo), Analytic.eval_local(&wi, &wo));
         assert!((0..3).all(|c| (got[c] - want[c]).abs() <= 1e-14 * want[c]));
         // Anywhere else (rotated frames too: isotropy means the table ignores phi_h), the
@@ -298,7 +298,7 @@ mod tests {
                 phi_d: 0.3 + 5.0 * t,
             };
             let (wi, wo) = hd.to_directions();
-            let (ci, co) = hd.merl_bin().centre().to_directions();
+            let (ci, co) = hd.merl_bin().centre_directions();
             let (got, want) = (table.eval_local(&wi, &wo), Analytic.eval_local(&ci, &co));
             for c in 0..3 {
                 // Only the rounding of dividing by the channel scale and multiplying back.

@@ -192,7 +192,7 @@ impl BinValues for BrdfValues<'_> {
         bins.iter()
             .map(|&b| match MerlBin::from_index(b) {
                 Some(bin) if bin.is_above_horizon() => {
-                    let (wi, wo) = bin.centre().to_directions();
+                    let (wi, wo) = bin.centre_directions();
                     self.0.eval_local(&wi, &wo)
                 }
                 _ => [0.0; 3],

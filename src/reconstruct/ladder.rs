@@ -307,7 +307,7 @@ impl<B: Brdf> Candidate for AnalyticCandidate<B> {
     fn eval_bin(&self, bin: usize) -> [f64; 3] {
         match MerlBin::from_index(bin) {
             Some(b) => {
-                let (wi, wo) = b.centre().to_directions();
+                let (wi, wo) = b.centre_directions();
                 if wi.z > 0.0 && wo.z > 0.0 {
                     self.0.eval_local(&wi, &wo)
                 } else {

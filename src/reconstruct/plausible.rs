@@ -234,7 +234,7 @@ pub fn make_plausible(
                 continue;
             };
             let Some(v) = table.get(index) else { continue };
-            let (wi, wo) = b.centre().to_directions();
+            let (wi, wo) = b.centre_directions();
             let f = s[theta_bin(wi.z.clamp(-1.0, 1.0).acos())]
                 .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())]);
             if f < 1.0 {

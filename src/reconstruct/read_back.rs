@@ -156,6 +156,9 @@ struct RefineSettingsMirror {
     max_tilt_deg: f64,
     residual_sigma: f64,
     smooth_deg: f64,
+    /// Absent in reports written before it existed (the offsets were smoothed then).
+    #[serde(default)]
+    smooth_normals: f64,
     anchor_deg: f64,
     min_pixels_per_vertex: usize,
     hold_out_every: usize,

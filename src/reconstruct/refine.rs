@@ -99,6 +99,11 @@ pub struct RefineSettings {
     /// Expected difference between a vertex's correction (refined minus mesh normal) and the
     /// mean correction of its one-ring, degrees.
     pub smooth_deg: f64,
+    /// What the smoothness smooths: 0, the correction field (refined minus mesh normal: the
+    /// mesh's own normal detail, noise included, is kept); 1, the refined normals themselves (a
+    /// vertex's normal against its one-ring's mean: the mesh's vertex-to-vertex noise is
+    /// smoothed away where the pixels do not hold it); between, a blend.
+    pub smooth_normals: f64,
     /// Expected error of the mesh's normals, degrees (the anchor).
     pub anchor_deg: f64,
     /// A vertex with fewer pixels on its faces keeps its normal.
@@ -133,6 +138,7 @@ impl Default for RefineSettings {
             max_tilt_deg: 20.0,
             residual_sigma: 0.1,
             smooth_deg: 20.0,
+            smooth_normals: 0.0,
             anchor_deg: 20.0,
             min_pixels_per_vertex: 2,
             hold_out_every: 4,
@@ -518,12 +524,24 @@ impl<'a> Problem<'a> {
         let mean = if k > 0 { sum / k as f64 } else { 1.0 };
         let sigma2 = s.residual_sigma * s.residual_sigma;
         let per_rad2 = |deg: f64| mean * sigma2 / deg.to_radians().max(1e-6).powi(2);
+        let zero = vec![Vector3::zeros(); vertices];
+        let base = if s.smooth_normals != 0.0 {
+            (0..vertices)
+                .map(|v| {
+                    laplacian_of(self.mesh.normals, self.mesh.neighbours, v)
+                        .map_or(Vector3::zeros(), |e| e * s.smooth_normals)
+                })
+                .collect()
+        } else {
+            zero
+        };
         Prior {
             n0: self.mesh.normals,
             neighbours: self.mesh.neighbours,
             movable,
             anchor: per_rad2(s.anchor_deg),
             smooth: per_rad2(s.smooth_deg),
+            base,
         }
     }
 
@@ -650,7 +668,7 @@ impl<'a> Problem<'a> {
             );
         let offsets: Vec<Vector3<f64>> = n.iter().zip(prior.n0).map(|(a, b)| a - b).collect();
         let mut rhs = grad;
-        add_into(&mut rhs, &prior.gradient(&offsets, &frames));
+        add_into(&mut rhs, &prior.gradient(&offsets, &frames, true));
         let fixed = |k: usize| !prior.movable[k / 2];
         for (k, r) in rhs.iter_mut().enumerate() {
             *r = if fixed(k) { 0.0 } else { -*r };
@@ -687,7 +705,7 @@ impl<'a> Problem<'a> {
             let moves: Vec<Vector3<f64>> = (0..n.len())
                 .map(|v| frames[v].0 * x[2 * v] + frames[v].1 * x[2 * v + 1])
                 .collect();
-            add_into(&mut out, &prior.gradient(&moves, &frames));
+            add_into(&mut out, &prior.gradient(&moves, &frames, false));
             for (k, o) in out.iter_mut().enumerate() {
                 *o = if fixed(k) { 0.0 } else { *o + damping * x[k] };
             }
@@ -744,24 +762,33 @@ struct Lin {
     irls: f64,
 }
 
+/// `x_v` minus the mean of its one-ring's `x` (`None` for a vertex without neighbours).
+fn laplacian_of(x: &[Vector3<f64>], neighbours: &[Vec<u32>], v: usize) -> Option<Vector3<f64>> {
+    let ring = &neighbours[v];
+    (!ring.is_empty()).then(|| {
+        x[v] - ring.iter().map(|&u| x[u as usize]).sum::<Vector3<f64>>() / ring.len() as f64
+    })
+}
+
 /// The priors on the offset field `d_v = n_v - n0_v`: an anchor `|d_v|^2 / anchor^2` and a
-/// smoothness `|d_v - mean of the one-ring's d|^2 / smooth^2`, both weighted like the mean
-/// data weight of a vertex so they count like its pixels; vertices without pixels enough stay.
+/// smoothness `|L d_v + b_v|^2 / smooth^2` (`L`: a vertex minus its one-ring's mean; `b_v`:
+/// `smooth_normals` times `L n0_v`, so at 1 the refined normals `n0 + d` are what is smoothed),
+/// both weighted like the mean data weight of a vertex so they count like its pixels; vertices
+/// without pixels enough stay.
 struct Prior<'a> {
     n0: &'a [Vector3<f64>],
     neighbours: &'a [Vec<u32>],
     movable: Vec<bool>,
     anchor: f64,
     smooth: f64,
+    /// `b_v` above (zero when the offsets are smoothed).
+    base: Vec<Vector3<f64>>,
 }
 
 impl Prior<'_> {
-    /// The Laplacian residual of the offsets at vertex `v`.
-    fn laplacian(&self, d: &[Vector3<f64>], v: usize) -> Option<Vector3<f64>> {
-        let ring = &self.neighbours[v];
-        (!ring.is_empty()).then(|| {
-            d[v] - ring.iter().map(|&u| d[u as usize]).sum::<Vector3<f64>>() / ring.len() as f64
-        })
+    /// The smoothness residual at vertex `v`: `L d_v`, plus `b_v` when `with_base`.
+    fn laplacian(&self, d: &[Vector3<f64>], v: usize, with_base: bool) -> Option<Vector3<f64>> {
+        laplacian_of(d, self.neighbours, v).map(|e| if with_base { e + self.base[v] } else { e })
     }
 
     fn cost(&self, d: &[Vector3<f64>]) -> f64 {
@@ -769,20 +796,26 @@ impl Prior<'_> {
             .map(|v| {
                 self.anchor * d[v].norm_squared()
                     + self
-                        .laplacian(d, v)
+                        .laplacian(d, v, true)
                         .map_or(0.0, |e| self.smooth * e.norm_squared())
             })
             .sum()
     }
 
-    /// Half the gradient of `cost` at offsets `d`, in the tangent angles of `frames` (also the
-    /// prior's Hessian times a move, since the prior is quadratic in the offsets). The one-rings
-    /// are symmetric (mesh edges), so a vertex collects its neighbours' Laplacian terms from its
-    /// own ring: two parallel passes, no scatter.
-    fn gradient(&self, d: &[Vector3<f64>], frames: &[(Vector3<f64>, Vector3<f64>)]) -> Vec<f64> {
+    /// Half the gradient of `cost` at offsets `d`, in the tangent angles of `frames`; without
+    /// `with_base`, the prior's Hessian times the move `d` (the prior is quadratic in the
+    /// offsets, and `b` is its only constant). The one-rings are symmetric (mesh edges), so a
+    /// vertex collects its neighbours' Laplacian terms from its own ring: two parallel passes,
+    /// no scatter.
+    fn gradient(
+        &self,
+        d: &[Vector3<f64>],
+        frames: &[(Vector3<f64>, Vector3<f64>)],
+        with_base: bool,
+    ) -> Vec<f64> {
         let lap: Vec<Option<Vector3<f64>>> = (0..d.len())
             .into_par_iter()
-            .map(|v| self.laplacian(d, v))
+            .map(|v| self.laplacian(d, v, with_base))
             .collect();
         (0..d.len())
             .into_par_iter()

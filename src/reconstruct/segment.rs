@@ -390,28 +390,41 @@ fn smooth_labels(
             *l = 0; // a part of the mesh no pixel reaches, not connected to any that is seen
         }
     }
+    // Neighbours per label, counted once per vertex (the cost of every label reads it).
+    let mut same = vec![0usize; centres.len()];
+    // A vertex none of whose neighbours changed since it was last visited would choose its
+    // label again: only the others are visited (the same sweeps, in the same order, as
+    // visiting every vertex).
+    let mut dirty = vec![true; n];
     for _ in 0..10 {
         let mut changed = 0;
         for v in (0..n).filter(|&v| fixed_of(v).is_none()) {
-            let data = |k: usize| {
-                f.slot[v].map_or(0.0, |i| {
-                    f.weight[i].min(8.0) * dist2(&f.points[i], &centres[k])
-                })
-            };
+            if !dirty[v] {
+                continue;
+            }
+            dirty[v] = false;
+            same.fill(0);
+            for &u in &nb[v] {
+                if let Some(c) = same.get_mut(labels[u as usize] as usize) {
+                    *c += 1;
+                }
+            }
             let cost = |k: usize| {
-                data(k)
-                    + smoothness
-                        * nb[v]
-                            .iter()
-                            .filter(|&&u| labels[u as usize] != k as u32)
-                            .count() as f64
+                let data = f.slot[v].map_or(0.0, |i| {
+                    f.weight[i].min(8.0) * dist2(&f.points[i], &centres[k])
+                });
+                data + smoothness * (nb[v].len() - same[k]) as f64
             };
             let best = (0..centres.len())
-                .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
-                .unwrap_or(0) as u32;
+                .map(|k| (k, cost(k)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map_or(0, |(k, _)| k) as u32;
             if best != labels[v] {
                 labels[v] = best;
                 changed += 1;
+                for &u in &nb[v] {
+                    dirty[u as usize] = true;
+                }
             }
         }
         if changed == 0 {
