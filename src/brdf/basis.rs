@@ -470,6 +470,25 @@ impl Basis {
 
     /// f_r at one row from per-channel coefficients (what [`Self::synthesize`] gives there).
     pub fn synthesize_row(&self, coeffs: &[Vec<f64>; 3], row: usize) -> [f64; 3] {
+        let [x0, x1, x2] = coeffs;
+        if x0.len() == x1.len() && x1.len() == x2.len() {
+            // One pass over the row for the three channels: three independent sums, each in the
+            // order of the per-channel loop below (the same values, bit for bit), which the
+            // processor overlaps instead of waiting on one chain of additions at a time.
+            let qr = self.q_row(row, x0.len());
+            let (mut m0, mut m1, mut m2) = (-0.0, -0.0, -0.0);
+            for (j, q) in qr.iter().enumerate() {
+                let q = f64::from(*q);
+                m0 += q * x0[j];
+                m1 += q * x1[j];
+                m2 += q * x2[j];
+            }
+            return [
+                self.unmap(row, m0),
+                self.unmap(row, m1),
+                self.unmap(row, m2),
+            ];
+        }
         let mut rgb = [0.0; 3];
         for (ch, x) in coeffs.iter().enumerate() {
             let qr = self.q_row(row, x.len());
