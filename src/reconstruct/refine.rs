@@ -14,9 +14,11 @@
 //!    are solved jointly (conjugate gradients, matrix-free, in parallel). A photogrammetry
 //!    mesh's normal error is high-frequency (a displaced vertex tilts its neighbours the other
 //!    way), which a per-vertex window fit cannot follow (tried first: it smoothed the field and
-//!    left the error). Priors on the offset field (refined minus mesh normal): an anchor to the
-//!    mesh's normal and a smoothness (a vertex's offset against the mean of its one-ring's),
-//!    weighted like the mean pixels of a vertex, so a vertex finer than the pixels follows its
+//!    left the error). Priors: an anchor to the mesh's normal and a smoothness of the refined
+//!    normals (a vertex's normal against the mean of its one-ring's; `smooth_normals`, since
+//!    session 19: before, the offset field refined minus mesh normal was smoothed, which kept
+//!    the mesh's vertex-to-vertex noise wherever the pixels did not hold a vertex), weighted
+//!    like the mean pixels of a vertex, so a vertex finer than the pixels follows its
 //!    neighbours; and never further than a bounded tilt from the mesh's normal.
 //!
 //! Guard against explaining the reflectance away: the number of iterations is chosen on
@@ -138,7 +140,7 @@ impl Default for RefineSettings {
             max_tilt_deg: 20.0,
             residual_sigma: 0.1,
             smooth_deg: 20.0,
-            smooth_normals: 0.0,
+            smooth_normals: 1.0,
             anchor_deg: 20.0,
             min_pixels_per_vertex: 2,
             hold_out_every: 4,
@@ -1255,6 +1257,39 @@ mod tests {
         let it = &r.report.iterations;
         assert!(it.len() >= 2 && it[0].iteration == 0);
         assert!(it[r.report.chosen_iterations].held_out_error < it[0].held_out_error);
+    }
+
+    #[test]
+    fn smoothing_the_normals_recovers_more_than_smoothing_the_offsets_where_pixels_are_few() {
+        // A finer sphere than the pixels pin down (each image shows one face in four, 6
+        // views), the mesh's normals turned at random vertex by vertex: where a vertex's own
+        // pixels say little, the offset prior keeps its wrong turn, the normal prior follows
+        // its ring.
+        let mesh = sphere(24, 36);
+        let truth = true_normals(&mesh);
+        let start = perturbed(&mesh, 6.0, 5);
+        let px: Vec<RefinePixel> = pixels(&mesh, 6, 40.0, 20)
+            .into_iter()
+            .filter(|p| (p.face + 3 * p.image) % 4 == 0)
+            .collect();
+        let seen = seen_vertices(mesh.faces(), &px, truth.len());
+        let before = normal_error_deg(&start, &truth, &seen).expect("seen").0;
+        let error = |smooth_normals: f64| {
+            let settings = RefineSettings {
+                smooth_normals,
+                ..RefineSettings::default()
+            };
+            let r = run(&mesh, &start, &px, &settings);
+            assert!(r.report.accepted, "{}", r.report.reason);
+            normal_error_deg(&r.normals, &truth, &seen).expect("seen").0
+        };
+        let (offsets, normals) = (error(0.0), error(1.0));
+        eprintln!("median error {before:.2} -> {offsets:.2} (offsets), {normals:.2} (normals)");
+        assert!(offsets < before, "{before:.2} -> {offsets:.2}");
+        assert!(
+            normals < 0.95 * offsets,
+            "normals {normals:.2} against offsets {offsets:.2}"
+        );
     }
 
     #[test]
