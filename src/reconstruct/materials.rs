@@ -361,3 +361,60 @@ pub fn read(dir: &Path) -> Result<Option<MaterialsFile>, FormatError> {
         Err(e) => Err(e),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::prior::synthetic::CosinePrior;
+    use super::super::segment::tests::{ggx, grid, scene};
+    use super::*;
+
+    #[test]
+    fn a_mask_material_without_pixels_is_an_error_naming_it_before_any_fit() {
+        // Pixels only on the left of a 16 x 16 grid; the masks give material 1 to the left and
+        // material 2 to vertices no pixel shows (the label drawn where the object is in shadow).
+        let mesh = grid(16);
+        let obs: Vec<Observation> = scene(
+            &mesh,
+            &[ggx([0.6, 0.2, 0.1], 0.3), ggx([0.1, 0.3, 0.6], 0.3)],
+            6.0,
+            8,
+        )
+        .into_iter()
+        .filter(|o| o.position.x < 9.0)
+        .collect();
+        let vertex: Vec<Option<u32>> = mesh
+            .positions()
+            .iter()
+            .map(|p| match p.x {
+                x if x < 4.0 => Some(0),
+                x if x > 12.5 => Some(1),
+                _ => None,
+            })
+            .collect();
+        let fixed = FixedLabels {
+            vertex,
+            mask_labels: vec![1, 2],
+            ties: 0,
+        };
+        let mut said = Vec::new();
+        let result = reconstruct_materials(
+            &mesh,
+            &obs,
+            Some(&fixed),
+            &CosinePrior { k: 3 },
+            &CoreSettings::default(),
+            &SegmentSettings::default(),
+            &mut |m: &str| said.push(m.to_string()),
+        );
+        let Err(e) = result else {
+            panic!("fitted a material no pixel shows");
+        };
+        let MaterialError::Core { name, source } = &e;
+        assert_eq!(source, &CoreError::NoObservations, "{e}");
+        assert!(name.contains("mask label 2"), "{e}");
+        assert!(
+            !said.iter().any(|m| m.contains("fitting")),
+            "no core ran: {said:?}"
+        );
+    }
+}

@@ -887,7 +887,7 @@ fn choose_count(scores: &[CountScore], min_gain: f64) -> (usize, String) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::brdf::Brdf;
     use crate::brdf::analytic::LambertGgx;
@@ -895,7 +895,7 @@ mod tests {
     use nalgebra::{Point3, Vector3};
 
     /// A flat grid of `n` x `n` vertices in the xy plane (normal +z), two triangles per cell.
-    fn grid(n: usize) -> Mesh {
+    pub(crate) fn grid(n: usize) -> Mesh {
         let mut p = Vec::new();
         for j in 0..n {
             for i in 0..n {
@@ -920,7 +920,12 @@ mod tests {
     /// directions, shaded by the material of the face's left (x < split) or right half. The
     /// surface's true normal is the grid's tilted by up to 6 degrees per face (a photogrammetry
     /// mesh's error: the observations keep the grid's +z) and each pixel has 3 % noise.
-    fn scene(mesh: &Mesh, materials: &[LambertGgx], split: f64, images: usize) -> Vec<Observation> {
+    pub(crate) fn scene(
+        mesh: &Mesh,
+        materials: &[LambertGgx],
+        split: f64,
+        images: usize,
+    ) -> Vec<Observation> {
         let last = materials.len() - 1;
         scene_by(
             mesh,
@@ -976,7 +981,7 @@ mod tests {
         obs
     }
 
-    fn ggx(rgb: [f64; 3], alpha: f64) -> LambertGgx {
+    pub(crate) fn ggx(rgb: [f64; 3], alpha: f64) -> LambertGgx {
         LambertGgx {
             kd: rgb,
             ks: [0.3; 3],
