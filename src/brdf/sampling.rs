@@ -6,6 +6,9 @@
 //! each addition, coordinate descent moves every sample to a neighbouring bin (one block along
 //! any axis, `phi_d` periodic) while that lowers the condition number.
 //!
+//! The random candidates of a step are scored from one decomposition of the rows chosen so far
+//! (`rank_one`: the same condition numbers as an SVD per candidate, at O(k^2) each).
+//!
 //! Candidates default to every basis row; on the rig they are the rows observed by reliable
 //! pixels (the reconstruction picks among pixels), so every step, descent included, stays inside
 //! the given candidate set. Seeded and deterministic. Pure: no files, no I/O; depends on the
