@@ -101,21 +101,9 @@ fn run_ok(job: &Path, out: &Path, extra: &[&str]) -> String {
 
 /// The quick settings of `tests/materials.rs` (a coarse basis without either material).
 fn quick(materials_arg: Option<&str>) -> Vec<String> {
-    let mut a: Vec<String> = [
-        "--exclude",
-        &MATERIALS.join(","),
-        "--basis-stride",
-        "3,10,10",
-        "--basis-components",
-        "10",
-        "--trials",
-        "3",
-        "--samples",
-        "15",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
+    // QUICK_ARGS's basis and trials, without either material of these objects in the basis.
+    let mut a: Vec<String> = vec!["--exclude".to_string(), MATERIALS.join(",")];
+    a.extend(QUICK_ARGS[2..].iter().map(|s| s.to_string()));
     if let Some(m) = materials_arg {
         a.extend(["--materials".to_string(), m.to_string()]);
     }
@@ -174,17 +162,7 @@ fn truth_label_masks_on_three_images_give_the_two_materials_at_least_as_well_as_
         let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
         assert_eq!(report.materials.map(|m| m.mask_labels), Some(vec![1, 2]));
         // the HTML report says which material each label mask gave
-        let page = std::process::Command::new(crate::util::bin())
-            .arg("report")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            page.status.success(),
-            "{}",
-            String::from_utf8_lossy(&page.stderr)
-        );
-        let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+        let html = crate::util::html_report(&out);
         for m in &file.materials {
             let l = m.mask_label.unwrap();
             assert!(

@@ -232,21 +232,11 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, labels, spec, job) = two_material_scene(&dir.path().join("two"));
     // one --exclude with both names, comma-separated
+    // QUICK_ARGS's basis and trials, without either material in the basis.
     let exclude = MATERIALS.join(",");
-    let quick = [
-        "--exclude",
-        exclude.as_str(),
-        "--basis-stride",
-        "3,10,10",
-        "--basis-components",
-        "10",
-        "--trials",
-        "3",
-        "--samples",
-        "15",
-        "--materials",
-        "auto",
-    ];
+    let mut quick = vec!["--exclude", exclude.as_str()];
+    quick.extend(&crate::reconstruct::QUICK_ARGS[2..]);
+    quick.extend(["--materials", "auto"]);
     let out = dir.path().join("out-two");
     let run = crate::reconstruct::run_cli(&job.source, &out, &quick);
     assert!(
@@ -270,17 +260,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     let report = brdf_rig::reconstruct::report_file::read(&out).unwrap();
     assert_eq!(report.materials.as_ref().map(|m| m.count), Some(2));
     // the HTML report shows a section with both materials and their files
-    let page = std::process::Command::new(util::bin())
-        .arg("report")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        page.status.success(),
-        "{}",
-        String::from_utf8_lossy(&page.stderr)
-    );
-    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let html = util::html_report(&out);
     assert!(html.contains("id=\"materials\""), "no materials section");
     for m in &file.materials {
         assert!(html.contains(&m.file), "{} not in the report", m.file);
@@ -306,13 +286,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
 
     // a material's table gone: its section says so, naming the file; the page is still made
     std::fs::remove_file(out.join(&file.materials[1].file)).unwrap();
-    let page = std::process::Command::new(util::bin())
-        .arg("report")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(page.status.success());
-    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let html = util::html_report(&out);
     let sections = material_sections(&html);
     assert_eq!(sections[0].matches("<img").count(), 3);
     assert_eq!(sections[1].matches("<img").count(), 0);

@@ -408,13 +408,7 @@ fn cli_refine_normals_reports_what_it_did() {
     assert!(normals.reason.contains("at least 3"), "{}", normals.reason);
     assert!(!out.join("mesh_refined.ply").exists());
     // The HTML report says what the refinement did.
-    let o = Command::new(util::bin())
-        .arg("report")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let html = util::html_report(&out);
     assert!(html.contains("Normals refined from the images"));
     assert!(html.contains("<b>kept</b>") && html.contains("at least 3"));
     // Out of range: refused before any work, naming the option.

@@ -2,7 +2,7 @@
 
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `../shared/data` next to the repository, or `$BRDF_RIG_SHARED_DATA`.
 pub fn shared_data() -> PathBuf {
@@ -15,4 +15,16 @@ pub fn shared_data() -> PathBuf {
 /// The `brdf-rig` binary cargo built for these tests.
 pub fn bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_brdf-rig"))
+}
+
+/// Runs `brdf-rig report DIR` (asserting it succeeds, with its stderr if not) and returns the
+/// page it wrote, `DIR/report.html`.
+pub fn html_report(dir: &Path) -> String {
+    let o = std::process::Command::new(bin())
+        .arg("report")
+        .arg(dir)
+        .output()
+        .expect("brdf-rig runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read_to_string(dir.join("report.html")).expect("report.html written")
 }

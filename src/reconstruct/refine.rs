@@ -526,7 +526,6 @@ impl<'a> Problem<'a> {
         let mean = if k > 0 { sum / k as f64 } else { 1.0 };
         let sigma2 = s.residual_sigma * s.residual_sigma;
         let per_rad2 = |deg: f64| mean * sigma2 / deg.to_radians().max(1e-6).powi(2);
-        let zero = vec![Vector3::zeros(); vertices];
         let base = if s.smooth_normals != 0.0 {
             (0..vertices)
                 .map(|v| {
@@ -535,7 +534,7 @@ impl<'a> Problem<'a> {
                 })
                 .collect()
         } else {
-            zero
+            vec![Vector3::zeros(); vertices]
         };
         Prior {
             n0: self.mesh.normals,
