@@ -7,7 +7,8 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final
+//! fitcos, facecap, final, and `from_truth=1` (start from the true vertex normals on the
+//! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
@@ -109,8 +110,19 @@ fn main() -> anyhow::Result<()> {
         }
     }
     for v in &variants {
-        let s = variant(v)?;
-        let scene = load_case(&job, &observe, &Perturb::default())?;
+        // `from_truth` (a key of its own): the SfM-like mesh with the true vertex normals, to
+        // see whether the objective's minimum stays at the truth.
+        let from_truth = v.split(',').any(|kv| kv == "from_truth=1");
+        let spec: Vec<&str> = v.split(',').filter(|kv| *kv != "from_truth=1").collect();
+        let s = variant(&spec.join(","))?;
+        let mut scene = load_case(&job, &observe, &Perturb::default())?;
+        if from_truth
+            && !scene
+                .mesh
+                .set_vertex_normals(mesh.vertex_normals().to_vec())
+        {
+            anyhow::bail!("the true mesh's normals do not fit the scene's mesh");
+        }
         let t = Instant::now();
         let c = refine_case(scene, &observe, &s, &mesh);
         let secs = t.elapsed().as_secs_f64();

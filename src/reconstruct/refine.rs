@@ -108,6 +108,7 @@ pub struct RefineSettings {
     pub smooth_normals: f64,
     /// Expected error of the mesh's normals, degrees (the anchor).
     pub anchor_deg: f64,
+
     /// A vertex with fewer pixels on its faces keeps its normal.
     pub min_pixels_per_vertex: usize,
     /// Every this-many-th light image is held out to choose the iterations (at least 3 images).
@@ -625,14 +626,16 @@ impl<'a> Problem<'a> {
     /// each): the pixels' residuals couple the three corners of their face, so a vertex moves
     /// for its own share of each pixel, not for its whole window. Normal equations solved by
     /// preconditioned conjugate gradients, matrix-free; the step is halved until the robust
-    /// cost drops, and refused when it never does.
+    /// cost drops, and refused when it never does. `c0` is [`Self::cost`] at `n`; returns the
+    /// normals and their cost.
     fn step(
         &self,
         model: &Model,
         idx: &[usize],
         n: &[Vector3<f64>],
         prior: &Prior,
-    ) -> Vec<Vector3<f64>> {
+        c0: f64,
+    ) -> (Vec<Vector3<f64>>, f64) {
         let frames: Vec<(Vector3<f64>, Vector3<f64>)> = n
             .iter()
             .map(|v| {
@@ -726,7 +729,6 @@ impl<'a> Problem<'a> {
             self.settings.cg_tolerance,
         );
         let max_tilt = self.settings.max_tilt_deg.to_radians();
-        let c0 = self.cost(model, idx, n, prior);
         let mut scale = self.settings.step;
         for _ in 0..4 {
             let trial: Vec<Vector3<f64>> = (0..n.len())
@@ -739,12 +741,13 @@ impl<'a> Problem<'a> {
                     clamp_tilt(&moved, &prior.n0[v], max_tilt)
                 })
                 .collect();
-            if self.cost(model, idx, &trial, prior) < c0 {
-                return trial;
+            let c = self.cost(model, idx, &trial, prior);
+            if c < c0 {
+                return (trial, c);
             }
             scale *= 0.5;
         }
-        n.to_vec()
+        (n.to_vec(), c0)
     }
 }
 
@@ -1049,8 +1052,9 @@ pub fn refine_normals(
             settings.max_iterations, report.held_out_images
         ));
         let t = Instant::now();
+        let mut c = problem.cost(&model, &train, &n, &prior_train);
         for _ in 0..settings.sweeps {
-            n = problem.step(&model, &train, &n, &prior_train);
+            (n, c) = problem.step(&model, &train, &n, &prior_train, c);
         }
         let Some(fit) = problem.fit(&all, &n) else {
             break;
@@ -1102,8 +1106,9 @@ pub fn refine_normals(
         if let Some(f) = problem.fit(&all, &n) {
             model = f;
         }
+        let mut c = problem.cost(&model, &all, &n, &prior_all);
         for _ in 0..settings.sweeps {
-            n = problem.step(&model, &all, &n, &prior_all);
+            (n, c) = problem.step(&model, &all, &n, &prior_all, c);
         }
     }
     let refined = if settings.final_alternations > 0 {
