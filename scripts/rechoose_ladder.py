@@ -6,6 +6,8 @@ Usage: python3 scripts/rechoose_ladder.py docs/eval/refined/accuracy.json [--par
 
 With --median, a rung's score is the median over its folds instead of the mean (a study of a
 held-out error robust to one bad fold; not in the code).
+With --front, the `pareto` choice among the rungs that no other rung dominates beyond noise
+(better by more than one standard error in one space, not worse by more than one in the other).
 With --pareto, the `pareto` choice instead (`--held-out pareto`: the richer of the linear and
 the log choice unless its mean error is worse in the space that chose the simpler one).
 
@@ -53,7 +55,27 @@ def pareto(rungs):
     inf=float('inf')
     er = err(rungs[r_],lin); es = err(rungs[s_],lin)
     return r_ if (er if er is not None else inf) <= (es if es is not None else inf) else s_
-RULE = pareto if '--pareto' in sys.argv else both
+def beats(a, b, lin):
+    # rung a's held-out error is lower than b's beyond one standard error of their paired
+    # fold differences
+    ea, eb = err(a, lin), err(b, lin)
+    return ea is not None and eb is not None and ea < eb and not within(b, a, lin)
+def dominated(rungs, i):
+    # another rung is better beyond noise in one space and not worse beyond noise in the other
+    b = rungs[i]
+    for j, a in enumerate(rungs):
+        if j == i: continue
+        if (beats(a, b, True) and within(a, b, False)) or (beats(a, b, False) and within(a, b, True)):
+            return True
+    return False
+def front(rungs):
+    # the pareto choice among the rungs no other rung dominates beyond noise
+    keep = [i for i in range(len(rungs)) if not dominated(rungs, i)]
+    if not keep: return pareto(rungs)
+    sub = [rungs[i] for i in keep]
+    c = pareto(sub)
+    return None if c is None else keep[c]
+RULE = front if '--front' in sys.argv else (pareto if '--pareto' in sys.argv else both)
 old_r=[]; new_r=[]; changed=0
 rows=[]
 for sc in d['scenes']:

@@ -52,7 +52,7 @@ pub struct EvalCommon {
     #[arg(long)]
     pub scratch: Option<PathBuf>,
     /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default),
-    /// `pareto-patches`, `patches`, `both`, `log` or `linear` (as `bench external --held-out`).
+    /// `pareto-patches`, `front`, `patches`, `both`, `log` or `linear` (as `bench external --held-out`).
     #[arg(long, value_parser = super::bench_external::parse_metric)]
     pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
 }

@@ -44,7 +44,9 @@ pub struct BenchExternalArgs {
     pub prior_ratio: Option<f64>,
     /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default: the
     /// richer of the linear and the log choice unless it does worse in the other space),
-    /// `pareto-patches` (the same with patch sums in place of pixels), `patches`, `both` (a
+    /// `pareto-patches` (the same with patch sums in place of pixels), `front` (`pareto` among
+    /// the rungs no other rung beats beyond noise in one space without losing in the other),
+    /// `patches`, `both` (a
     /// richer model must win beyond noise in each), `log` or `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
@@ -59,6 +61,7 @@ pub(crate) fn metric_name(m: HeldOutMetric) -> &'static str {
         HeldOutMetric::Pareto => "pareto",
         HeldOutMetric::Patches => "patches",
         HeldOutMetric::ParetoPatches => "pareto-patches",
+        HeldOutMetric::Front => "front",
     }
 }
 
@@ -70,8 +73,9 @@ pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
         "pareto" => Ok(HeldOutMetric::Pareto),
         "patches" => Ok(HeldOutMetric::Patches),
         "pareto-patches" => Ok(HeldOutMetric::ParetoPatches),
+        "front" => Ok(HeldOutMetric::Front),
         _ => Err(format!(
-            "{s:?}: expected log, linear, both, pareto, patches or pareto-patches"
+            "{s:?}: expected log, linear, both, pareto, patches, pareto-patches or front"
         )),
     }
 }

@@ -52,7 +52,8 @@ pub fn every_variant_is_mirrored(f: Family, m: HeldOutMetric, r: ChoiceRule, s: 
         | HeldOutMetric::Both
         | HeldOutMetric::Pareto
         | HeldOutMetric::Patches
-        | HeldOutMetric::ParetoPatches => {}
+        | HeldOutMetric::ParetoPatches
+        | HeldOutMetric::Front => {}
     }
     match r {
         ChoiceRule::OneStandardError | ChoiceRule::Paired => {}
@@ -80,6 +81,7 @@ enum HeldOutMetricMirror {
     Pareto,
     Patches,
     ParetoPatches,
+    Front,
 }
 
 #[derive(Deserialize)]
