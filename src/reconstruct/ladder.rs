@@ -1400,15 +1400,14 @@ mod tests {
 
     #[test]
     fn with_both_metrics_a_richer_model_must_win_in_each() {
-        let rung = scored;
         // The basis wins every fold in log space and loses every fold linearly.
-        let ggx = rung(
+        let ggx = scored(
             Family::LambertGgx,
             8,
             &[0.12, 0.13, 0.11, 0.12, 0.14],
             &[0.057, 0.056, 0.058, 0.057, 0.056],
         );
-        let basis = rung(
+        let basis = scored(
             Family::Basis,
             30,
             &[0.13, 0.14, 0.12, 0.13, 0.15],
@@ -1428,7 +1427,7 @@ mod tests {
         assert_eq!(i, 0, "{reason}");
         assert!(reason.contains("do not need"), "{reason}");
         // Better in both: the basis is needed.
-        let basis = rung(
+        let basis = scored(
             Family::Basis,
             30,
             &[0.10, 0.11, 0.09, 0.10, 0.12],
@@ -1439,7 +1438,7 @@ mod tests {
         // Pareto: the basis wins clearly in log space while the linear folds cannot separate
         // the two (noisy, the basis's mean a little lower): `Both` keeps the simpler rung,
         // `Pareto` the basis; with the basis's linear mean higher, both keep the simpler.
-        let noisy = rung(
+        let noisy = scored(
             Family::Basis,
             30,
             &[0.08, 0.18, 0.09, 0.16, 0.10],
@@ -1456,7 +1455,7 @@ mod tests {
                 .0,
             1
         );
-        let worse = rung(
+        let worse = scored(
             Family::Basis,
             30,
             &[0.10, 0.20, 0.11, 0.18, 0.12],
