@@ -1370,6 +1370,16 @@ mod tests {
         assert!(reason.contains("patch errors"), "{reason}");
     }
 
+    /// Lambert + GGX with steady folds, linear about 0.12 and log about 0.057.
+    fn steady_ggx() -> Rung {
+        scored(
+            Family::LambertGgx,
+            8,
+            &[0.12, 0.13, 0.11, 0.12, 0.14],
+            &[0.057, 0.056, 0.058, 0.057, 0.056],
+        )
+    }
+
     /// A rung with these fold errors (pixel and patch errors alike), linear and log.
     fn scored(family: Family, parameters: usize, lin: &[f64], log: &[f64]) -> Rung {
         let stats = |v: &[f64]| {
@@ -1401,12 +1411,7 @@ mod tests {
     #[test]
     fn with_both_metrics_a_richer_model_must_win_in_each() {
         // The basis wins every fold in log space and loses every fold linearly.
-        let ggx = scored(
-            Family::LambertGgx,
-            8,
-            &[0.12, 0.13, 0.11, 0.12, 0.14],
-            &[0.057, 0.056, 0.058, 0.057, 0.056],
-        );
+        let ggx = steady_ggx();
         let basis = scored(
             Family::Basis,
             30,
@@ -1476,25 +1481,30 @@ mod tests {
             metric,
             ..Default::default()
         };
-        let lambert = scored(
-            Family::Lambert,
-            3,
-            &[0.97, 0.88, 0.93, 0.93, 0.82],
-            &[0.62, 0.63, 0.60, 0.58, 0.56],
-        );
-        let k5 = scored(
-            Family::Basis,
-            15,
-            &[0.23, 0.39, 0.54, 2.2, 0.32],
-            &[0.11, 0.10, 0.09, 0.11, 0.10],
-        );
-        let k40 = scored(
-            Family::Basis,
-            120,
-            &[0.9, 0.9, 1.2, 1.3, 0.7],
-            &[0.095, 0.09, 0.085, 0.10, 0.095],
-        );
-        let rungs = vec![lambert, k5, k40];
+        // (family, parameters, linear folds, log folds): Lambert, the basis at k = 5 and 40
+        let rungs: Vec<Rung> = [
+            (
+                Family::Lambert,
+                3,
+                [0.97, 0.88, 0.93, 0.93, 0.82],
+                [0.62, 0.63, 0.60, 0.58, 0.56],
+            ),
+            (
+                Family::Basis,
+                15,
+                [0.23, 0.39, 0.54, 2.2, 0.32],
+                [0.11, 0.10, 0.09, 0.11, 0.10],
+            ),
+            (
+                Family::Basis,
+                120,
+                [0.9, 0.9, 1.2, 1.3, 0.7],
+                [0.095, 0.09, 0.085, 0.10, 0.095],
+            ),
+        ]
+        .iter()
+        .map(|(f, p, lin, log)| scored(*f, *p, lin, log))
+        .collect();
         let (i, reason) = choose_by(&rungs, &with(HeldOutMetric::Pareto)).unwrap();
         assert_eq!(i, 0, "pareto keeps Lambert: {reason}");
         let (i, reason) = choose_by(&rungs, &with(HeldOutMetric::Front)).unwrap();
@@ -1503,12 +1513,7 @@ mod tests {
         assert!(reason.contains(&rungs[0].label()), "{reason}");
         // Where no rung dominates another (each better in one space, beyond noise, and worse
         // in the other), `Front` chooses as `Pareto`.
-        let ggx = scored(
-            Family::LambertGgx,
-            8,
-            &[0.12, 0.13, 0.11, 0.12, 0.14],
-            &[0.057, 0.056, 0.058, 0.057, 0.056],
-        );
+        let ggx = steady_ggx();
         let basis = scored(
             Family::Basis,
             30,
