@@ -1327,29 +1327,7 @@ mod tests {
     #[test]
     fn patches_choose_by_the_patch_errors() {
         let rung = |family, parameters, pixel: [f64; 3], patch: [f64; 3]| {
-            let ms = |v: [f64; 3]| {
-                let m = v.iter().sum::<f64>() / 3.0;
-                let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 2.0).sqrt();
-                (Some(m), Some(sd / 3f64.sqrt()))
-            };
-            let ((error, standard_error), (error_patch, standard_error_patch)) =
-                (ms(pixel), ms(patch));
-            Rung {
-                family,
-                k: None,
-                eta: None,
-                parameters,
-                fold_errors: pixel.iter().map(|x| Some(*x)).collect(),
-                error,
-                standard_error,
-                fold_errors_log: pixel.iter().map(|x| Some(*x)).collect(),
-                error_log: error,
-                standard_error_log: standard_error,
-                fold_errors_patch: patch.iter().map(|x| Some(*x)).collect(),
-                error_patch,
-                standard_error_patch,
-                image_errors: vec![],
-            }
+            with_folds(family, parameters, &pixel, &pixel, &patch)
         };
         // Lambert + GGX: one held-out image's pixels blow up (a narrow peak where a wrong
         // normal put the half vector), its patches do not; it beats Lambert in every patch fold.
@@ -1357,10 +1335,6 @@ mod tests {
             rung(Family::Lambert, 3, [0.5, 0.6, 0.55], [0.30, 0.35, 0.32]),
             rung(Family::LambertGgx, 8, [9.0, 0.3, 0.35], [0.20, 0.22, 0.21]),
         ];
-        let with = |metric| LadderSettings {
-            metric,
-            ..Default::default()
-        };
         assert_eq!(
             choose_by(&rungs, &with(HeldOutMetric::Linear)).unwrap().0,
             0
@@ -1380,30 +1354,52 @@ mod tests {
         )
     }
 
-    /// A rung with these fold errors (pixel and patch errors alike), linear and log.
+    /// Default ladder settings choosing by `metric`.
+    fn with(metric: HeldOutMetric) -> LadderSettings {
+        LadderSettings {
+            metric,
+            ..Default::default()
+        }
+    }
+
+    /// A rung with these fold errors, linear and log (the patch errors as the pixel ones:
+    /// `ParetoPatches` must then choose as `Pareto`).
     fn scored(family: Family, parameters: usize, lin: &[f64], log: &[f64]) -> Rung {
+        with_folds(family, parameters, lin, log, lin)
+    }
+
+    /// A rung with these fold errors: pixel, log and patch.
+    fn with_folds(
+        family: Family,
+        parameters: usize,
+        lin: &[f64],
+        log: &[f64],
+        patch: &[f64],
+    ) -> Rung {
         let stats = |v: &[f64]| {
             let n = v.len() as f64;
             let m = v.iter().sum::<f64>() / n;
             let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
             (Some(m), Some(sd / n.sqrt()))
         };
-        let ((error, standard_error), (error_log, standard_error_log)) = (stats(lin), stats(log));
+        let folds = |v: &[f64]| v.iter().map(|x| Some(*x)).collect();
+        let (error, standard_error) = stats(lin);
+        let (error_log, standard_error_log) = stats(log);
+        let (error_patch, standard_error_patch) = stats(patch);
         Rung {
             family,
             k: None,
             eta: None,
             parameters,
-            fold_errors: lin.iter().map(|x| Some(*x)).collect(),
+            fold_errors: folds(lin),
             error,
             standard_error,
-            fold_errors_log: log.iter().map(|x| Some(*x)).collect(),
+            fold_errors_log: folds(log),
             error_log,
             standard_error_log,
-            // the patch errors as the pixel ones: `ParetoPatches` must then choose as `Pareto`
-            fold_errors_patch: lin.iter().map(|x| Some(*x)).collect(),
-            error_patch: error,
-            standard_error_patch: standard_error,
+            fold_errors_patch: folds(patch),
+            error_patch,
+            standard_error_patch,
             image_errors: vec![],
         }
     }
@@ -1419,10 +1415,6 @@ mod tests {
             &[0.055, 0.054, 0.056, 0.055, 0.054],
         );
         let rungs = vec![ggx.clone(), basis];
-        let with = |metric| LadderSettings {
-            metric,
-            ..Default::default()
-        };
         assert_eq!(choose_by(&rungs, &with(HeldOutMetric::Log)).unwrap().0, 1);
         assert_eq!(
             choose_by(&rungs, &with(HeldOutMetric::Linear)).unwrap().0,
@@ -1477,10 +1469,6 @@ mod tests {
         // A shiny material's case: Lambert's linear error is within the noise of the basis's
         // (one fold of the basis is far off: a misplaced highlight), while in log space it is
         // far worse; the log choice is the richest basis, which the linear errors reject.
-        let with = |metric| LadderSettings {
-            metric,
-            ..Default::default()
-        };
         // (family, parameters, linear folds, log folds): Lambert, the basis at k = 5 and 40
         let rungs: Vec<Rung> = [
             (
