@@ -45,9 +45,9 @@ pub struct BenchExternalArgs {
     /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default: the
     /// richer of the linear and the log choice unless it does worse in the other space),
     /// `pareto-patches` (the same with patch sums in place of pixels), `front` (`pareto` among
-    /// the rungs no other rung beats beyond noise in one space without losing in the other),
-    /// `patches`, `both` (a
-    /// richer model must win beyond noise in each), `log` or `linear`.
+    /// the rungs no rung of another family beats beyond noise in one space without losing in
+    /// the other), `patches`, `both` (a richer model must win beyond noise in each), `log` or
+    /// `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
 }

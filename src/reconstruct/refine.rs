@@ -108,7 +108,6 @@ pub struct RefineSettings {
     pub smooth_normals: f64,
     /// Expected error of the mesh's normals, degrees (the anchor).
     pub anchor_deg: f64,
-
     /// A vertex with fewer pixels on its faces keeps its normal.
     pub min_pixels_per_vertex: usize,
     /// Every this-many-th light image is held out to choose the iterations (at least 3 images).
@@ -622,6 +621,22 @@ impl<'a> Problem<'a> {
         data + prior.cost(&d)
     }
 
+    /// `settings.sweeps` Gauss-Newton steps from normals `n` under one reflectance `model`, each
+    /// starting from the cost its predecessor ended on.
+    fn sweeps(
+        &self,
+        model: &Model,
+        idx: &[usize],
+        mut n: Vec<Vector3<f64>>,
+        prior: &Prior,
+    ) -> Vec<Vector3<f64>> {
+        let mut c = self.cost(model, idx, &n, prior);
+        for _ in 0..self.settings.sweeps {
+            (n, c) = self.step(model, idx, &n, prior, c);
+        }
+        n
+    }
+
     /// One damped Gauss-Newton step on every movable vertex normal at once (two tangent angles
     /// each): the pixels' residuals couple the three corners of their face, so a vertex moves
     /// for its own share of each pixel, not for its whole window. Normal equations solved by
@@ -1052,10 +1067,7 @@ pub fn refine_normals(
             settings.max_iterations, report.held_out_images
         ));
         let t = Instant::now();
-        let mut c = problem.cost(&model, &train, &n, &prior_train);
-        for _ in 0..settings.sweeps {
-            (n, c) = problem.step(&model, &train, &n, &prior_train, c);
-        }
+        n = problem.sweeps(&model, &train, n, &prior_train);
         let Some(fit) = problem.fit(&all, &n) else {
             break;
         };
@@ -1106,10 +1118,7 @@ pub fn refine_normals(
         if let Some(f) = problem.fit(&all, &n) {
             model = f;
         }
-        let mut c = problem.cost(&model, &all, &n, &prior_all);
-        for _ in 0..settings.sweeps {
-            (n, c) = problem.step(&model, &all, &n, &prior_all, c);
-        }
+        n = problem.sweeps(&model, &all, n, &prior_all);
     }
     let refined = if settings.final_alternations > 0 {
         prior_all.movable.clone()
