@@ -300,27 +300,51 @@ struct Model {
     table: Vec<f64>,
 }
 
-/// Continuous table coordinates of a configuration (unit normal, light, view, half vector).
-fn table_coords(n: &Vector3<f64>, l: &Vector3<f64>, h: &Vector3<f64>) -> [f64; 3] {
-    let cos_h = n.dot(h).clamp(-1.0, 1.0);
-    let th = cos_h.acos().min(PI / 2.0);
-    let td = l.dot(h).clamp(-1.0, 1.0).acos().min(PI / 2.0);
-    // phi_d: azimuth of l about h, from the plane of n and h
-    let t = n - h * cos_h;
-    let pd = match t.try_normalize(1e-9) {
-        Some(t) => {
-            let b = h.cross(&t);
-            let lp = l - h * l.dot(h);
-            let p = lp.dot(&b).atan2(lp.dot(&t)).abs();
-            if p > PI / 2.0 { PI - p } else { p }
+/// What a pixel's table lookup needs that its normal does not change (light and view are
+/// fixed): the half vector, the light's part across it and the theta_d coordinate. Computed
+/// once per pixel and refinement: the Gauss-Newton steps look a pixel up some hundred times.
+#[derive(Clone, Copy, Debug)]
+struct Lookup {
+    h: Vector3<f64>,
+    /// `l` minus its component along `h`.
+    lp: Vector3<f64>,
+    /// Continuous theta_d coordinate.
+    td: f64,
+}
+
+impl Lookup {
+    fn new(l: &Vector3<f64>, v: &Vector3<f64>) -> Self {
+        let h = (l + v).normalize();
+        let td = l.dot(&h).clamp(-1.0, 1.0).acos().min(PI / 2.0);
+        Self {
+            h,
+            lp: l - h * l.dot(&h),
+            td: td / (PI / 2.0) * (BINS_D - 1) as f64,
         }
-        None => 0.0,
-    };
-    [
-        (th / (PI / 2.0)).sqrt() * (BINS_H - 1) as f64,
-        td / (PI / 2.0) * (BINS_D - 1) as f64,
-        pd / (PI / 2.0) * (BINS_P - 1) as f64,
-    ]
+    }
+
+    /// Continuous table coordinates for the unit normal `n`.
+    fn coords(&self, n: &Vector3<f64>) -> [f64; 3] {
+        let h = &self.h;
+        let cos_h = n.dot(h).clamp(-1.0, 1.0);
+        let th = cos_h.acos().min(PI / 2.0);
+        // phi_d: azimuth of l about h, from the plane of n and h
+        let t = n - h * cos_h;
+        let pd = match t.try_normalize(1e-9) {
+            Some(t) => {
+                let b = h.cross(&t);
+                let lp = &self.lp;
+                let p = lp.dot(&b).atan2(lp.dot(&t)).abs();
+                if p > PI / 2.0 { PI - p } else { p }
+            }
+            None => 0.0,
+        };
+        [
+            (th / (PI / 2.0)).sqrt() * (BINS_H - 1) as f64,
+            self.td,
+            pd / (PI / 2.0) * (BINS_P - 1) as f64,
+        ]
+    }
 }
 
 /// The eight cells around continuous coordinates and their trilinear weights.
@@ -410,15 +434,14 @@ impl Model {
         Some(Self { table })
     }
 
-    /// `sum_c f_c cos theta_i` for normal `n`.
-    fn predict(&self, n: &Vector3<f64>, l: &Vector3<f64>, v: &Vector3<f64>) -> f64 {
+    /// `sum_c f_c cos theta_i` for normal `n` (`look`: the lookup of `l` and `v`).
+    fn predict(&self, n: &Vector3<f64>, l: &Vector3<f64>, v: &Vector3<f64>, look: &Lookup) -> f64 {
         let cos_i = n.dot(l);
         let cos_o = n.dot(v);
         if cos_i <= 0.0 || cos_o <= 0.0 {
             return 0.0;
         }
-        let h = (l + v).normalize();
-        let f: f64 = trilinear(table_coords(n, l, &h))
+        let f: f64 = trilinear(look.coords(n))
             .iter()
             .map(|&(c, w)| w * self.table[c])
             .sum();
@@ -432,6 +455,10 @@ struct Problem<'a> {
     pixels: &'a [RefinePixel],
     settings: &'a RefineSettings,
     eps: f64,
+    rings: &'a Rings,
+    /// Per pixel: its table lookup and `ln(eps + target)`.
+    lookups: Vec<Lookup>,
+    ln_targets: Vec<f64>,
 }
 
 impl<'a> Problem<'a> {
@@ -439,9 +466,11 @@ impl<'a> Problem<'a> {
         blended_normal(self.mesh.faces, p, n).map(|b| b * f64::from(p.sign))
     }
 
-    fn residual(&self, model: &Model, p: &RefinePixel, np: &Vector3<f64>) -> f64 {
-        let pred = model.predict(np, &p.light, &p.view);
-        (self.eps + pred).ln() - (self.eps + p.target).ln()
+    /// The log residual of pixel `i` under its normal `np`.
+    fn residual(&self, model: &Model, i: usize, np: &Vector3<f64>) -> f64 {
+        let p = &self.pixels[i];
+        let pred = model.predict(np, &p.light, &p.view, &self.lookups[i]);
+        (self.eps + pred).ln() - self.ln_targets[i]
     }
 
     fn loss(&self, r: f64) -> f64 {
@@ -459,7 +488,7 @@ impl<'a> Problem<'a> {
             .map(|&i| {
                 let p = &self.pixels[i];
                 match self.pixel_normal(p, n) {
-                    Some(np) => self.loss(self.residual(model, p, &np)),
+                    Some(np) => self.loss(self.residual(model, i, &np)),
                     None => 0.0,
                 }
             })
@@ -484,8 +513,7 @@ impl<'a> Problem<'a> {
                 if cos_i < min_cos || np.dot(&p.view) < min_cos {
                     return None;
                 }
-                let h = (p.light + p.view).normalize();
-                Some((table_coords(&np, &p.light, &h), p.target / cos_i))
+                Some((self.lookups[i].coords(&np), p.target / cos_i))
             })
             .collect();
         Model::fit(&samples)
@@ -529,19 +557,23 @@ impl<'a> Problem<'a> {
         let base = if s.smooth_normals != 0.0 {
             (0..vertices)
                 .map(|v| {
-                    laplacian_of(self.mesh.normals, self.mesh.neighbours, v)
+                    laplacian_of(self.mesh.normals, self.rings, v)
                         .map_or(Vector3::zeros(), |e| e * s.smooth_normals)
                 })
                 .collect()
         } else {
             vec![Vector3::zeros(); vertices]
         };
+        let smooth = per_rad2(s.smooth_deg);
         Prior {
             n0: self.mesh.normals,
-            neighbours: self.mesh.neighbours,
+            rings: self.rings,
+            ring_weight: (0..vertices)
+                .map(|v| smooth / self.rings.of(v).len().max(1) as f64)
+                .collect(),
             movable,
             anchor: per_rad2(s.anchor_deg),
-            smooth: per_rad2(s.smooth_deg),
+            smooth,
             base,
         }
     }
@@ -577,10 +609,10 @@ impl<'a> Problem<'a> {
                 if ci < s.move_min_cos || co < s.move_min_cos {
                     return None;
                 }
-                let r = self.residual(model, p, &np);
+                let r = self.residual(model, i, &np);
                 let ShadingFrame { t: u1, b: u2, .. } = ShadingFrame::new(np);
-                let g1 = (self.residual(model, p, &(np + u1 * h).normalize()) - r) / h;
-                let g2 = (self.residual(model, p, &(np + u2 * h).normalize()) - r) / h;
+                let g1 = (self.residual(model, i, &(np + u1 * h).normalize()) - r) / h;
+                let g2 = (self.residual(model, i, &(np + u2 * h).normalize()) - r) / h;
                 let g = u1 * g1 + u2 * g2;
                 let j = std::array::from_fn(|k| {
                     let (t1, t2) = &frames[f[k] as usize];
@@ -613,7 +645,7 @@ impl<'a> Problem<'a> {
                 if ci < s.move_min_cos || co < s.move_min_cos {
                     return 0.0;
                 }
-                let r = self.residual(model, p, &np);
+                let r = self.residual(model, i, &np);
                 ci * co * sigma2 * (1.0 + r * r / sigma2).ln()
             })
             .sum();
@@ -781,9 +813,34 @@ struct Lin {
     irls: f64,
 }
 
+/// The mesh's one-rings in one flat array (compressed rows): the prior gathers them twice in
+/// every conjugate-gradient product, and a vector per vertex scatters them over the heap.
+struct Rings {
+    start: Vec<usize>,
+    list: Vec<u32>,
+}
+
+impl Rings {
+    fn new(neighbours: &[Vec<u32>]) -> Self {
+        let mut start = Vec::with_capacity(neighbours.len() + 1);
+        start.push(0);
+        let mut list = Vec::with_capacity(neighbours.iter().map(Vec::len).sum());
+        for ring in neighbours {
+            list.extend_from_slice(ring);
+            start.push(list.len());
+        }
+        Self { start, list }
+    }
+
+    /// The one-ring of vertex `v`.
+    fn of(&self, v: usize) -> &[u32] {
+        &self.list[self.start[v]..self.start[v + 1]]
+    }
+}
+
 /// `x_v` minus the mean of its one-ring's `x` (`None` for a vertex without neighbours).
-fn laplacian_of(x: &[Vector3<f64>], neighbours: &[Vec<u32>], v: usize) -> Option<Vector3<f64>> {
-    let ring = &neighbours[v];
+fn laplacian_of(x: &[Vector3<f64>], rings: &Rings, v: usize) -> Option<Vector3<f64>> {
+    let ring = rings.of(v);
     (!ring.is_empty()).then(|| {
         x[v] - ring.iter().map(|&u| x[u as usize]).sum::<Vector3<f64>>() / ring.len() as f64
     })
@@ -796,7 +853,9 @@ fn laplacian_of(x: &[Vector3<f64>], neighbours: &[Vec<u32>], v: usize) -> Option
 /// without pixels enough stay.
 struct Prior<'a> {
     n0: &'a [Vector3<f64>],
-    neighbours: &'a [Vec<u32>],
+    rings: &'a Rings,
+    /// `smooth` over the size of each vertex's one-ring.
+    ring_weight: Vec<f64>,
     movable: Vec<bool>,
     anchor: f64,
     smooth: f64,
@@ -807,7 +866,7 @@ struct Prior<'a> {
 impl Prior<'_> {
     /// The smoothness residual at vertex `v`: `L d_v`, plus `b_v` when `with_base`.
     fn laplacian(&self, d: &[Vector3<f64>], v: usize, with_base: bool) -> Option<Vector3<f64>> {
-        laplacian_of(d, self.neighbours, v).map(|e| if with_base { e + self.base[v] } else { e })
+        laplacian_of(d, self.rings, v).map(|e| if with_base { e + self.base[v] } else { e })
     }
 
     fn cost(&self, d: &[Vector3<f64>]) -> f64 {
@@ -836,36 +895,38 @@ impl Prior<'_> {
             .into_par_iter()
             .map(|v| self.laplacian(d, v, with_base))
             .collect();
-        (0..d.len())
-            .into_par_iter()
-            .flat_map_iter(|v| {
-                let mut g = d[v] * self.anchor;
-                if let Some(e) = lap[v] {
-                    g += e * self.smooth;
+        let mut out = vec![0.0; 2 * d.len()];
+        out.par_chunks_mut(2).enumerate().for_each(|(v, o)| {
+            let mut g = d[v] * self.anchor;
+            if let Some(e) = lap[v] {
+                g += e * self.smooth;
+            }
+            for &u in self.rings.of(v) {
+                let u = u as usize;
+                if let Some(e) = lap[u] {
+                    g -= e * self.ring_weight[u];
                 }
-                for &u in &self.neighbours[v] {
-                    let u = u as usize;
-                    if let Some(e) = lap[u] {
-                        g -= e * (self.smooth / self.neighbours[u].len() as f64);
-                    }
-                }
-                let (t1, t2) = &frames[v];
-                [g.dot(t1), g.dot(t2)]
-            })
-            .collect()
+            }
+            let (t1, t2) = &frames[v];
+            o[0] = g.dot(t1);
+            o[1] = g.dot(t2);
+        });
+        out
     }
 
     /// The prior's diagonal for either angle of vertex `v`.
     fn diagonal(&self, v: usize) -> f64 {
-        let own = if self.neighbours[v].is_empty() {
+        let own = if self.rings.of(v).is_empty() {
             0.0
         } else {
             self.smooth
         };
-        let from_ring: f64 = self.neighbours[v]
+        let from_ring: f64 = self
+            .rings
+            .of(v)
             .iter()
             .map(|&u| {
-                let k = self.neighbours[u as usize].len().max(1) as f64;
+                let k = self.rings.of(u as usize).len().max(1) as f64;
                 self.smooth / (k * k)
             })
             .sum();
@@ -1026,11 +1087,19 @@ pub fn refine_normals(
         );
     }
     let mean_target = pixels.iter().map(|p| p.target).sum::<f64>() / pixels.len() as f64;
+    let eps = 0.01 * mean_target.max(1e-300);
+    let rings = Rings::new(mesh.neighbours);
     let problem = Problem {
         mesh,
+        rings: &rings,
         pixels,
         settings,
-        eps: 0.01 * mean_target.max(1e-300),
+        eps,
+        lookups: pixels
+            .par_iter()
+            .map(|p| Lookup::new(&p.light, &p.view))
+            .collect(),
+        ln_targets: pixels.iter().map(|p| (eps + p.target).ln()).collect(),
     };
     let (train, held_idx): (Vec<usize>, Vec<usize>) =
         (0..pixels.len()).partition(|&i| !held.contains(&pixels[i].image));
@@ -1432,14 +1501,14 @@ mod tests {
     fn the_table_reproduces_what_it_was_fitted_to() {
         let l = Vector3::new(0.3, 0.0, 1.0).normalize();
         let v = Vector3::new(-0.2, 0.1, 1.0).normalize();
-        let h = (l + v).normalize();
+        let look = Lookup::new(&l, &v);
         let n = Vector3::z();
-        let c = table_coords(&n, &l, &h);
+        let c = look.coords(&n);
         let m = Model::fit(&[(c, 0.7)]).expect("one sample");
         let cos_i = n.dot(&l);
-        assert!((m.predict(&n, &l, &v) - 0.7 * cos_i).abs() < 1e-9);
+        assert!((m.predict(&n, &l, &v, &look) - 0.7 * cos_i).abs() < 1e-9);
         // below the horizon nothing is reflected
-        assert_eq!(m.predict(&-n, &l, &v), 0.0);
+        assert_eq!(m.predict(&-n, &l, &v, &look), 0.0);
         assert!(Model::fit(&[]).is_none());
     }
 }
