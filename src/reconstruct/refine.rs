@@ -649,7 +649,7 @@ impl<'a> Problem<'a> {
                 ci * co * sigma2 * (1.0 + r * r / sigma2).ln()
             })
             .sum();
-        let d: Vec<Vector3<f64>> = n.iter().zip(prior.n0).map(|(a, b)| a - b).collect();
+        let d: Vec<Vector3<f64>> = n.par_iter().zip(prior.n0).map(|(a, b)| a - b).collect();
         data + prior.cost(&d)
     }
 
@@ -684,7 +684,7 @@ impl<'a> Problem<'a> {
         c0: f64,
     ) -> (Vec<Vector3<f64>>, f64) {
         let frames: Vec<(Vector3<f64>, Vector3<f64>)> = n
-            .iter()
+            .par_iter()
             .map(|v| {
                 let f = ShadingFrame::new(*v);
                 (f.t, f.b)
@@ -717,7 +717,7 @@ impl<'a> Problem<'a> {
                     (g, d)
                 },
             );
-        let offsets: Vec<Vector3<f64>> = n.iter().zip(prior.n0).map(|(a, b)| a - b).collect();
+        let offsets: Vec<Vector3<f64>> = n.par_iter().zip(prior.n0).map(|(a, b)| a - b).collect();
         let mut rhs = grad;
         add_into(&mut rhs, &prior.gradient(&offsets, &frames, true));
         let fixed = |k: usize| !prior.movable[k / 2];
@@ -729,23 +729,25 @@ impl<'a> Problem<'a> {
             // Large chunks: each accumulates into its own vector of every unknown.
             let mut out = lins
                 .par_chunks(LIN_CHUNK)
-                .map(|chunk| {
-                    let mut acc = vec![0.0; vars];
-                    for l in chunk {
-                        let w = l.weight * l.irls;
-                        let mut z = 0.0;
-                        for k in 0..3 {
-                            let v = 2 * l.vertices[k] as usize;
-                            z += l.j[k][0] * x[v] + l.j[k][1] * x[v + 1];
+                .fold(
+                    || vec![0.0; vars],
+                    |mut acc, chunk| {
+                        for l in chunk {
+                            let w = l.weight * l.irls;
+                            let mut z = 0.0;
+                            for k in 0..3 {
+                                let v = 2 * l.vertices[k] as usize;
+                                z += l.j[k][0] * x[v] + l.j[k][1] * x[v + 1];
+                            }
+                            for k in 0..3 {
+                                let v = 2 * l.vertices[k] as usize;
+                                acc[v] += w * l.j[k][0] * z;
+                                acc[v + 1] += w * l.j[k][1] * z;
+                            }
                         }
-                        for k in 0..3 {
-                            let v = 2 * l.vertices[k] as usize;
-                            acc[v] += w * l.j[k][0] * z;
-                            acc[v + 1] += w * l.j[k][1] * z;
-                        }
-                    }
-                    acc
-                })
+                        acc
+                    },
+                )
                 .reduce(
                     || vec![0.0; vars],
                     |mut a, b| {
@@ -754,6 +756,7 @@ impl<'a> Problem<'a> {
                     },
                 );
             let moves: Vec<Vector3<f64>> = (0..n.len())
+                .into_par_iter()
                 .map(|v| frames[v].0 * x[2 * v] + frames[v].1 * x[2 * v + 1])
                 .collect();
             add_into(&mut out, &prior.gradient(&moves, &frames, false));
@@ -779,6 +782,7 @@ impl<'a> Problem<'a> {
         let mut scale = self.settings.step;
         for _ in 0..4 {
             let trial: Vec<Vector3<f64>> = (0..n.len())
+                .into_par_iter()
                 .map(|v| {
                     if !prior.movable[v] {
                         return n[v];
@@ -871,6 +875,7 @@ impl Prior<'_> {
 
     fn cost(&self, d: &[Vector3<f64>]) -> f64 {
         (0..d.len())
+            .into_par_iter()
             .map(|v| {
                 self.anchor * d[v].norm_squared()
                     + self
