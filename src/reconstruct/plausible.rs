@@ -33,6 +33,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::FRAC_PI_2;
+use std::sync::OnceLock;
 
 /// Knobs of the plausibility step.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -135,15 +136,42 @@ pub fn directional_albedo(table: &MerlTable, theta_i: f64) -> [f64; 3] {
     a
 }
 
-/// The largest channel albedo at the centre of each of the 90 theta bins.
+/// For the centre of each of the 90 theta bins, [`directional_albedo`]'s quadrature as
+/// `(MERL index, cos theta_o d omega_o)`, in its order: the same for every table, so computed
+/// once per process (the half vectors' MERL indices were most of an albedo curve's cost, and a
+/// reconstruction computes one or more per material).
+fn albedo_quadrature() -> &'static [Vec<(usize, f64)>] {
+    static QUADRATURE: OnceLock<Vec<Vec<(usize, f64)>>> = OnceLock::new();
+    QUADRATURE.get_or_init(|| {
+        (0..THETA_D_BINS)
+            .into_par_iter()
+            .map(|i| {
+                let theta = (i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2;
+                let wi = Vector3::new(theta.sin(), 0.0, theta.cos());
+                crate::render::probe::mirror_quadrature(&wi, 48)
+                    .into_iter()
+                    .map(|(wo, d_omega_o)| (merl_index(&wi, &wo), wo.z * d_omega_o))
+                    .collect()
+            })
+            .collect()
+    })
+}
+
+/// The largest channel albedo at the centre of each of the 90 theta bins (the same sums as
+/// [`directional_albedo`] at those angles).
 pub fn albedo_curve(table: &MerlTable) -> Vec<f64> {
-    (0..THETA_D_BINS)
-        .into_par_iter()
-        .map(|i| {
-            let theta = (i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2;
-            directional_albedo(table, theta)
-                .into_iter()
-                .fold(0.0, f64::max)
+    albedo_quadrature()
+        .par_iter()
+        .map(|pairs| {
+            let mut a = [0.0; 3];
+            for &(index, w) in pairs {
+                if let Some(f) = table.get(index) {
+                    for c in 0..3 {
+                        a[c] += f[c] * w;
+                    }
+                }
+            }
+            a.into_iter().fold(0.0, f64::max)
         })
         .collect()
 }
@@ -285,6 +313,23 @@ mod tests {
             for (got, want) in a.iter().zip([0.2, 0.5, 0.9]) {
                 assert!((got - want).abs() < 0.02 * want, "{theta}: {a:?}");
             }
+        }
+    }
+
+    #[test]
+    fn the_albedo_curve_is_the_directional_albedo_at_the_bin_centres() {
+        let t = MerlTable::tabulate(&LambertGgx {
+            kd: [0.3, 0.6, 0.15],
+            ks: [1.0, 0.5, 0.0],
+            alpha: 0.2,
+            f0: 0.04,
+        });
+        let curve = albedo_curve(&t);
+        assert_eq!(curve.len(), THETA_D_BINS);
+        for (i, a) in curve.iter().enumerate() {
+            let theta = (i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2;
+            let d = directional_albedo(&t, theta);
+            assert_eq!(*a, d.into_iter().fold(0.0, f64::max), "theta bin {i}");
         }
     }
 
