@@ -51,8 +51,8 @@ pub struct EvalCommon {
     /// Where the simulated scenes are written (default: a temporary folder, removed after).
     #[arg(long)]
     pub scratch: Option<PathBuf>,
-    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default),
-    /// `pareto-patches`, `front`, `patches`, `both`, `log` or `linear` (as `bench external --held-out`).
+    /// Study knob: the held-out error the ladder's choice reads: `log` (the default), `pareto`,
+    /// `pareto-patches`, `front`, `patches`, `both` or `linear` (as `bench external --held-out`).
     #[arg(long, value_parser = super::bench_external::parse_metric)]
     pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
 }

@@ -42,11 +42,12 @@ pub struct BenchExternalArgs {
     /// no pixel was observed (`PlausibleSettings::prior_ratio_limit`; default: the library's).
     #[arg(long, value_parser = clap::value_parser!(f64))]
     pub prior_ratio: Option<f64>,
-    /// Study knob: the held-out error the ladder's choice reads: `pareto` (the default: the
-    /// richer of the linear and the log choice unless it does worse in the other space),
+    /// Study knob: the held-out error the ladder's choice reads: `log` (the default),
+    /// `pareto` (the richer of the linear and the log choice unless it does worse in the other
+    /// space; the default of sessions 15-20),
     /// `pareto-patches` (the same with patch sums in place of pixels), `front` (`pareto` among
     /// the rungs no rung of another family beats beyond noise in one space without losing in
-    /// the other), `patches`, `both` (a richer model must win beyond noise in each), `log` or
+    /// the other), `patches`, `both` (a richer model must win beyond noise in each) or
     /// `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
