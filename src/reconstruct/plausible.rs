@@ -123,11 +123,24 @@ pub fn model_weights(counts: &[usize], settings: &PlausibleSettings) -> Vec<f64>
 /// Directional albedo of a table for an incident direction at `theta_i` (see the module
 /// header). Bins without data count as zero.
 pub fn directional_albedo(table: &MerlTable, theta_i: f64) -> [f64; 3] {
+    albedo_sum(table, &albedo_pairs(theta_i))
+}
+
+/// The albedo quadrature at `theta_i` as `(MERL index, cos theta_o d omega_o)`: the same for
+/// every table.
+fn albedo_pairs(theta_i: f64) -> Vec<(usize, f64)> {
     let wi = Vector3::new(theta_i.sin(), 0.0, theta_i.cos());
+    crate::render::probe::mirror_quadrature(&wi, 48)
+        .into_iter()
+        .map(|(wo, d_omega_o)| (merl_index(&wi, &wo), wo.z * d_omega_o))
+        .collect()
+}
+
+/// `sum f w` over the quadrature `pairs`, per channel; bins without data count as zero.
+fn albedo_sum(table: &MerlTable, pairs: &[(usize, f64)]) -> [f64; 3] {
     let mut a = [0.0; 3];
-    for (wo, d_omega_o) in crate::render::probe::mirror_quadrature(&wi, 48) {
-        if let Some(f) = table.get(merl_index(&wi, &wo)) {
-            let w = wo.z * d_omega_o;
+    for &(index, w) in pairs {
+        if let Some(f) = table.get(index) {
             for c in 0..3 {
                 a[c] += f[c] * w;
             }
@@ -136,43 +149,24 @@ pub fn directional_albedo(table: &MerlTable, theta_i: f64) -> [f64; 3] {
     a
 }
 
-/// For the centre of each of the 90 theta bins, [`directional_albedo`]'s quadrature as
-/// `(MERL index, cos theta_o d omega_o)`, in its order: the same for every table, so computed
-/// once per process (the half vectors' MERL indices were most of an albedo curve's cost, and a
-/// reconstruction computes one or more per material).
+/// [`albedo_pairs`] at the centre of each of the 90 theta bins, computed once per process (the
+/// half vectors' MERL indices were most of an albedo curve's cost, and a reconstruction
+/// computes one or more curves per material).
 fn albedo_quadrature() -> &'static [Vec<(usize, f64)>] {
     static QUADRATURE: OnceLock<Vec<Vec<(usize, f64)>>> = OnceLock::new();
     QUADRATURE.get_or_init(|| {
         (0..THETA_D_BINS)
             .into_par_iter()
-            .map(|i| {
-                let theta = (i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2;
-                let wi = Vector3::new(theta.sin(), 0.0, theta.cos());
-                crate::render::probe::mirror_quadrature(&wi, 48)
-                    .into_iter()
-                    .map(|(wo, d_omega_o)| (merl_index(&wi, &wo), wo.z * d_omega_o))
-                    .collect()
-            })
+            .map(|i| albedo_pairs((i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2))
             .collect()
     })
 }
 
-/// The largest channel albedo at the centre of each of the 90 theta bins (the same sums as
-/// [`directional_albedo`] at those angles).
+/// The largest channel albedo at the centre of each of the 90 theta bins.
 pub fn albedo_curve(table: &MerlTable) -> Vec<f64> {
     albedo_quadrature()
         .par_iter()
-        .map(|pairs| {
-            let mut a = [0.0; 3];
-            for &(index, w) in pairs {
-                if let Some(f) = table.get(index) {
-                    for c in 0..3 {
-                        a[c] += f[c] * w;
-                    }
-                }
-            }
-            a.into_iter().fold(0.0, f64::max)
-        })
+        .map(|pairs| albedo_sum(table, pairs).into_iter().fold(0.0, f64::max))
         .collect()
 }
 
