@@ -286,6 +286,7 @@ pub fn reconstruct_observations(
     // A basis whose trials disagree cannot be trusted beyond the pixels, whatever the held-out
     // images say (`LadderSettings::max_trial_disagreement`).
     let (mut family, mut reason) = (family, reason);
+    let mut basis_unstable = false;
     if matches!(settings.model, ModelSelection::Auto)
         && matches!(family, Family::Basis | Family::Hybrid)
         && let Some(l) = ladder.as_mut()
@@ -309,7 +310,41 @@ pub fn reconstruct_observations(
             if l.choose_analytic(&settings.ladder, &why) {
                 family = l.chosen().family;
                 reason = l.reason.clone();
+                basis_unstable = true;
             }
+        }
+    }
+    // The same test for a chosen Lambert + GGX: fitted to halves of the images, do its lobes
+    // agree as a rendered sphere sees them? A narrow highlight seen by a few pixels lets
+    // which pixels were drawn set the lobe's width and height, and the sphere then shows a
+    // peak no image did; the basis (when its trials agree) or Lambert is chosen instead.
+    let lambert_ggx = fit_lambert_ggx(&analytic_pixels);
+    if matches!(settings.model, ModelSelection::Auto)
+        && family == Family::LambertGgx
+        && let Some(l) = ladder.as_mut()
+        && let Some(m) = lambert_ggx
+        && let Some(d) = half_disagreement(&m, &analytic_pixels, settings.trials.seed)
+        && d > settings.ladder.max_trial_disagreement
+    {
+        let why = format!(
+            "{}Lambert + GGX fitted to halves of the images disagrees by {:.0} % in a rendered \
+             sphere (more than {:.0} %): which pixels were drawn decides its extrapolation",
+            if basis_unstable {
+                format!("{reason}; but ")
+            } else {
+                String::new()
+            },
+            100.0 * d,
+            100.0 * settings.ladder.max_trial_disagreement
+        );
+        let allowed: &[Family] = if basis_unstable {
+            &[Family::Lambert]
+        } else {
+            &[Family::Lambert, Family::Basis, Family::Hybrid]
+        };
+        if l.choose_among(&settings.ladder, allowed, &why, "among the others") {
+            family = l.chosen().family;
+            reason = l.reason.clone();
         }
     }
     let basis_fit: Box<dyn Candidate> = match settings.choose {
@@ -330,7 +365,6 @@ pub fn reconstruct_observations(
     // The reported model, and the analytic prior for regions no pixel saw.
     let t = Instant::now();
     progress(&format!("{family}: the final fit and a plausible table"));
-    let lambert_ggx = fit_lambert_ggx(&analytic_pixels);
     let mut alternatives: Vec<(Family, Box<dyn Candidate>)> = Vec::new();
     if settings.keep_alternatives {
         if family != Family::Lambert
@@ -558,6 +592,42 @@ fn component_choice(
     }
 }
 
+/// How much Lambert + GGX fits to halves of the pixels' images differ from `full` (fitted to
+/// them all) as a rendered sphere sees them (`confidence::render_disagreement`): two seeded
+/// splits of the images in two halves each, whole images apart (neighbouring pixels of one
+/// image would agree for nothing). `None` with fewer than two images or no fit.
+pub fn half_disagreement(full: &LambertGgx, pixels: &[Observation], seed: u64) -> Option<f64> {
+    use rand::SeedableRng;
+    use rand::seq::SliceRandom;
+    let mut images: Vec<usize> = pixels.iter().map(|o| o.image).collect();
+    images.sort_unstable();
+    images.dedup();
+    if images.len() < 2 {
+        return None;
+    }
+    let mut fits = Vec::new();
+    for split in 0..2u64 {
+        let mut order = images.clone();
+        order.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(
+            seed ^ 0x4A1F ^ split,
+        ));
+        let first: std::collections::HashSet<usize> =
+            order[..order.len() / 2].iter().copied().collect();
+        for side in [true, false] {
+            let half: Vec<Observation> = pixels
+                .iter()
+                .filter(|o| first.contains(&o.image) == side)
+                .copied()
+                .collect();
+            if let Some(m) = fit_lambert_ggx(&half) {
+                fits.push(AnalyticCandidate(m));
+            }
+        }
+    }
+    let others: Vec<&dyn Candidate> = fits.iter().map(|f| f as &dyn Candidate).collect();
+    render_disagreement(&CandidateValues(&AnalyticCandidate(*full)), &others)
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::components::held_out_error;
@@ -573,6 +643,43 @@ mod tests {
             o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
         }
         obs
+    }
+
+    /// Pixels over a cap from six images: a dark Lambertian surface with a narrow peak
+    /// (theta_h under 4 degrees) that no GGX tail announces, the peak's pixels in the images
+    /// `peak_image(i)` says and the others spread over all six.
+    fn peak_scene(peak_image: impl Fn(usize) -> usize) -> Vec<Observation> {
+        let mut obs = cap_pixels(|_| 0.05, 900, [1.0; 3]);
+        for (i, o) in obs.iter_mut().enumerate() {
+            let h = (o.light + o.view).normalize();
+            let theta_h = o.normal.dot(&h).clamp(-1.0, 1.0).acos().to_degrees();
+            o.image = i % 6;
+            if theta_h < 4.0 {
+                o.image = peak_image(i);
+                o.reflectance = [0.05 + 30.0 * (1.0 - theta_h / 4.0); 3];
+                o.radiance = o.reflectance.map(|r| r * o.cos_theta_i);
+            }
+        }
+        obs
+    }
+
+    #[test]
+    fn a_peak_every_image_sees_fits_alike_from_either_half_of_the_images() {
+        let obs = peak_scene(|i| i % 6);
+        let full = fit_lambert_ggx(&obs).expect("fits");
+        let d = half_disagreement(&full, &obs, 1).expect("six images");
+        assert!(d < 0.1, "{d}");
+    }
+
+    #[test]
+    fn a_peak_only_one_image_sees_makes_the_halves_disagree() {
+        let obs = peak_scene(|_| 0);
+        let full = fit_lambert_ggx(&obs).expect("fits");
+        let d = half_disagreement(&full, &obs, 1).expect("six images");
+        assert!(d > 0.3, "{d}");
+        // one image: nothing to split
+        let one: Vec<Observation> = obs.iter().map(|o| Observation { image: 0, ..*o }).collect();
+        assert_eq!(half_disagreement(&full, &one, 1), None);
     }
 
     fn run(choose: TrialChoice) -> (CoreOutput, Vec<Observation>) {

@@ -294,18 +294,32 @@ impl Ladder {
     /// basis rungs cannot be trusted (`why`, which leads the new reason). False, and nothing
     /// changed, when no analytic rung was scored.
     pub fn choose_analytic(&mut self, settings: &LadderSettings, why: &str) -> bool {
+        self.choose_among(
+            settings,
+            &[Family::Lambert, Family::LambertGgx],
+            why,
+            "among the analytic models",
+        )
+    }
+
+    /// Chooses again among the rungs of the `allowed` families only (same rule), saying `why`
+    /// and `among`; false (nothing changed) when none of them has an error.
+    pub fn choose_among(
+        &mut self,
+        settings: &LadderSettings,
+        allowed: &[Family],
+        why: &str,
+        among: &str,
+    ) -> bool {
         let idx: Vec<usize> = (0..self.rungs.len())
-            .filter(|&i| {
-                matches!(self.rungs[i].family, Family::Lambert | Family::LambertGgx)
-                    && self.rungs[i].error.is_some()
-            })
+            .filter(|&i| allowed.contains(&self.rungs[i].family) && self.rungs[i].error.is_some())
             .collect();
         let view: Vec<Rung> = idx.iter().map(|&i| self.rungs[i].clone()).collect();
         let Some((c, reason)) = choose_by(&view, settings) else {
             return false;
         };
         self.chosen = idx[c];
-        self.reason = format!("{why}; among the analytic models, {reason}");
+        self.reason = format!("{why}; {among}, {reason}");
         true
     }
 }
