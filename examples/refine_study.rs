@@ -7,7 +7,7 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final, and `from_truth=1` (start from the true vertex normals on the
+//! fitcos, facecap, final, passes, and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
@@ -44,6 +44,7 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "fitcos" => s.fit_min_cos = f,
             "facecap" => s.max_pixels_per_face = f as usize,
             "final" => s.final_alternations = f as usize,
+            "passes" => s.table_passes = f as usize,
             _ => anyhow::bail!("unknown key {k:?}"),
         }
     }

@@ -170,6 +170,9 @@ struct RefineSettingsMirror {
     move_min_cos: f64,
     max_pixels_per_face: usize,
     final_alternations: usize,
+    /// Absent in reports written before it existed (no correction passes then).
+    #[serde(default)]
+    table_passes: usize,
 }
 
 #[derive(Deserialize)]

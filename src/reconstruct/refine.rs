@@ -127,12 +127,15 @@ pub struct RefineSettings {
     /// Alternations on every image (held-out ones included) after the chosen count, started
     /// from the chosen normals (0: the normals of the selection pass are returned as they are).
     pub final_alternations: usize,
+    /// Correction passes of the reflectance table after its splatting (SART: each pass splats
+    /// the samples' residuals back; towards the least-squares table, not the splat's blur).
+    pub table_passes: usize,
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
         Self {
-            max_iterations: 8,
+            max_iterations: 3,
             sweeps: 3,
             cg_iterations: 60,
             cg_tolerance: 0.03,
@@ -150,6 +153,7 @@ impl Default for RefineSettings {
             move_min_cos: 0.3,
             max_pixels_per_face: 6,
             final_alternations: 1,
+            table_passes: 2,
         }
     }
 }
@@ -388,7 +392,7 @@ fn cell_neighbours(c: usize) -> impl Iterator<Item = usize> {
 impl Model {
     /// The table from samples `(coordinates, reflectance)`: trilinear splatting, then empty
     /// cells filled from their neighbours. `None` without a sample.
-    fn fit(samples: &[([f64; 3], f64)]) -> Option<Self> {
+    fn fit(samples: &[([f64; 3], f64)], passes: usize) -> Option<Self> {
         let mut sum = vec![0.0; CELLS];
         let mut weight = vec![0.0; CELLS];
         for &(c, y) in samples {
@@ -400,8 +404,8 @@ impl Model {
                 weight[cell] += w;
             }
         }
-        let mut known: Vec<bool> = weight.iter().map(|&w| w > 1e-3).collect();
-        if !known.iter().any(|k| *k) {
+        let observed: Vec<bool> = weight.iter().map(|&w| w > 1e-3).collect();
+        if !observed.iter().any(|k| *k) {
             return None;
         }
         let mut table: Vec<f64> = sum
@@ -409,6 +413,32 @@ impl Model {
             .zip(&weight)
             .map(|(s, w)| if *w > 1e-3 { s / w } else { 0.0 })
             .collect();
+        Self::fill(&mut table, &observed);
+        for _ in 0..passes {
+            let mut back = vec![0.0; CELLS];
+            for &(c, y) in samples {
+                if !y.is_finite() {
+                    continue;
+                }
+                let cells = trilinear(c);
+                let r = y - cells.iter().map(|&(cell, w)| w * table[cell]).sum::<f64>();
+                for (cell, w) in cells {
+                    back[cell] += w * r;
+                }
+            }
+            for c in 0..CELLS {
+                if observed[c] {
+                    table[c] += back[c] / weight[c].max(1.0);
+                }
+            }
+            Self::fill(&mut table, &observed);
+        }
+        Some(Self { table })
+    }
+
+    /// Fills the cells no sample reaches, ring by ring from the others.
+    fn fill(table: &mut [f64], observed: &[bool]) {
+        let mut known = observed.to_vec();
         // Fill the unobserved cells ring by ring from the observed ones (mean of the known
         // neighbours): a flat continuation, no extrapolated slope.
         while known.iter().any(|k| !*k) {
@@ -431,7 +461,6 @@ impl Model {
             }
             known = next;
         }
-        Some(Self { table })
     }
 
     /// `sum_c f_c cos theta_i` for normal `n` (`look`: the lookup of `l` and `v`).
@@ -516,7 +545,7 @@ impl<'a> Problem<'a> {
                 Some((self.lookups[i].coords(&np), p.target / cos_i))
             })
             .collect();
-        Model::fit(&samples)
+        Model::fit(&samples, self.settings.table_passes)
     }
 
     /// The priors for a refinement from the pixels `idx`: a vertex moves when at least
@@ -1509,11 +1538,51 @@ mod tests {
         let look = Lookup::new(&l, &v);
         let n = Vector3::z();
         let c = look.coords(&n);
-        let m = Model::fit(&[(c, 0.7)]).expect("one sample");
+        let m = Model::fit(&[(c, 0.7)], 0).expect("one sample");
         let cos_i = n.dot(&l);
         assert!((m.predict(&n, &l, &v, &look) - 0.7 * cos_i).abs() < 1e-9);
         // below the horizon nothing is reflected
         assert_eq!(m.predict(&-n, &l, &v, &look), 0.0);
-        assert!(Model::fit(&[]).is_none());
+        assert!(Model::fit(&[], 0).is_none());
+    }
+
+    #[test]
+    fn correction_passes_undo_the_splats_blur_of_a_narrow_peak() {
+        // A peak one theta_h cell wide, sampled densely: the splat spreads it over the
+        // neighbouring cells (twice, with the interpolation), the passes bring it back.
+        let truth = |c: [f64; 3]| 0.1 + 5.0 * (-(c[0] - 4.0).powi(2) / 0.5).exp();
+        let samples: Vec<([f64; 3], f64)> = (0..400)
+            .flat_map(|i| {
+                (0..4).map(move |j| {
+                    let c = [i as f64 * 0.02, 3.0 + j as f64 * 0.25, 2.0];
+                    (c, truth(c))
+                })
+            })
+            .collect();
+        let misfit = |m: &Model| {
+            samples
+                .iter()
+                .map(|&(c, y)| {
+                    let f: f64 = trilinear(c).iter().map(|&(k, w)| w * m.table[k]).sum();
+                    (f - y).powi(2)
+                })
+                .sum::<f64>()
+        };
+        let splat = Model::fit(&samples, 0).expect("samples");
+        let corrected = Model::fit(&samples, 2).expect("samples");
+        assert!(
+            misfit(&corrected) < 0.5 * misfit(&splat),
+            "{} against {}",
+            misfit(&corrected),
+            misfit(&splat)
+        );
+        // the peak's cell comes back towards the peak
+        let peak = |m: &Model| m.table[(4 * BINS_D + 3) * BINS_P + 2];
+        assert!(
+            peak(&corrected) > peak(&splat) + 0.3,
+            "{} {}",
+            peak(&corrected),
+            peak(&splat)
+        );
     }
 }
