@@ -129,13 +129,15 @@ pub struct RefineSettings {
     pub final_alternations: usize,
     /// Correction passes of the reflectance table after its splatting (SART: each pass splats
     /// the samples' residuals back; towards the least-squares table, not the splat's blur).
+    /// 0 by default: 2 gave better normals on the grid but chose more alternations, over the
+    /// time allowed (docs/normal-refinement.md, "Session 22").
     pub table_passes: usize,
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
         Self {
-            max_iterations: 3,
+            max_iterations: 8,
             sweeps: 3,
             cg_iterations: 60,
             cg_tolerance: 0.03,
@@ -153,7 +155,7 @@ impl Default for RefineSettings {
             move_min_cos: 0.3,
             max_pixels_per_face: 6,
             final_alternations: 1,
-            table_passes: 2,
+            table_passes: 0,
         }
     }
 }
