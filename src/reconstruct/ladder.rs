@@ -48,8 +48,10 @@
 //! eq. 3 trials) a basis family is set aside for the best analytic rung when its trials
 //! disagree in a rendered sphere by more than `max_trial_disagreement`
 //! ([`Ladder::choose_analytic`]): held-out images that share the training images' theta_d
-//! cannot see an extrapolation that depends on which pixels were drawn. docs/reconstruction.md
-//! gives the measurements behind these choices.
+//! cannot see an extrapolation that depends on which pixels were drawn; (4, in `core`) a
+//! chosen Lambert + GGX is set aside the same way when its fits to halves of the images
+//! disagree by more than that ([`Ladder::choose_among`], `core::half_disagreement`).
+//! docs/reconstruction.md gives the measurements behind these choices.
 //!
 //! Pure: no I/O. Deterministic for a seed.
 
@@ -126,6 +128,8 @@ pub struct LadderSettings {
     /// accuracy grid (docs/evaluation.md): the trials of scenes where the basis lost to
     /// Lambert + GGX by 1.5-2.6x disagreed by 0.31-0.49, those of spread-light scenes by at
     /// most 0.30. A cheap guard: it also gives up some one-light wins (docs/evaluation.md).
+    /// The same bound holds a chosen Lambert + GGX against its fits to halves of the images
+    /// (docs/evaluation.md section 1j).
     pub max_trial_disagreement: f64,
 }
 

@@ -374,6 +374,11 @@ fn trilinear(c: [f64; 3]) -> [(usize, f64); 8] {
     })
 }
 
+/// A table's trilinear value at continuous coordinates.
+fn interpolate(table: &[f64], c: [f64; 3]) -> f64 {
+    trilinear(c).iter().map(|&(cell, w)| w * table[cell]).sum()
+}
+
 /// The 6-neighbours of a cell.
 fn cell_neighbours(c: usize) -> impl Iterator<Item = usize> {
     let p = c % BINS_P;
@@ -392,8 +397,9 @@ fn cell_neighbours(c: usize) -> impl Iterator<Item = usize> {
 }
 
 impl Model {
-    /// The table from samples `(coordinates, reflectance)`: trilinear splatting, then empty
-    /// cells filled from their neighbours. `None` without a sample.
+    /// The table from samples `(coordinates, reflectance)`: trilinear splatting, empty cells
+    /// filled from their neighbours, then `passes` corrections (each splats the samples'
+    /// residuals back onto the cells they touch). `None` without a sample.
     fn fit(samples: &[([f64; 3], f64)], passes: usize) -> Option<Self> {
         let mut sum = vec![0.0; CELLS];
         let mut weight = vec![0.0; CELLS];
@@ -422,9 +428,8 @@ impl Model {
                 if !y.is_finite() {
                     continue;
                 }
-                let cells = trilinear(c);
-                let r = y - cells.iter().map(|&(cell, w)| w * table[cell]).sum::<f64>();
-                for (cell, w) in cells {
+                let r = y - interpolate(&table, c);
+                for (cell, w) in trilinear(c) {
                     back[cell] += w * r;
                 }
             }
@@ -472,11 +477,7 @@ impl Model {
         if cos_i <= 0.0 || cos_o <= 0.0 {
             return 0.0;
         }
-        let f: f64 = trilinear(look.coords(n))
-            .iter()
-            .map(|&(c, w)| w * self.table[c])
-            .sum();
-        f.max(0.0) * cos_i
+        interpolate(&self.table, look.coords(n)).max(0.0) * cos_i
     }
 }
 
@@ -1564,10 +1565,7 @@ mod tests {
         let misfit = |m: &Model| {
             samples
                 .iter()
-                .map(|&(c, y)| {
-                    let f: f64 = trilinear(c).iter().map(|&(k, w)| w * m.table[k]).sum();
-                    (f - y).powi(2)
-                })
+                .map(|&(c, y)| (interpolate(&m.table, c) - y).powi(2))
                 .sum::<f64>()
         };
         let splat = Model::fit(&samples, 0).expect("samples");
