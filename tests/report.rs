@@ -154,6 +154,7 @@ fn example_report(job: PathBuf) -> Report {
             bin: 1000,
             reflectance: [0.1, 0.2, 0.3],
         }],
+        fitted_samples: 1,
         candidate: None,
     };
     let rung = |family, k: Option<usize>, error| Rung {

@@ -55,6 +55,14 @@ pub struct EvalCommon {
     /// `pareto-patches`, `front`, `patches`, `both` or `linear` (as `bench external --held-out`).
     #[arg(long, value_parser = super::bench_external::parse_metric)]
     pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
+    /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
+    /// `reconstruct --basis-fit`.
+    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
+    pub basis_fit: Option<brdf_rig::reconstruct::trials::BasisFit>,
+    /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
+    /// `reconstruct --unobserved`.
+    #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
+    pub unobserved: Option<super::reconstruct::Unobserved>,
 }
 
 #[derive(Args, Debug)]
@@ -157,6 +165,10 @@ impl EvalCommon {
             basis_cache: self.basis_cache.clone(),
             scratch: self.scratch.clone(),
             held_out: self.held_out,
+            basis_fit: self.basis_fit,
+            transfer_theta_d: self
+                .unobserved
+                .map(|u| u == super::reconstruct::Unobserved::Transfer),
         })
     }
 
@@ -174,6 +186,10 @@ impl EvalCommon {
             self.bin_step
         ) + &self.held_out.map_or(String::new(), |m| {
             format!(" --held-out {}", super::bench_external::metric_name(m))
+        }) + &self.basis_fit.map_or(String::new(), |f| {
+            format!(" --basis-fit {}", super::reconstruct::basis_fit_name(f))
+        }) + &self.unobserved.map_or(String::new(), |u| {
+            format!(" --unobserved {}", super::reconstruct::unobserved_name(u))
         })
     }
 }

@@ -51,6 +51,14 @@ pub struct BenchExternalArgs {
     /// `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
+    /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
+    /// `reconstruct --basis-fit`.
+    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
+    pub basis_fit: Option<brdf_rig::reconstruct::trials::BasisFit>,
+    /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
+    /// `reconstruct --unobserved`.
+    #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
+    pub unobserved: Option<super::reconstruct::Unobserved>,
 }
 
 /// The `--held-out` word for a metric (what [`parse_metric`] reads).
@@ -99,8 +107,14 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(m) = a.held_out {
         settings.core.ladder.metric = m;
     }
+    if let Some(f) = a.basis_fit {
+        settings.core.trials.basis_fit = f;
+    }
+    if let Some(u) = a.unobserved {
+        settings.core.plausible.transfer_theta_d = u == super::reconstruct::Unobserved::Transfer;
+    }
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.seeds
@@ -123,6 +137,14 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
+        a.basis_fit.map_or(String::new(), |f| format!(
+            " --basis-fit {}",
+            super::reconstruct::basis_fit_name(f)
+        )),
+        a.unobserved.map_or(String::new(), |u| format!(
+            " --unobserved {}",
+            super::reconstruct::unobserved_name(u)
+        )),
         a.out.display()
     );
     let options = ExternalBenchOptions {

@@ -222,6 +222,7 @@ pub fn reconstruct_observations(
                 reliable: &reliable,
                 reliable_settings: &settings.reliable,
                 samples: settings.trials.samples,
+                basis_fit: settings.trials.basis_fit,
                 components: &settings.components,
                 settings: &ladder_settings,
                 images,

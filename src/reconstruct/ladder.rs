@@ -60,7 +60,7 @@ use super::components::ComponentSettings;
 use super::observe::Observation;
 use super::prior::{Candidate, Prior};
 use super::reliable::{Reliable, ReliableSettings, as_peak, brightest_index};
-use super::trials::{samples_of, select_pixels};
+use super::trials::{BasisFit, basis_samples};
 use crate::brdf::Brdf;
 use crate::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
 use crate::brdf::coords::MerlBin;
@@ -657,6 +657,8 @@ pub struct LadderInput<'a> {
     pub reliable_settings: &'a ReliableSettings,
     /// Sample pixels per basis fit (as a trial).
     pub samples: usize,
+    /// What each basis fit is given.
+    pub basis_fit: BasisFit,
     pub components: &'a ComponentSettings,
     pub settings: &'a LadderSettings,
     pub images: usize,
@@ -672,6 +674,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         reliable,
         reliable_settings,
         samples,
+        basis_fit,
         components,
         settings,
         images,
@@ -714,7 +717,11 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
     let mut ks: Vec<usize> = components
         .grid
         .iter()
-        .map(|&k| k.min(samples).min(max_k))
+        .map(|&k| match basis_fit {
+            BasisFit::Samples => k.min(samples),
+            BasisFit::Rows => k,
+        })
+        .map(|k| k.min(max_k))
         .filter(|&k| k > 0)
         .collect();
     ks.sort_unstable();
@@ -764,7 +771,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                     seed ^ fold as u64,
                 )
             };
-            let sel = select_pixels(
+            let fit = basis_samples(
                 prior,
                 &data.train,
                 data.anchor.as_ref(),
@@ -772,8 +779,8 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                 samples,
                 fallback,
                 seed.wrapping_add(fold as u64),
+                basis_fit,
             );
-            let fit_samples = samples_of(&sel.pixels);
             keys.iter()
                 .map(|key| match key.family {
                     Family::Lambert => fit_lambert(&analytic_train).map_or_else(failed, |m| {
@@ -786,7 +793,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                     Family::Basis | Family::Hybrid => {
                         let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
                         prior
-                            .fit_lazy(&fit_samples, k, eta)
+                            .fit_lazy(&fit.samples, k, eta * fit.eta_scale)
                             .map_or_else(|_| failed(), |c| score(c.as_ref(), &data.held, patch_px))
                     }
                 })
@@ -826,7 +833,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                 if data.train.len() < 5 {
                     return failed();
                 }
-                let sel = select_pixels(
+                let fit = basis_samples(
                     prior,
                     &data.train,
                     data.anchor.as_ref(),
@@ -834,9 +841,10 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                     samples,
                     fallback,
                     seed.wrapping_add(fold as u64),
+                    basis_fit,
                 );
                 let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
-                let Ok(base) = prior.fit_lazy(&samples_of(&sel.pixels), k, eta) else {
+                let Ok(base) = prior.fit_lazy(&fit.samples, k, eta * fit.eta_scale) else {
                     return failed();
                 };
                 let peak_train = subset(
@@ -1217,6 +1225,7 @@ mod tests {
             reliable: &reliable,
             reliable_settings: &rs,
             samples: 40,
+            basis_fit: BasisFit::Samples,
             components: &components,
             settings: &LadderSettings {
                 hybrid: false,
@@ -1266,6 +1275,7 @@ mod tests {
             reliable: &reliable,
             reliable_settings: &rs,
             samples: 40,
+            basis_fit: BasisFit::Samples,
             components: &components,
             settings: &LadderSettings {
                 analytic: false,

@@ -89,6 +89,7 @@ pub(super) fn report_of(
                 index: t.index,
                 similarity: t.similarity,
                 rejected_by_monotonicity: t.rejected_by_monotonicity,
+                fitted_samples: t.fitted_samples,
                 samples: t.samples.clone(),
                 candidate: None,
             })

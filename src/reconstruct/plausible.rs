@@ -48,6 +48,11 @@ pub struct PlausibleSettings {
     pub min_pixels_per_cell: usize,
     /// The largest directional albedo allowed.
     pub max_albedo: f64,
+    /// Where a cell is unobserved, start from the model at the nearest observed theta_d of
+    /// the same theta_h, scaled by the prior's ratio between the two (the data's theta_h
+    /// shape, the prior's theta_d shape), instead of the model's own extrapolation.
+    #[serde(default)]
+    pub transfer_theta_d: bool,
 }
 
 impl Default for PlausibleSettings {
@@ -58,6 +63,7 @@ impl Default for PlausibleSettings {
             prior_ratio_limit: 10.0,
             min_pixels_per_cell: 1,
             max_albedo: 1.0,
+            transfer_theta_d: false,
         }
     }
 }
@@ -186,6 +192,16 @@ pub fn make_plausible(
         Some(_) if settings.shrink => model_weights(&counts, settings),
         _ => vec![1.0; counts.len()],
     };
+    // Per theta_h column, the observed theta_d bins: an unobserved cell takes the model at the
+    // nearest of them, carried to its own theta_d by the prior's ratio.
+    let transfer = settings.transfer_theta_d;
+    let observed_d: Vec<Vec<usize>> = (0..THETA_H_BINS)
+        .map(|h| {
+            (0..THETA_D_BINS)
+                .filter(|&d| counts[h * THETA_D_BINS + d] >= settings.min_pixels_per_cell.max(1))
+                .collect()
+        })
+        .collect();
     let values: Vec<Option<([f64; 3], bool, bool)>> = (0..MERL_BINS)
         .into_par_iter()
         .map(|index| {
@@ -208,9 +224,23 @@ pub fn make_plausible(
                 }
             };
             let r = settings.prior_ratio_limit.max(1.0);
+            // The model where it was seen, carried along theta_d as the prior changes.
+            let carried = match (transfer, prior, p) {
+                (true, Some((pr, _)), Some(p)) if w < 1.0 => observed_d[b.theta_h]
+                    .iter()
+                    .min_by_key(|&&d| d.abs_diff(b.theta_d))
+                    .map(|&d| MerlBin { theta_d: d, ..b })
+                    .filter(|s| s.is_above_horizon())
+                    .and_then(|s| {
+                        let (ms, ps) = (model.eval_bin(s.index()), pr.eval_bin(s.index()));
+                        (valid(&ms) && ps.iter().all(|x| x.is_finite() && *x > 0.0))
+                            .then(|| [0, 1, 2].map(|c| ms[c] * p[c] / ps[c]))
+                    }),
+                _ => None,
+            };
             let v = match p {
                 Some(p) if w < 1.0 && valid(&p) => [0, 1, 2].map(|c| {
-                    let g = m[c].clamp(p[c] / r, p[c] * r);
+                    let g = carried.map_or(m[c], |t| t[c]).clamp(p[c] / r, p[c] * r);
                     w * m[c] + (1.0 - w) * g
                 }),
                 _ => m,
@@ -390,6 +420,7 @@ mod tests {
             &used,
             &PlausibleSettings {
                 max_albedo: f64::INFINITY,
+                transfer_theta_d: false,
                 ..Default::default()
             },
         );
@@ -429,5 +460,99 @@ mod tests {
             },
         );
         assert!((t2.get(far.index()).unwrap()[0] - 10.0).abs() < 1e-9);
+    }
+
+    /// f = `f(theta_h bin, theta_d bin)` on every channel.
+    struct ByBin(fn(usize, usize) -> f64);
+    impl Candidate for ByBin {
+        fn eval_bin(&self, bin: usize) -> [f64; 3] {
+            let b = MerlBin::from_index(bin).expect("a MERL bin");
+            [(self.0)(b.theta_h, b.theta_d); 3]
+        }
+    }
+
+    #[test]
+    fn unobserved_theta_d_takes_the_seen_theta_h_shape_and_the_priors_theta_d_shape() {
+        use crate::reconstruct::observation::{Observation, Seen};
+        // One light near the camera: every pixel at theta_d ~ 10 degrees.
+        let l = Vector3::new(0.17, 0.0, 0.985).normalize();
+        let v = Vector3::z();
+        let obs: Vec<Observation> = (0..400)
+            .filter_map(|i| {
+                let a = i as f64 * 2.399;
+                let r = 0.9 * ((i as f64 + 0.5) / 400.0).sqrt();
+                let n = Vector3::new(r * a.cos(), r * a.sin(), 1.0).normalize();
+                Observation::new(Seen::pixel(0, i, 0, n), l, v, [0.1; 3], [1.0; 3])
+            })
+            .collect();
+        let used: Vec<&Observation> = obs.iter().collect();
+        let seen_d = MerlBin::from_index(obs[0].bin).unwrap().theta_d;
+        assert!(obs.iter().all(|o| {
+            let b = MerlBin::from_index(o.bin).unwrap();
+            b.theta_d.abs_diff(seen_d) <= 1
+        }));
+        // The model: a theta_h shape where it was seen, a runaway in theta_d elsewhere. The
+        // prior: its own theta_h shape, and a theta_d shape (brighter towards grazing).
+        let model = ByBin(|h, d| (0.2 + 0.01 * h as f64) * (1.0 + (d as f64 - 5.0).abs()));
+        let prior = ByBin(|h, d| (0.3 - 0.002 * h as f64) * (1.0 + d as f64 / 30.0));
+        let settings = PlausibleSettings {
+            max_albedo: f64::INFINITY,
+            transfer_theta_d: true,
+            ..Default::default()
+        };
+        let (t, _) = make_plausible(&model, Some((&prior, "test prior")), &used, &settings);
+        // A cell at theta_d = 60 degrees whose theta_h column was seen: the model's value at
+        // the seen theta_d, times the prior's ratio between the two theta_d.
+        let h = MerlBin::from_index(obs[50].bin).unwrap().theta_h;
+        let column: Vec<usize> = obs
+            .iter()
+            .map(|o| MerlBin::from_index(o.bin).unwrap())
+            .filter(|b| b.theta_h == h)
+            .map(|b| b.theta_d)
+            .collect();
+        let nearest = *column.iter().max().unwrap();
+        let far = MerlBin {
+            theta_h: h,
+            theta_d: 60,
+            phi_d: 30,
+        };
+        let m = |d: usize| (model.0)(h, d);
+        let p = |d: usize| (prior.0)(h, d);
+        let want = m(nearest) * p(60) / p(nearest);
+        assert!(want < 10.0 * p(60), "the test wants no clamp here");
+        let got = t.get(far.index()).unwrap()[0];
+        assert!((got - want).abs() < 1e-9 * want, "{got} against {want}");
+        // The model's own runaway (56 times its seen value) is what `model` keeps, within R.
+        let (own, _) = make_plausible(
+            &model,
+            Some((&prior, "test prior")),
+            &used,
+            &PlausibleSettings {
+                transfer_theta_d: false,
+                ..settings
+            },
+        );
+        let kept = own.get(far.index()).unwrap()[0];
+        assert!((kept - m(60).min(10.0 * p(60))).abs() < 1e-9, "{kept}");
+        assert!(kept > 2.0 * got, "{kept} {got}");
+        // A theta_h column no pixel saw keeps the model's extrapolation (within R).
+        let lone = (0..THETA_H_BINS)
+            .rev()
+            .filter(|&hh| {
+                obs.iter()
+                    .all(|o| MerlBin::from_index(o.bin).unwrap().theta_h != hh)
+            })
+            .map(|hh| MerlBin {
+                theta_h: hh,
+                theta_d: 20,
+                phi_d: 30,
+            })
+            .find(|b| b.is_above_horizon())
+            .expect("an unseen theta_h column above the horizon");
+        let (a, b) = (
+            t.get(lone.index()).unwrap()[0],
+            own.get(lone.index()).unwrap()[0],
+        );
+        assert!((a - b).abs() < 1e-12, "{a} {b}");
     }
 }

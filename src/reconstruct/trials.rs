@@ -32,6 +32,29 @@ pub struct TrialSettings {
     /// Sample pixels per trial (the brightest pixel included).
     pub samples: usize,
     pub seed: u64,
+    /// What each basis fit is given (files written before it existed used the paper's).
+    #[serde(default = "BasisFit::paper")]
+    pub basis_fit: BasisFit,
+}
+
+/// What a basis fit is given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BasisFit {
+    /// The paper's: `samples` pixels, their basis rows chosen for the conditioning of the
+    /// basis sub-matrix, each checked against eq. 1 as it is added (`select_pixels`).
+    Samples,
+    /// Every pixel the fit may use, one sample per basis row: the median of the row's pixels
+    /// (`dense_samples`); the ridge weight is scaled by rows / `samples`, so that the prior
+    /// weighs as it does against `samples` pixels. No draw of 80 pixels decides the
+    /// extrapolation (docs/evaluation.md 1k).
+    Rows,
+}
+
+impl BasisFit {
+    pub fn paper() -> Self {
+        Self::Samples
+    }
 }
 
 impl Default for TrialSettings {
@@ -41,6 +64,107 @@ impl Default for TrialSettings {
             subset_fraction: 0.5,
             samples: 80,
             seed: 1,
+            basis_fit: BasisFit::Rows,
+        }
+    }
+}
+
+/// One sample per basis row from every pixel of `pool`: the per-channel median reflectance of
+/// the row's pixels (robust to the few whose normal is far off), `first` (the brightest pixel,
+/// eq. 2) as its own sample, its row's other pixels left out as `select_pixels` does. Each
+/// sample comes with the row's first pixel, to report.
+pub fn dense_samples(
+    prior: &dyn Prior,
+    pool: &[Observation],
+    first: Option<&Observation>,
+) -> Vec<(Sample, SamplePixel)> {
+    let mut by_row: HashMap<usize, Vec<&Observation>> = HashMap::new();
+    for o in pool {
+        if let Some(row) = prior.row_of(o.bin) {
+            by_row.entry(row).or_default().push(o);
+        }
+    }
+    let mut out = Vec::with_capacity(by_row.len() + 1);
+    if let Some(b) = first {
+        if let Some(row) = prior.row_of(b.bin) {
+            by_row.remove(&row);
+        }
+        out.push((
+            Sample {
+                bin: b.bin,
+                reflectance: b.reflectance,
+            },
+            SamplePixel::from(b),
+        ));
+    }
+    let mut rows: Vec<(usize, Vec<&Observation>)> = by_row.into_iter().collect();
+    rows.sort_unstable_by_key(|(r, _)| *r);
+    for (_, px) in rows {
+        let reflectance = std::array::from_fn(|c| {
+            let mut v: Vec<f64> = px.iter().map(|o| o.reflectance[c]).collect();
+            v.sort_unstable_by(f64::total_cmp);
+            let m = v.len() / 2;
+            if v.len() % 2 == 1 {
+                v[m]
+            } else {
+                0.5 * (v[m - 1] + v[m])
+            }
+        });
+        let mut shown = SamplePixel::from(px[0]);
+        shown.reflectance = reflectance;
+        out.push((
+            Sample {
+                bin: px[0].bin,
+                reflectance,
+            },
+            shown,
+        ));
+    }
+    out
+}
+
+/// What a basis fit is given.
+pub struct BasisSamples {
+    pub samples: Vec<Sample>,
+    /// The pixels to report: the chosen ones, or with `BasisFit::Rows` the brightest alone.
+    pub pixels: Vec<SamplePixel>,
+    /// Factor of the ridge weight.
+    pub eta_scale: f64,
+    pub rejected_by_monotonicity: usize,
+}
+
+/// The samples a basis fit uses, and the factor its ridge weight is scaled by (see
+/// [`BasisFit`]).
+#[allow(clippy::too_many_arguments)]
+pub fn basis_samples(
+    prior: &dyn Prior,
+    pool: &[Observation],
+    first: Option<&Observation>,
+    reliable: &ReliableSettings,
+    samples: usize,
+    k: usize,
+    seed: u64,
+    fit: BasisFit,
+) -> BasisSamples {
+    match fit {
+        BasisFit::Rows => {
+            let s = dense_samples(prior, pool, first);
+            let scale = (s.len() as f64 / samples.max(1) as f64).max(1.0);
+            BasisSamples {
+                samples: s.iter().map(|(a, _)| *a).collect(),
+                pixels: first.map(SamplePixel::from).into_iter().collect(),
+                eta_scale: scale,
+                rejected_by_monotonicity: 0,
+            }
+        }
+        BasisFit::Samples => {
+            let sel = select_pixels(prior, pool, first, reliable, samples, k, seed);
+            BasisSamples {
+                samples: samples_of(&sel.pixels),
+                pixels: sel.pixels.iter().map(SamplePixel::from).collect(),
+                eta_scale: 1.0,
+                rejected_by_monotonicity: sel.rejected_by_monotonicity,
+            }
         }
     }
 }
@@ -74,6 +198,11 @@ pub struct Trial {
     pub similarity: f64,
     /// Pixels rejected by the monotonicity check while selecting.
     pub rejected_by_monotonicity: usize,
+    /// Samples the basis fit was given (one per basis row with `BasisFit::Rows`).
+    #[serde(default)]
+    pub fitted_samples: usize,
+    /// The chosen sample pixels (`BasisFit::Samples`), or the brightest pixel alone
+    /// (`BasisFit::Rows`: every row is a sample, too many to list).
     pub samples: Vec<SamplePixel>,
     #[serde(skip)]
     pub candidate: Option<Box<dyn Candidate>>,
@@ -213,7 +342,7 @@ pub fn run_trials(
             let keep = ((pool.len() as f64 * settings.subset_fraction).ceil() as usize)
                 .clamp(1.min(pool.len()), pool.len());
             pool.truncate(keep);
-            let sel = select_pixels(
+            let fit = basis_samples(
                 prior,
                 &pool,
                 reliable.brightest.as_ref(),
@@ -221,8 +350,9 @@ pub fn run_trials(
                 settings.samples,
                 k,
                 seed,
+                settings.basis_fit,
             );
-            let candidate = prior.fit(&samples_of(&sel.pixels), k, eta).ok();
+            let candidate = prior.fit(&fit.samples, k, eta * fit.eta_scale).ok();
             let similarity = candidate
                 .as_deref()
                 .map(|c| cosine_similarity(c, observations))
@@ -230,8 +360,9 @@ pub fn run_trials(
             Trial {
                 index,
                 similarity,
-                rejected_by_monotonicity: sel.rejected_by_monotonicity,
-                samples: sel.pixels.iter().map(SamplePixel::from).collect(),
+                rejected_by_monotonicity: fit.rejected_by_monotonicity,
+                fitted_samples: fit.samples.len(),
+                samples: fit.pixels,
                 candidate,
             }
         })
@@ -327,6 +458,40 @@ mod tests {
     }
 
     #[test]
+    fn dense_samples_give_each_row_the_median_of_its_pixels_and_the_anchor_its_own() {
+        let truth = |bin: usize| 1.0 + 0.8 * phi(1, bin);
+        let clean = pixels(truth, 300);
+        // Every pixel seen three times: twice as it is, once ten times too bright (a normal far
+        // off); the median keeps the truth where a mean would not.
+        let mut pool = Vec::new();
+        for o in &clean {
+            let mut bright = *o;
+            bright.reflectance = o.reflectance.map(|r| 10.0 * r);
+            pool.extend([*o, bright, *o]);
+        }
+        let prior = CosinePrior { k: 3 };
+        let rows: std::collections::HashSet<usize> = clean.iter().map(|o| o.bin).collect();
+        let dense = dense_samples(&prior, &pool, None);
+        assert_eq!(dense.len(), rows.len());
+        for (s, shown) in &dense {
+            assert!((s.reflectance[0] - truth(s.bin)).abs() < 1e-12, "{s:?}");
+            assert_eq!(shown.bin, s.bin);
+        }
+        // The anchor comes first, and its row's pixels give no second sample.
+        let mut anchor = clean[0];
+        anchor.reflectance = [7.0; 3];
+        let with = dense_samples(&prior, &pool, Some(&anchor));
+        assert_eq!(with.len(), rows.len());
+        assert_eq!(with[0].0.reflectance, [7.0; 3]);
+        assert_eq!(with.iter().filter(|(s, _)| s.bin == anchor.bin).count(), 1);
+        // A fit to them recovers the truth.
+        let samples: Vec<Sample> = dense.iter().map(|(s, _)| *s).collect();
+        let fit = prior.fit(&samples, 3, 1.0).unwrap();
+        let probe = clean[17].bin;
+        assert!((fit.eval_bin(probe)[0] - truth(probe)).abs() < 1e-6);
+    }
+
+    #[test]
     fn trials_keep_the_most_similar_candidate() {
         let truth = |bin: usize| 1.0 + 0.8 * phi(1, bin) + 0.2 * phi(2, bin);
         let mut obs = pixels(truth, 400);
@@ -344,6 +509,7 @@ mod tests {
             subset_fraction: 0.3,
             samples: 12,
             seed: 5,
+            basis_fit: BasisFit::Samples,
         };
         let trials = run_trials(
             &CosinePrior { k: 3 },

@@ -628,10 +628,13 @@ fn trials_section(r: &Report) -> Avail<TrialsSection> {
         .map(|t| TrialRow {
             index: t.index as i64,
             similarity: Some(t.similarity),
-            other: vec![(
-                "rejected_by_monotonicity".to_string(),
-                t.rejected_by_monotonicity.to_string(),
-            )],
+            other: vec![
+                (
+                    "rejected_by_monotonicity".to_string(),
+                    t.rejected_by_monotonicity.to_string(),
+                ),
+                ("fitted_samples".to_string(), t.fitted_samples.to_string()),
+            ],
         })
         .collect();
     let chosen = Some(r.chosen_trial as i64);

@@ -38,6 +38,11 @@ pub struct SceneOptions {
     pub scratch: Option<PathBuf>,
     /// The held-out error the ladder's choice reads (`None`: the library's default).
     pub held_out: Option<HeldOutMetric>,
+    /// What each basis fit is given (`None`: the library's default).
+    pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
+    /// Whether unobserved cells start from the model carried along theta_d (`None`: the
+    /// library's default).
+    pub transfer_theta_d: Option<bool>,
 }
 
 /// [`SceneOptions`] with their meshes, materials and folders loaded.
@@ -72,6 +77,12 @@ impl SceneOptions {
         core.trials.samples = self.samples;
         if let Some(m) = self.held_out {
             core.ladder.metric = m;
+        }
+        if let Some(f) = self.basis_fit {
+            core.trials.basis_fit = f;
+        }
+        if let Some(t) = self.transfer_theta_d {
+            core.plausible.transfer_theta_d = t;
         }
         let scratch = Scratch::new(self.scratch.as_deref())?;
         Ok(Resolved {
