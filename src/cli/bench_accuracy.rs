@@ -186,11 +186,12 @@ impl EvalCommon {
             self.bin_step
         ) + &self.held_out.map_or(String::new(), |m| {
             format!(" --held-out {}", super::bench_external::metric_name(m))
-        }) + &self.basis_fit.map_or(String::new(), |f| {
-            format!(" --basis-fit {}", super::reconstruct::basis_fit_name(f))
-        }) + &self.unobserved.map_or(String::new(), |u| {
-            format!(" --unobserved {}", super::reconstruct::unobserved_name(u))
-        })
+        }) + &self
+            .basis_fit
+            .map_or(String::new(), |f| format!(" --basis-fit {}", f.name()))
+            + &self.unobserved.map_or(String::new(), |u| {
+                format!(" --unobserved {}", super::reconstruct::unobserved_name(u))
+            })
     }
 }
 

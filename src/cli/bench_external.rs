@@ -137,10 +137,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
-        a.basis_fit.map_or(String::new(), |f| format!(
-            " --basis-fit {}",
-            super::reconstruct::basis_fit_name(f)
-        )),
+        a.basis_fit
+            .map_or(String::new(), |f| format!(" --basis-fit {}", f.name())),
         a.unobserved.map_or(String::new(), |u| format!(
             " --unobserved {}",
             super::reconstruct::unobserved_name(u)

@@ -56,6 +56,9 @@ pub struct BenchReconstructArgs {
     /// Time the reconstruction with `--all-pixels` (no reduction of redundant pixels).
     #[arg(long)]
     pub all_pixels: bool,
+    /// What each basis fit is given, as `reconstruct --basis-fit` (default: its default).
+    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
+    pub basis_fit: Option<brdf_rig::reconstruct::trials::BasisFit>,
     /// Seed of the timed run's trials (the spread over seeds is the run-to-run noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -85,6 +88,9 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     if a.all_pixels {
         command += " --all-pixels";
     }
+    if let Some(f) = a.basis_fit {
+        command += &format!(" --basis-fit {}", f.name());
+    }
     if a.seed != 1 {
         command += &format!(" --seed {}", a.seed);
     }
@@ -109,6 +115,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         keep: a.keep.clone(),
         refine_normals: a.refine_normals,
         all_pixels: a.all_pixels,
+        basis_fit: a.basis_fit,
         seed: a.seed,
         exe: std::env::current_exe()?,
         command,

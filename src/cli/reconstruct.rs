@@ -174,13 +174,6 @@ pub(crate) fn parse_basis_fit(s: &str) -> Result<BasisFit, String> {
     }
 }
 
-pub(crate) fn basis_fit_name(f: BasisFit) -> &'static str {
-    match f {
-        BasisFit::Rows => "rows",
-        BasisFit::Samples => "samples",
-    }
-}
-
 pub(crate) fn parse_unobserved(s: &str) -> Result<Unobserved, String> {
     match s {
         "transfer" => Ok(Unobserved::Transfer),

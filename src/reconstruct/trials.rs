@@ -55,6 +55,14 @@ impl BasisFit {
     pub fn paper() -> Self {
         Self::Samples
     }
+
+    /// The name the command line takes (`--basis-fit`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Rows => "rows",
+            Self::Samples => "samples",
+        }
+    }
 }
 
 impl Default for TrialSettings {

@@ -49,6 +49,8 @@ pub struct ReconstructBenchOptions {
     pub keep: Option<PathBuf>,
     pub refine_normals: bool,
     pub all_pixels: bool,
+    /// What each basis fit is given (`None`: the default).
+    pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
     /// Seed of the timed run's trials.
     pub seed: u64,
     /// The `brdf-rig` binary the timed child process runs.
@@ -62,6 +64,9 @@ fn settings_for(o: &ReconstructBenchOptions, target: &str) -> Settings {
     s.basis.stride = o.stride;
     s.basis.basis_components = o.basis_components;
     s.basis.exclude = vec![target.to_string()];
+    if let Some(f) = o.basis_fit {
+        s.core.trials.basis_fit = f;
+    }
     s
 }
 
@@ -169,6 +174,9 @@ pub fn run(
     }
     if o.all_pixels {
         cmd_args.push("--all-pixels".into());
+    }
+    if let Some(f) = o.basis_fit {
+        cmd_args.extend(["--basis-fit".into(), f.name().into()]);
     }
     if o.seed != 1 {
         cmd_args.extend(["--seed".into(), o.seed.to_string()]);
