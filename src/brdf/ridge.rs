@@ -59,7 +59,7 @@ impl Default for RidgeSettings {
     }
 }
 
-#[derive(Debug, thiserror::Error)]
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum RidgeError {
     #[error("no observations to reconstruct from")]
     Empty,
@@ -103,37 +103,85 @@ pub fn solve(
     observations: &[BasisSample],
     settings: &RidgeSettings,
 ) -> Result<[Vec<f64>; 3], RidgeError> {
-    if observations.is_empty() {
-        return Err(RidgeError::Empty);
-    }
-    let rows = basis.n_rows();
-    for o in observations {
-        if o.row >= rows {
-            return Err(RidgeError::BadRow { row: o.row, rows });
+    NormalSystem::new(basis, observations, settings.k)?.solve(settings.k, settings.eta)
+}
+
+/// The normal equations of one set of observations on the first `n` components, built once:
+/// a fit at any `k <= n` and any eta reads their leading block (`A^T A` restricted to the
+/// first `k` components is the leading `k x k` block of the whole, and eta only adds to its
+/// diagonal), so a grid of `(k, eta)` costs one product instead of one per point. The same
+/// sums as a product built for one `k`: the coefficients are identical.
+pub struct NormalSystem {
+    /// `A^T A` on the first `n` components.
+    gram: DMatrix<f64>,
+    /// `A^T b` per channel.
+    rhs: [DVector<f64>; 3],
+}
+
+impl NormalSystem {
+    /// The system for fits of at most `k_max` components (and at most one per observation).
+    pub fn new(
+        basis: &Basis,
+        observations: &[BasisSample],
+        k_max: usize,
+    ) -> Result<Self, RidgeError> {
+        if observations.is_empty() {
+            return Err(RidgeError::Empty);
         }
-        if !o.rgb.iter().all(|v| v.is_finite()) {
-            return Err(RidgeError::NonFinite { row: o.row });
+        let rows = basis.n_rows();
+        for o in observations {
+            if o.row >= rows {
+                return Err(RidgeError::BadRow { row: o.row, rows });
+            }
+            if !o.rgb.iter().all(|v| v.is_finite()) {
+                return Err(RidgeError::NonFinite { row: o.row });
+            }
         }
+        let n = observations.len().min(k_max).min(basis.basis_components());
+        // Row by row: each observation adds its row's outer product to the upper triangle
+        // (contiguous, so it vectorises; a column-by-column product strides through `A`).
+        let mut upper = vec![0.0; n * n];
+        let mut rhs = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        let mut q = vec![0.0; n];
+        for o in observations {
+            for (x, v) in q.iter_mut().zip(basis.q_row(o.row, n)) {
+                *x = f64::from(*v);
+            }
+            for i in 0..n {
+                let qi = q[i];
+                for (g, qj) in upper[i * n + i..(i + 1) * n].iter_mut().zip(&q[i..]) {
+                    *g += qi * qj;
+                }
+            }
+            for (ch, r) in rhs.iter_mut().enumerate() {
+                let b = basis.map(o.row, o.rgb[ch]);
+                for (x, qi) in r.iter_mut().zip(&q) {
+                    *x += qi * b;
+                }
+            }
+        }
+        let gram = DMatrix::from_fn(n, n, |i, j| upper[i.min(j) * n + i.max(j)]);
+        Ok(Self {
+            gram,
+            rhs: rhs.map(DVector::from_vec),
+        })
     }
-    let n = observations
-        .len()
-        .min(settings.k)
-        .min(basis.basis_components());
-    let a = DMatrix::from_fn(observations.len(), n, |i, j| {
-        basis.q(observations[i].row, j)
-    });
-    let mut normal = a.tr_mul(&a);
-    for j in 0..n {
-        normal[(j, j)] += settings.eta;
+
+    /// Per-channel coefficients on the first `min(k, n)` components with ridge weight `eta`.
+    pub fn solve(&self, k: usize, eta: f64) -> Result<[Vec<f64>; 3], RidgeError> {
+        let n = k.min(self.gram.nrows());
+        let mut normal = self.gram.view((0, 0), (n, n)).into_owned();
+        for j in 0..n {
+            normal[(j, j)] += eta;
+        }
+        let chol = normal.cholesky().ok_or(RidgeError::Singular)?;
+        Ok(std::array::from_fn(|ch| {
+            chol.solve(&self.rhs[ch].rows(0, n).into_owned())
+                .iter()
+                .copied()
+                .collect()
+        }))
     }
-    let chol = normal.cholesky().ok_or(RidgeError::Singular)?;
-    let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| {
-        let b = DVector::from_fn(observations.len(), |i, _| {
-            basis.map(observations[i].row, observations[i].rgb[ch])
-        });
-        chol.solve(&a.tr_mul(&b)).iter().copied().collect()
-    });
-    Ok(coefficients)
 }
 
 impl Reconstruction {
@@ -267,6 +315,55 @@ mod tests {
                 assert!((t[ch] - r[ch]).abs() <= 1e-3 * t[ch] + 1e-5, "{t:?} {r:?}");
             }
         }
+    }
+
+    #[test]
+    fn one_normal_system_solves_every_k_and_eta_as_a_fit_built_for_it() {
+        // The textbook ridge on the first k columns, built from scratch for each (k, eta),
+        // against the leading blocks of one system built for the largest k.
+        let n = nets(&["blue-acrylic", "gold-paint", "pink-fabric", "teflon"]);
+        let b = basis(&n, 10);
+        let truth = n[2].1.values_at(b.grid().bins());
+        let obs: Vec<BasisSample> = (0..b.n_rows())
+            .step_by(7)
+            .map(|row| BasisSample {
+                row,
+                rgb: truth[row],
+            })
+            .collect();
+        let system = NormalSystem::new(&b, &obs, 10).expect("system");
+        for k in [1, 4, 10] {
+            for eta in [1e-3, 1.0, 40.0] {
+                let a = DMatrix::from_fn(obs.len(), k, |i, j| b.q(obs[i].row, j));
+                let mut normal = a.tr_mul(&a);
+                for j in 0..k {
+                    normal[(j, j)] += eta;
+                }
+                let got = system.solve(k, eta).expect("solve");
+                for ch in 0..3 {
+                    let y = DVector::from_fn(obs.len(), |i, _| b.map(obs[i].row, obs[i].rgb[ch]));
+                    let want = normal.clone().lu().solve(&a.tr_mul(&y)).expect("lu");
+                    assert_eq!(got[ch].len(), k);
+                    for j in 0..k {
+                        assert!(
+                            (got[ch][j] - want[j]).abs() <= 1e-9 * (want[j].abs() + 1.0),
+                            "k {k} eta {eta} ch {ch} j {j}: {} vs {}",
+                            got[ch][j],
+                            want[j]
+                        );
+                    }
+                }
+            }
+        }
+        // At most one component per observation.
+        assert_eq!(
+            NormalSystem::new(&b, &obs[..3], 10)
+                .unwrap()
+                .solve(10, 1.0)
+                .unwrap()[0]
+                .len(),
+            3
+        );
     }
 
     #[test]

@@ -62,7 +62,7 @@ pub struct EvalCommon {
     /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
     /// `reconstruct --unobserved`.
     #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
-    pub unobserved: Option<super::reconstruct::Unobserved>,
+    pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
 }
 
 #[derive(Args, Debug)]
@@ -166,9 +166,7 @@ impl EvalCommon {
             scratch: self.scratch.clone(),
             held_out: self.held_out,
             basis_fit: self.basis_fit,
-            transfer_theta_d: self
-                .unobserved
-                .map(|u| u == super::reconstruct::Unobserved::Transfer),
+            theta_d_shape: self.unobserved,
         })
     }
 
@@ -189,9 +187,9 @@ impl EvalCommon {
         }) + &self
             .basis_fit
             .map_or(String::new(), |f| format!(" --basis-fit {}", f.name()))
-            + &self.unobserved.map_or(String::new(), |u| {
-                format!(" --unobserved {}", super::reconstruct::unobserved_name(u))
-            })
+            + &self
+                .unobserved
+                .map_or(String::new(), |u| format!(" --unobserved {}", u.name()))
     }
 }
 

@@ -58,7 +58,7 @@ pub struct BenchExternalArgs {
     /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
     /// `reconstruct --unobserved`.
     #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
-    pub unobserved: Option<super::reconstruct::Unobserved>,
+    pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
 }
 
 /// The `--held-out` word for a metric (what [`parse_metric`] reads).
@@ -111,7 +111,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         settings.core.trials.basis_fit = f;
     }
     if let Some(u) = a.unobserved {
-        settings.core.plausible.transfer_theta_d = u == super::reconstruct::Unobserved::Transfer;
+        settings.core.plausible.theta_d_shape = u;
     }
     let command = format!(
         "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{}{} --out {}",
@@ -139,10 +139,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
         a.basis_fit
             .map_or(String::new(), |f| format!(" --basis-fit {}", f.name())),
-        a.unobserved.map_or(String::new(), |u| format!(
-            " --unobserved {}",
-            super::reconstruct::unobserved_name(u)
-        )),
+        a.unobserved
+            .map_or(String::new(), |u| format!(" --unobserved {}", u.name())),
         a.out.display()
     );
     let options = ExternalBenchOptions {

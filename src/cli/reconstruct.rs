@@ -6,6 +6,7 @@ use anyhow::Context;
 use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
 use brdf_rig::reconstruct::ladder::Family;
+use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
 use brdf_rig::reconstruct::{self, Job, Settings};
 use clap::Args as ClapArgs;
@@ -106,10 +107,10 @@ pub struct Args {
     pub basis_fit: BasisFit,
     /// Where no pixel observed a (theta_h, theta_d) cell, start from: `model` (the model's own
     /// extrapolation) or `transfer` (the model at the nearest observed theta_d of the same
-    /// theta_h, carried along theta_d by the Lambert + GGX prior). Either is kept within a
-    /// factor 10 of the prior. docs/reconstruction.md, stage 6.
+    /// theta_h, carried along theta_d by the Lambert + GGX prior) or `transfer-basis` (carried
+    /// by the basis's mean material). Each is kept within a factor 10 of the prior. docs/reconstruction.md, stage 6.
     #[arg(long, value_parser = parse_unobserved, default_value = "model")]
-    pub unobserved: Unobserved,
+    pub unobserved: ThetaDShape,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). Writes
     /// mesh_refined.ply when the refinement is accepted.
@@ -159,13 +160,6 @@ pub(crate) fn parse_choice(s: &str) -> Result<TrialChoice, String> {
     }
 }
 
-/// Where an unobserved cell starts from (`PlausibleSettings::transfer_theta_d`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Unobserved {
-    Transfer,
-    Model,
-}
-
 pub(crate) fn parse_basis_fit(s: &str) -> Result<BasisFit, String> {
     match s {
         "rows" => Ok(BasisFit::Rows),
@@ -174,19 +168,11 @@ pub(crate) fn parse_basis_fit(s: &str) -> Result<BasisFit, String> {
     }
 }
 
-pub(crate) fn parse_unobserved(s: &str) -> Result<Unobserved, String> {
-    match s {
-        "transfer" => Ok(Unobserved::Transfer),
-        "model" => Ok(Unobserved::Model),
-        _ => Err(format!("{s:?}: expected transfer or model")),
-    }
-}
-
-pub(crate) fn unobserved_name(u: Unobserved) -> &'static str {
-    match u {
-        Unobserved::Transfer => "transfer",
-        Unobserved::Model => "model",
-    }
+pub(crate) fn parse_unobserved(s: &str) -> Result<ThetaDShape, String> {
+    [ThetaDShape::Model, ThetaDShape::Prior, ThetaDShape::Basis]
+        .into_iter()
+        .find(|u| u.name() == s)
+        .ok_or_else(|| format!("{s:?}: expected model, transfer or transfer-basis"))
 }
 
 fn parse_model(s: &str) -> Result<ModelSelection, String> {
@@ -234,7 +220,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.model = args.model;
     settings.core.plausible.shrink = !args.no_shrink;
     settings.core.trials.basis_fit = args.basis_fit;
-    settings.core.plausible.transfer_theta_d = args.unobserved == Unobserved::Transfer;
+    settings.core.plausible.theta_d_shape = args.unobserved;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;

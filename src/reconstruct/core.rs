@@ -11,7 +11,7 @@ use super::ladder::{
     subset,
 };
 use super::observe::Observation;
-use super::plausible::{Plausibility, PlausibleSettings, make_plausible};
+use super::plausible::{Plausibility, PlausibleSettings, make_plausible_shaped};
 use super::prior::{Candidate, CandidateValues, Prior};
 use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
@@ -428,7 +428,8 @@ pub fn reconstruct_observations(
         (Family::Basis | Family::Hybrid, Some(m)) => Some(AnalyticCandidate(m)),
         _ => None,
     };
-    let (table, plausibility) = make_plausible(
+    let typical = prior.typical();
+    let (table, plausibility) = make_plausible_shaped(
         brdf.as_ref(),
         prior_model.as_ref().map(|p| {
             (
@@ -436,6 +437,7 @@ pub fn reconstruct_observations(
                 "Lambert + GGX fitted to the same pixels",
             )
         }),
+        typical.as_deref(),
         &used,
         &settings.plausible,
     );

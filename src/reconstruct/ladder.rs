@@ -781,6 +781,16 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                 seed.wrapping_add(fold as u64),
                 basis_fit,
             );
+            // Every basis rung of the fold from one set of normal equations.
+            let basis_keys: Vec<(usize, f64)> = keys
+                .iter()
+                .filter(|key| matches!(key.family, Family::Basis | Family::Hybrid))
+                .map(|key| {
+                    let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
+                    (k, eta * fit.eta_scale)
+                })
+                .collect();
+            let mut basis_fits = prior.fit_lazy_each(&fit.samples, &basis_keys).into_iter();
             keys.iter()
                 .map(|key| match key.family {
                     Family::Lambert => fit_lambert(&analytic_train).map_or_else(failed, |m| {
@@ -790,12 +800,10 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                         .map_or_else(failed, |m| {
                             score(&AnalyticCandidate(m), &data.held, patch_px)
                         }),
-                    Family::Basis | Family::Hybrid => {
-                        let (k, eta) = (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0));
-                        prior
-                            .fit_lazy(&fit.samples, k, eta * fit.eta_scale)
-                            .map_or_else(|_| failed(), |c| score(c.as_ref(), &data.held, patch_px))
-                    }
+                    Family::Basis | Family::Hybrid => match basis_fits.next() {
+                        Some(Ok(c)) => score(c.as_ref(), &data.held, patch_px),
+                        _ => failed(),
+                    },
                 })
                 .collect()
         })

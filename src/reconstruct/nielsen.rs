@@ -94,6 +94,36 @@ impl Prior for NielsenPrior<'_> {
             .map(|r| Box::new(Fitted(r)) as Box<dyn Candidate>)
     }
 
+    fn typical(&self) -> Option<Box<dyn Candidate + '_>> {
+        Some(Box::new(Lazy {
+            basis: self.basis,
+            coefficients: [Vec::new(), Vec::new(), Vec::new()],
+        }))
+    }
+
+    fn fit_lazy_each<'a>(
+        &'a self,
+        samples: &[Sample],
+        keys: &[(usize, f64)],
+    ) -> Vec<Result<Box<dyn Candidate + 'a>, ridge::RidgeError>> {
+        let k_max = keys.iter().map(|&(k, _)| k).max().unwrap_or(0);
+        let (obs, _) = self.ridge_input(samples, k_max, 0.0);
+        match ridge::NormalSystem::new(self.basis, &obs, k_max) {
+            Ok(system) => keys
+                .iter()
+                .map(|&(k, eta)| {
+                    system.solve(k, eta).map(|coefficients| {
+                        Box::new(Lazy {
+                            basis: self.basis,
+                            coefficients,
+                        }) as Box<dyn Candidate + 'a>
+                    })
+                })
+                .collect(),
+            Err(e) => keys.iter().map(|_| Err(e.clone())).collect(),
+        }
+    }
+
     fn fit_lazy<'a>(
         &'a self,
         samples: &[Sample],

@@ -12,7 +12,11 @@
 //!   that runs away (the basis can put 100 times the energy in a bin no pixel saw) is pulled
 //!   back; `R = 1` replaces unobserved regions by the prior. An observed cell keeps the model
 //!   (`w = 1`). The prior is an analytic model fitted to the same pixels (Lambert + GGX):
-//!   physically shaped where the data say nothing, and at the data's scale.
+//!   physically shaped where the data say nothing, and at the data's scale. With
+//!   [`ThetaDShape::Prior`] or [`ThetaDShape::Basis`] the model's value at an unobserved cell is
+//!   replaced, before the clamp, by the model at the nearest observed theta_d of the same
+//!   theta_h column times that shape's ratio between the two cells (a study option, measured in
+//!   docs/evaluation.md section 1k).
 //! - **Non-negative**: negative and non-finite values become the prior's (negative entries mean
 //!   "no data" in a MERL file, and a BRDF is never negative).
 //! - **Albedo**: `a(theta_i) = int f(wi, wo) cos theta_o d omega_o`, by the half-vector
@@ -48,11 +52,36 @@ pub struct PlausibleSettings {
     pub min_pixels_per_cell: usize,
     /// The largest directional albedo allowed.
     pub max_albedo: f64,
-    /// Where a cell is unobserved, start from the model at the nearest observed theta_d of
-    /// the same theta_h, scaled by the prior's ratio between the two (the data's theta_h
-    /// shape, the prior's theta_d shape), instead of the model's own extrapolation.
+    /// Where a cell is unobserved, what it starts from (see [`ThetaDShape`]).
     #[serde(default)]
-    pub transfer_theta_d: bool,
+    pub theta_d_shape: ThetaDShape,
+}
+
+/// Where an unobserved cell starts from before the clamp and blend towards the prior.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ThetaDShape {
+    /// The model's own extrapolation.
+    #[default]
+    Model,
+    /// The model at the nearest observed theta_d of the same theta_h column, scaled by the
+    /// prior's ratio between the two cells (the data's theta_h shape, the prior's theta_d
+    /// shape).
+    Prior,
+    /// The same, scaled by the ratio of the basis's typical material (its mean, all
+    /// coefficients zero): the theta_d shape the measured materials share.
+    Basis,
+}
+
+impl ThetaDShape {
+    /// The name the command line takes (`--unobserved`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Model => "model",
+            Self::Prior => "transfer",
+            Self::Basis => "transfer-basis",
+        }
+    }
 }
 
 impl Default for PlausibleSettings {
@@ -63,7 +92,7 @@ impl Default for PlausibleSettings {
             prior_ratio_limit: 10.0,
             min_pixels_per_cell: 1,
             max_albedo: 1.0,
-            transfer_theta_d: false,
+            theta_d_shape: ThetaDShape::Model,
         }
     }
 }
@@ -187,6 +216,18 @@ pub fn make_plausible(
     used: &[&Observation],
     settings: &PlausibleSettings,
 ) -> (MerlTable, Plausibility) {
+    make_plausible_shaped(model, prior, None, used, settings)
+}
+
+/// [`make_plausible`], with the basis's typical material for `ThetaDShape::Basis` (without
+/// it that setting keeps the model's own extrapolation).
+pub fn make_plausible_shaped(
+    model: &dyn Candidate,
+    prior: Option<(&dyn Candidate, &str)>,
+    typical: Option<&dyn Candidate>,
+    used: &[&Observation],
+    settings: &PlausibleSettings,
+) -> (MerlTable, Plausibility) {
     let counts = coverage(used);
     let weights = match prior {
         Some(_) if settings.shrink => model_weights(&counts, settings),
@@ -194,7 +235,11 @@ pub fn make_plausible(
     };
     // Per theta_h column, the observed theta_d bins: an unobserved cell takes the model at the
     // nearest of them, carried to its own theta_d by the prior's ratio.
-    let transfer = settings.transfer_theta_d;
+    let shape: Option<&dyn Candidate> = match settings.theta_d_shape {
+        ThetaDShape::Model => None,
+        ThetaDShape::Prior => prior.map(|(p, _)| p),
+        ThetaDShape::Basis => typical,
+    };
     let observed_d: Vec<Vec<usize>> = (0..THETA_H_BINS)
         .map(|h| {
             (0..THETA_D_BINS)
@@ -225,16 +270,18 @@ pub fn make_plausible(
             };
             let r = settings.prior_ratio_limit.max(1.0);
             // The model where it was seen, carried along theta_d as the prior changes.
-            let carried = match (transfer, prior, p) {
-                (true, Some((pr, _)), Some(p)) if w < 1.0 => observed_d[b.theta_h]
+            let carried = match (shape, p) {
+                (Some(pr), Some(_)) if w < 1.0 => observed_d[b.theta_h]
                     .iter()
                     .min_by_key(|&&d| d.abs_diff(b.theta_d))
                     .map(|&d| MerlBin { theta_d: d, ..b })
                     .filter(|s| s.is_above_horizon())
                     .and_then(|s| {
                         let (ms, ps) = (model.eval_bin(s.index()), pr.eval_bin(s.index()));
-                        (valid(&ms) && ps.iter().all(|x| x.is_finite() && *x > 0.0))
-                            .then(|| [0, 1, 2].map(|c| ms[c] * p[c] / ps[c]))
+                        let pc = pr.eval_bin(index);
+                        let positive = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x > 0.0);
+                        (valid(&ms) && positive(&ps) && positive(&pc))
+                            .then(|| [0, 1, 2].map(|c| ms[c] * pc[c] / ps[c]))
                     }),
                 _ => None,
             };
@@ -420,7 +467,7 @@ mod tests {
             &used,
             &PlausibleSettings {
                 max_albedo: f64::INFINITY,
-                transfer_theta_d: false,
+                theta_d_shape: ThetaDShape::Model,
                 ..Default::default()
             },
         );
@@ -497,7 +544,7 @@ mod tests {
         let prior = ByBin(|h, d| (0.3 - 0.002 * h as f64) * (1.0 + d as f64 / 30.0));
         let settings = PlausibleSettings {
             max_albedo: f64::INFINITY,
-            transfer_theta_d: true,
+            theta_d_shape: ThetaDShape::Prior,
             ..Default::default()
         };
         let (t, _) = make_plausible(&model, Some((&prior, "test prior")), &used, &settings);
@@ -528,7 +575,7 @@ mod tests {
             Some((&prior, "test prior")),
             &used,
             &PlausibleSettings {
-                transfer_theta_d: false,
+                theta_d_shape: ThetaDShape::Model,
                 ..settings
             },
         );

@@ -63,6 +63,24 @@ pub trait Prior: Send + Sync {
     fn fit(&self, samples: &[Sample], k: usize, eta: f64)
     -> Result<Box<dyn Candidate>, RidgeError>;
 
+    /// The prior's typical material (a basis: its mean, every coefficient zero), if it has
+    /// one.
+    fn typical(&self) -> Option<Box<dyn Candidate + '_>> {
+        None
+    }
+
+    /// [`Prior::fit_lazy`] at each `(k, eta)` of `keys`, in order, for the same samples (a prior
+    /// may share the work between them: the Nielsen prior builds its normal equations once).
+    fn fit_lazy_each<'a>(
+        &'a self,
+        samples: &[Sample],
+        keys: &[(usize, f64)],
+    ) -> Vec<Result<Box<dyn Candidate + 'a>, RidgeError>> {
+        keys.iter()
+            .map(|&(k, eta)| self.fit_lazy(samples, k, eta))
+            .collect()
+    }
+
     /// The same fit, for validation: the result is evaluated at a few bins only, so a prior may
     /// skip tabulating it (the Nielsen prior evaluates rows on demand).
     fn fit_lazy<'a>(

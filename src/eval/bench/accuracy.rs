@@ -40,9 +40,8 @@ pub struct SceneOptions {
     pub held_out: Option<HeldOutMetric>,
     /// What each basis fit is given (`None`: the library's default).
     pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
-    /// Whether unobserved cells start from the model carried along theta_d (`None`: the
-    /// library's default).
-    pub transfer_theta_d: Option<bool>,
+    /// Where unobserved cells start from (`None`: the library's default).
+    pub theta_d_shape: Option<crate::reconstruct::plausible::ThetaDShape>,
 }
 
 /// [`SceneOptions`] with their meshes, materials and folders loaded.
@@ -81,8 +80,8 @@ impl SceneOptions {
         if let Some(f) = self.basis_fit {
             core.trials.basis_fit = f;
         }
-        if let Some(t) = self.transfer_theta_d {
-            core.plausible.transfer_theta_d = t;
+        if let Some(t) = self.theta_d_shape {
+            core.plausible.theta_d_shape = t;
         }
         let scratch = Scratch::new(self.scratch.as_deref())?;
         Ok(Resolved {
