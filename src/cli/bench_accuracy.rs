@@ -63,6 +63,10 @@ pub struct EvalCommon {
     /// `reconstruct --unobserved`.
     #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
     pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
+    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
+    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub min_gain: Option<f64>,
 }
 
 #[derive(Args, Debug)]
@@ -167,6 +171,7 @@ impl EvalCommon {
             held_out: self.held_out,
             basis_fit: self.basis_fit,
             theta_d_shape: self.unobserved,
+            min_gain: self.min_gain,
         })
     }
 
@@ -190,6 +195,9 @@ impl EvalCommon {
             + &self
                 .unobserved
                 .map_or(String::new(), |u| format!(" --unobserved {}", u.name()))
+            + &self
+                .min_gain
+                .map_or(String::new(), |g| format!(" --min-gain {g}"))
     }
 }
 

@@ -59,6 +59,10 @@ pub struct BenchExternalArgs {
     /// `reconstruct --unobserved`.
     #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
     pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
+    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
+    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub min_gain: Option<f64>,
 }
 
 /// The `--held-out` word for a metric (what [`parse_metric`] reads).
@@ -113,8 +117,11 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(u) = a.unobserved {
         settings.core.plausible.theta_d_shape = u;
     }
+    if let Some(g) = a.min_gain {
+        settings.core.ladder.min_gain = g;
+    }
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.seeds
@@ -141,6 +148,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |f| format!(" --basis-fit {}", f.name())),
         a.unobserved
             .map_or(String::new(), |u| format!(" --unobserved {}", u.name())),
+        a.min_gain
+            .map_or(String::new(), |g| format!(" --min-gain {g}")),
         a.out.display()
     );
     let options = ExternalBenchOptions {

@@ -131,6 +131,21 @@ pub struct LadderSettings {
     /// The same bound holds a chosen Lambert + GGX against its fits to halves of the images
     /// (docs/evaluation.md section 1j).
     pub max_trial_disagreement: f64,
+    /// A simpler rung whose mean held-out error is within this fraction of the best's counts
+    /// as within noise too (0: only the standard error decides). The folds share the
+    /// geometry's error, so a fold-by-fold gain of a fraction of a percent can be consistent
+    /// (beyond one standard error) and still mean nothing for the BRDF.
+    pub min_gain: f64,
+}
+
+impl LadderSettings {
+    /// The choice's notion of noise.
+    pub fn noise(&self) -> Noise {
+        Noise {
+            rule: self.rule,
+            min_gain: self.min_gain,
+        }
+    }
 }
 
 /// The held-out error a choice reads.
@@ -170,6 +185,23 @@ pub enum HeldOutMetric {
     Front,
 }
 
+/// What "within noise" means: the rule, and the smallest relative gain a richer rung must
+/// bring besides ([`LadderSettings::min_gain`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Noise {
+    pub rule: ChoiceRule,
+    pub min_gain: f64,
+}
+
+impl From<ChoiceRule> for Noise {
+    fn from(rule: ChoiceRule) -> Self {
+        Self {
+            rule,
+            min_gain: 0.0,
+        }
+    }
+}
+
 /// When a simpler rung counts as "within noise" of the best.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -196,6 +228,7 @@ impl Default for LadderSettings {
             metric: HeldOutMetric::Log,
             patch_px: None,
             max_trial_disagreement: 0.3,
+            min_gain: 0.0,
         }
     }
 }
@@ -870,7 +903,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         let better = |seen: &Rung, basis: &Rung| {
             seen.error.is_some()
                 && seen.error < basis.error
-                && !within_noise(basis, seen, settings.rule)
+                && !within_noise(basis, seen, settings.noise())
         };
         let (h, b) = (&hybrid, &rungs[chosen]);
         let keep = match settings.metric {
@@ -973,11 +1006,14 @@ fn mean_se(fold_errors: &[Option<f64>]) -> (Option<f64>, Option<f64>) {
 }
 
 /// Whether `c` is within noise of `best` by `rule`.
-fn within_noise(c: &Rung, best: &Rung, rule: ChoiceRule) -> bool {
+fn within_noise(c: &Rung, best: &Rung, rule: Noise) -> bool {
     let (Some(ec), Some(eb)) = (c.error, best.error) else {
         return false;
     };
-    match rule {
+    if rule.min_gain > 0.0 && ec <= eb * (1.0 + rule.min_gain) {
+        return true;
+    }
+    match rule.rule {
         ChoiceRule::OneStandardError => ec <= eb + best.standard_error.unwrap_or(0.0),
         ChoiceRule::Paired => {
             let d: Vec<f64> = c
@@ -1013,23 +1049,23 @@ fn simpler_first(a: &Rung, b: &Rung) -> std::cmp::Ordering {
 pub fn choose_by(rungs: &[Rung], settings: &LadderSettings) -> Option<(usize, String)> {
     let log: Vec<Rung> = rungs.iter().map(Rung::as_log).collect();
     match settings.metric {
-        HeldOutMetric::Linear => choose(rungs, settings.rule),
+        HeldOutMetric::Linear => choose(rungs, settings.noise()),
         HeldOutMetric::Log => {
-            choose(&log, settings.rule).map(|(i, r)| (i, format!("{r} (log-space errors)")))
+            choose(&log, settings.noise()).map(|(i, r)| (i, format!("{r} (log-space errors)")))
         }
         HeldOutMetric::Patches => {
             let patch: Vec<Rung> = rungs.iter().map(Rung::as_patch).collect();
-            choose(&patch, settings.rule).map(|(i, r)| (i, format!("{r} (patch errors)")))
+            choose(&patch, settings.noise()).map(|(i, r)| (i, format!("{r} (patch errors)")))
         }
-        HeldOutMetric::Pareto => pareto(rungs, &log, settings.rule, "linear"),
-        HeldOutMetric::Front => front(rungs, &log, settings.rule),
+        HeldOutMetric::Pareto => pareto(rungs, &log, settings.noise(), "linear"),
+        HeldOutMetric::Front => front(rungs, &log, settings.noise()),
         HeldOutMetric::ParetoPatches => {
             let patch: Vec<Rung> = rungs.iter().map(Rung::as_patch).collect();
-            pareto(&patch, &log, settings.rule, "patch")
+            pareto(&patch, &log, settings.noise(), "patch")
         }
         HeldOutMetric::Both => {
-            let lin = choose(rungs, settings.rule);
-            let lg = choose(&log, settings.rule);
+            let lin = choose(rungs, settings.noise());
+            let lg = choose(&log, settings.noise());
             match (lin, lg) {
                 (Some((a, ra)), Some((b, rb))) => {
                     if a == b {
@@ -1067,7 +1103,7 @@ pub fn choose_by(rungs: &[Rung], settings: &LadderSettings) -> Option<(usize, St
 
 /// Whether rung `a` beats rung `b` beyond noise: a lower mean error, and `b` not within
 /// noise of `a` by `rule`.
-fn beats(a: &Rung, b: &Rung, rule: ChoiceRule) -> bool {
+fn beats(a: &Rung, b: &Rung, rule: Noise) -> bool {
     matches!((a.error, b.error), (Some(ea), Some(eb)) if ea < eb) && !within_noise(b, a, rule)
 }
 
@@ -1076,7 +1112,7 @@ fn beats(a: &Rung, b: &Rung, rule: ChoiceRule) -> bool {
 /// noise. Within a family (the basis at each k and eta) the simplest within noise stays the
 /// rule: set aside there too, the basis's smaller k lost to larger ones that rendered worse
 /// (docs/evaluation.md section 1h).
-fn front(lin: &[Rung], log: &[Rung], rule: ChoiceRule) -> Option<(usize, String)> {
+fn front(lin: &[Rung], log: &[Rung], rule: Noise) -> Option<(usize, String)> {
     let dominated = |i: usize| {
         (0..lin.len()).any(|j| {
             lin[j].family != lin[i].family
@@ -1108,12 +1144,7 @@ fn front(lin: &[Rung], log: &[Rung], rule: ChoiceRule) -> Option<(usize, String)
 /// `lin_space`) and `log` (the same rungs with their log-space errors): each space's choice;
 /// where they differ, the richer unless its mean error is worse in the space that chose the
 /// simpler.
-fn pareto(
-    lin: &[Rung],
-    log: &[Rung],
-    rule: ChoiceRule,
-    lin_space: &str,
-) -> Option<(usize, String)> {
+fn pareto(lin: &[Rung], log: &[Rung], rule: Noise, lin_space: &str) -> Option<(usize, String)> {
     let rungs = lin;
     let lin = choose(rungs, rule);
     let lg = choose(log, rule);
@@ -1167,7 +1198,8 @@ fn pareto(
 
 /// The simplest rung within noise of the best (fewest parameters; among equals, the most
 /// regularised), and why.
-pub fn choose(rungs: &[Rung], rule: ChoiceRule) -> Option<(usize, String)> {
+pub fn choose(rungs: &[Rung], rule: impl Into<Noise>) -> Option<(usize, String)> {
+    let rule = rule.into();
     let (best, best_err, best_se) = rungs
         .iter()
         .enumerate()
@@ -1180,9 +1212,14 @@ pub fn choose(rungs: &[Rung], rule: ChoiceRule) -> Option<(usize, String)> {
         .min_by(|a, b| simpler_first(a.1, b.1))
         .map(|(i, _)| i)
         .unwrap_or(best);
-    let noise = match rule {
+    let noise = match rule.rule {
         ChoiceRule::OneStandardError => "within one standard error of the best",
         ChoiceRule::Paired => "within one standard error (fold by fold) of the best",
+    };
+    let noise = if rule.min_gain > 0.0 {
+        format!("{noise} or within {:.0} % of it", 100.0 * rule.min_gain)
+    } else {
+        noise.to_string()
     };
     let reason = if chosen == best {
         format!(
@@ -1630,5 +1667,20 @@ mod tests {
         let mixed = rung(Family::Basis, 30, &[0.08, 0.32, 0.47, 0.22, 0.38]);
         let rungs = vec![rungs[0].clone(), mixed];
         assert_eq!(choose(&rungs, ChoiceRule::Paired).unwrap().0, 0);
+        // A gain on every fold that is 1 % of the error: beyond the paired standard error, but
+        // not beyond a 2 % smallest gain; a 5 % gain passes both.
+        let simple = rung(Family::Lambert, 3, &[0.100, 0.300, 0.500, 0.200, 0.400]);
+        let tiny = rung(Family::Basis, 30, &[0.099, 0.297, 0.495, 0.198, 0.396]);
+        let clear = rung(Family::Basis, 30, &[0.095, 0.285, 0.475, 0.190, 0.380]);
+        let margin = Noise {
+            rule: ChoiceRule::Paired,
+            min_gain: 0.02,
+        };
+        let pair = vec![simple.clone(), tiny];
+        assert_eq!(choose(&pair, ChoiceRule::Paired).unwrap().0, 1);
+        let (i, reason) = choose(&pair, margin).unwrap();
+        assert_eq!(i, 0, "{reason}");
+        assert!(reason.contains("within 2 %"), "{reason}");
+        assert_eq!(choose(&[simple, clear], margin).unwrap().0, 1);
     }
 }

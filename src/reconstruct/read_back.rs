@@ -106,6 +106,8 @@ struct LadderSettingsMirror {
     #[serde(default)]
     patch_px: Option<usize>,
     max_trial_disagreement: f64,
+    #[serde(default)]
+    min_gain: f64,
 }
 
 #[derive(Deserialize)]

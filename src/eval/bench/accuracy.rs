@@ -42,6 +42,8 @@ pub struct SceneOptions {
     pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
     /// Where unobserved cells start from (`None`: the library's default).
     pub theta_d_shape: Option<crate::reconstruct::plausible::ThetaDShape>,
+    /// The ladder's smallest relative gain (`None`: the library's default).
+    pub min_gain: Option<f64>,
 }
 
 /// [`SceneOptions`] with their meshes, materials and folders loaded.
@@ -82,6 +84,9 @@ impl SceneOptions {
         }
         if let Some(t) = self.theta_d_shape {
             core.plausible.theta_d_shape = t;
+        }
+        if let Some(g) = self.min_gain {
+            core.ladder.min_gain = g;
         }
         let scratch = Scratch::new(self.scratch.as_deref())?;
         Ok(Resolved {
