@@ -55,18 +55,8 @@ pub struct EvalCommon {
     /// `pareto-patches`, `front`, `patches`, `both` or `linear` (as `bench external --held-out`).
     #[arg(long, value_parser = super::bench_external::parse_metric)]
     pub held_out: Option<brdf_rig::reconstruct::ladder::HeldOutMetric>,
-    /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
-    /// `reconstruct --basis-fit`.
-    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
-    pub basis_fit: Option<brdf_rig::reconstruct::trials::BasisFit>,
-    /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
-    /// `reconstruct --unobserved`.
-    #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
-    pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
-    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
-    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
-    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
-    pub min_gain: Option<f64>,
+    #[command(flatten)]
+    pub knobs: super::bench_knobs::FitKnobs,
 }
 
 #[derive(Args, Debug)]
@@ -169,9 +159,9 @@ impl EvalCommon {
             basis_cache: self.basis_cache.clone(),
             scratch: self.scratch.clone(),
             held_out: self.held_out,
-            basis_fit: self.basis_fit,
-            theta_d_shape: self.unobserved,
-            min_gain: self.min_gain,
+            basis_fit: self.knobs.basis_fit,
+            theta_d_shape: self.knobs.unobserved,
+            min_gain: self.knobs.min_gain,
         })
     }
 
@@ -189,15 +179,7 @@ impl EvalCommon {
             self.bin_step
         ) + &self.held_out.map_or(String::new(), |m| {
             format!(" --held-out {}", super::bench_external::metric_name(m))
-        }) + &self
-            .basis_fit
-            .map_or(String::new(), |f| format!(" --basis-fit {}", f.name()))
-            + &self
-                .unobserved
-                .map_or(String::new(), |u| format!(" --unobserved {}", u.name()))
-            + &self
-                .min_gain
-                .map_or(String::new(), |g| format!(" --min-gain {g}"))
+        }) + &self.knobs.args()
     }
 }
 

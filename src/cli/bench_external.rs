@@ -51,18 +51,8 @@ pub struct BenchExternalArgs {
     /// `linear`.
     #[arg(long, value_parser = parse_metric)]
     pub held_out: Option<HeldOutMetric>,
-    /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
-    /// `reconstruct --basis-fit`.
-    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
-    pub basis_fit: Option<brdf_rig::reconstruct::trials::BasisFit>,
-    /// Where an unobserved cell starts from: `model` (the default) or `transfer`, as
-    /// `reconstruct --unobserved`.
-    #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
-    pub unobserved: Option<brdf_rig::reconstruct::plausible::ThetaDShape>,
-    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
-    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
-    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
-    pub min_gain: Option<f64>,
+    #[command(flatten)]
+    pub knobs: super::bench_knobs::FitKnobs,
 }
 
 /// The `--held-out` word for a metric (what [`parse_metric`] reads).
@@ -111,17 +101,9 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(m) = a.held_out {
         settings.core.ladder.metric = m;
     }
-    if let Some(f) = a.basis_fit {
-        settings.core.trials.basis_fit = f;
-    }
-    if let Some(u) = a.unobserved {
-        settings.core.plausible.theta_d_shape = u;
-    }
-    if let Some(g) = a.min_gain {
-        settings.core.ladder.min_gain = g;
-    }
+    a.knobs.apply(&mut settings.core);
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{}{}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.seeds
@@ -144,12 +126,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
-        a.basis_fit
-            .map_or(String::new(), |f| format!(" --basis-fit {}", f.name())),
-        a.unobserved
-            .map_or(String::new(), |u| format!(" --unobserved {}", u.name())),
-        a.min_gain
-            .map_or(String::new(), |g| format!(" --min-gain {g}")),
+        a.knobs.args(),
         a.out.display()
     );
     let options = ExternalBenchOptions {

@@ -19,6 +19,7 @@ mod bench_accuracy;
 mod bench_capture;
 mod bench_confidence;
 mod bench_external;
+mod bench_knobs;
 mod bench_materials;
 mod bench_notes;
 mod bench_reconstruct;

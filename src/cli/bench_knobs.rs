@@ -1,0 +1,85 @@
+//! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
+//! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain. Their
+//! parsing, how they set the core's settings, and the words that type them again for a page's
+//! "command" line. No I/O.
+
+use brdf_rig::reconstruct::core::CoreSettings;
+use brdf_rig::reconstruct::plausible::ThetaDShape;
+use brdf_rig::reconstruct::trials::BasisFit;
+use clap::Args;
+
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub struct FitKnobs {
+    /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
+    /// `reconstruct --basis-fit`.
+    #[arg(long, value_parser = super::reconstruct::parse_basis_fit)]
+    pub basis_fit: Option<BasisFit>,
+    /// Where an unobserved cell starts from: `model` (the default), `transfer` or
+    /// `transfer-basis`, as `reconstruct --unobserved`.
+    #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
+    pub unobserved: Option<ThetaDShape>,
+    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
+    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub min_gain: Option<f64>,
+}
+
+impl FitKnobs {
+    /// Sets what was given; the rest keeps the library's defaults.
+    pub fn apply(&self, core: &mut CoreSettings) {
+        if let Some(f) = self.basis_fit {
+            core.trials.basis_fit = f;
+        }
+        if let Some(u) = self.unobserved {
+            core.plausible.theta_d_shape = u;
+        }
+        if let Some(g) = self.min_gain {
+            core.ladder.min_gain = g;
+        }
+    }
+
+    /// The knobs as typed (each with a leading space), empty when none was given.
+    pub fn args(&self) -> String {
+        let mut s = String::new();
+        if let Some(f) = self.basis_fit {
+            s += &format!(" --basis-fit {}", f.name());
+        }
+        if let Some(u) = self.unobserved {
+            s += &format!(" --unobserved {}", u.name());
+        }
+        if let Some(g) = self.min_gain {
+            s += &format!(" --min-gain {g}");
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knobs_set_the_core_and_type_themselves_again() {
+        let none = FitKnobs::default();
+        let mut core = CoreSettings::default();
+        none.apply(&mut core);
+        assert_eq!(
+            core.trials.basis_fit,
+            CoreSettings::default().trials.basis_fit
+        );
+        assert_eq!(none.args(), "");
+        let k = FitKnobs {
+            basis_fit: Some(BasisFit::Samples),
+            unobserved: Some(ThetaDShape::Basis),
+            min_gain: Some(0.05),
+        };
+        k.apply(&mut core);
+        assert_eq!(core.trials.basis_fit, BasisFit::Samples);
+        assert_eq!(core.plausible.theta_d_shape, ThetaDShape::Basis);
+        assert_eq!(core.ladder.min_gain, 0.05);
+        assert_eq!(
+            k.args(),
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05"
+        );
+    }
+}
