@@ -338,7 +338,23 @@ def main():
     ap.add_argument("--check-pixels", type=int, default=24, help="pixels per checked view")
     ap.add_argument("--variant", default="auto", choices=["auto", "llvm_ad_rgb", "scalar_rgb"])
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--merl-table", action="append", default=[], metavar="NAME=PATH",
+                    help="also a material of the measured kind: a MERL .binary table (e.g. "
+                         "`brdf-rig merl tabulate data/merl-nbrdf/NAME.f32 PATH`), rendered "
+                         "through scripts/independent/merl_bsdf.py as material merl-NAME; the "
+                         "scene's index entry asks the reconstruction to leave NAME out of its "
+                         "basis. Repeatable.")
     args = ap.parse_args()
+    for spec in args.merl_table:
+        name, eq, path = spec.partition("=")
+        if not eq or not name or not os.path.isfile(path):
+            sys.exit(f"--merl-table {spec!r}: expected NAME=PATH of an existing MERL .binary")
+        MATERIALS[f"merl-{name}"] = dict(
+            bsdf={"type": "merl_table", "filename": os.path.abspath(path)},
+            what=f"the MERL-format table {os.path.basename(path)} (nearest-bin lookup)",
+            basis_exclude=[name], in_merl_set=True)
+    if args.merl_table and "--materials" not in " ".join(sys.argv):
+        args.materials = ",".join(f"merl-{s.partition('=')[0]}" for s in args.merl_table)
 
     try:
         width, height = (int(x) for x in args.size.lower().split("x"))
@@ -366,6 +382,8 @@ def main():
         sys.exit(f"--truth {args.truth!r}: expected full, subset or full,subset")
 
     variant = setup_mitsuba(args.variant)
+    if args.merl_table:
+        import independent.merl_bsdf  # noqa: F401  (registers the merl_table plugin)
     log(f"Mitsuba {mi.__version__}, variant {variant}"
         + (f" (libLLVM: {os.environ.get('DRJIT_LIBLLVM_PATH')})" if variant != "scalar_rgb" else ""))
     command = shlex.join(["scripts/render_recon_scenes.py"] + sys.argv[1:])
@@ -484,7 +502,10 @@ def main():
                                         "angle-weighted vertex normal and the exact surface's "
                                         "interpolated normal at the nearest of ~1e6 samples of "
                                         "the exact surface",
-                material=dict(name=material, in_merl_set=False, description=MATERIALS[material]["what"],
+                material=dict(name=material,
+                              in_merl_set=MATERIALS[material].get("in_merl_set", False),
+                              basis_exclude=MATERIALS[material].get("basis_exclude", []),
+                              description=MATERIALS[material]["what"],
                               mitsuba_bsdf=MATERIALS[material]["bsdf"],
                               rendered_as="twosided wrapper around mitsuba_bsdf"),
                 truth=dict(
@@ -539,6 +560,7 @@ def main():
                            (json.dumps(truth, indent=1) + "\n").encode("utf-8"))
             index[os.path.basename(folder)] = dict(
                 mesh=mesh_name, rig=rig_name, material=material, jobs=jobs, command=command,
+                basis_exclude=MATERIALS[material].get("basis_exclude", []),
                 median_normal_error_deg={k: truth["mesh_variants"][k]["median_normal_error_deg"]
                                          for k in kinds},
                 truth_table=truth["truth"]["table"])

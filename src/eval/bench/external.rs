@@ -65,8 +65,25 @@ pub fn run(
         .basis_cache
         .clone()
         .unwrap_or_else(basis_cache::default_cache_dir);
-    let (basis, _) = basis_cache::load_or_build(&BasisSettings::default(), &materials, &cache)
-        .map_err(|e| BenchError::step("loading the basis", e))?;
+    // One basis per list of left-out materials, built (or read from the cache) when a scene
+    // first asks for it.
+    let mut bases: std::collections::HashMap<Vec<String>, std::rc::Rc<crate::brdf::basis::Basis>> =
+        std::collections::HashMap::new();
+    let mut basis_for = |exclude: &[String]| {
+        let key = exclude.to_vec();
+        if let Some(b) = bases.get(&key) {
+            return Ok(b.clone());
+        }
+        let basis_settings = BasisSettings {
+            exclude: key.clone(),
+            ..BasisSettings::default()
+        };
+        let (basis, _) = basis_cache::load_or_build(&basis_settings, &materials, &cache)
+            .map_err(crate::eval::EvalError::Basis)?;
+        let b = std::rc::Rc::new(basis);
+        bases.insert(key, b.clone());
+        Ok(b)
+    };
     let command = &o.command;
     let machine = crate::eval::host::machine();
     create_dir(&o.out)?;
@@ -89,7 +106,7 @@ pub fn run(
         &o.jobs,
         &o.seeds,
         settings,
-        &basis,
+        &mut basis_for,
         o.bin_step,
         &mut |line| (note.borrow_mut())(Note::Step(line)),
         &mut |r| {
