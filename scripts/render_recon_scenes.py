@@ -504,8 +504,9 @@ def main():
                                         "the exact surface",
                 material=dict(name=material,
                               in_merl_set=MATERIALS[material].get("in_merl_set", False),
-                              basis_exclude=MATERIALS[material].get("basis_exclude", []),
                               description=MATERIALS[material]["what"],
+                              **({"basis_exclude": MATERIALS[material]["basis_exclude"]}
+                                 if MATERIALS[material].get("basis_exclude") else {}),
                               mitsuba_bsdf=MATERIALS[material]["bsdf"],
                               rendered_as="twosided wrapper around mitsuba_bsdf"),
                 truth=dict(
@@ -560,7 +561,8 @@ def main():
                            (json.dumps(truth, indent=1) + "\n").encode("utf-8"))
             index[os.path.basename(folder)] = dict(
                 mesh=mesh_name, rig=rig_name, material=material, jobs=jobs, command=command,
-                basis_exclude=MATERIALS[material].get("basis_exclude", []),
+                **({"basis_exclude": MATERIALS[material]["basis_exclude"]}
+                   if MATERIALS[material].get("basis_exclude") else {}),
                 median_normal_error_deg={k: truth["mesh_variants"][k]["median_normal_error_deg"]
                                          for k in kinds},
                 truth_table=truth["truth"]["table"])
