@@ -234,7 +234,7 @@ pub fn make_plausible_shaped(
         _ => vec![1.0; counts.len()],
     };
     // Per theta_h column, the observed theta_d bins: an unobserved cell takes the model at the
-    // nearest of them, carried to its own theta_d by the prior's ratio.
+    // nearest of them, carried to its own theta_d by the shape's ratio.
     let shape: Option<&dyn Candidate> = match settings.theta_d_shape {
         ThetaDShape::Model => None,
         ThetaDShape::Prior => prior.map(|(p, _)| p),
@@ -601,5 +601,25 @@ mod tests {
             own.get(lone.index()).unwrap()[0],
         );
         assert!((a - b).abs() < 1e-12, "{a} {b}");
+        // The basis's typical material as the shape: the same carrying with its ratio (here a
+        // flat one, so the seen value carries unchanged before the clamp), and without a
+        // typical material the model's own extrapolation.
+        let flat = ByBin(|_, _| 1.0);
+        let basis_shaped = PlausibleSettings {
+            theta_d_shape: ThetaDShape::Basis,
+            ..settings
+        };
+        let (tb, _) = make_plausible_shaped(
+            &model,
+            Some((&prior, "test prior")),
+            Some(&flat),
+            &used,
+            &basis_shaped,
+        );
+        let want_b = m(nearest).clamp(p(60) / 10.0, 10.0 * p(60));
+        let got_b = tb.get(far.index()).unwrap()[0];
+        assert!((got_b - want_b).abs() < 1e-9, "{got_b} {want_b}");
+        let (tn, _) = make_plausible(&model, Some((&prior, "test prior")), &used, &basis_shaped);
+        assert_eq!(tn.get(far.index()), own.get(far.index()));
     }
 }
