@@ -149,4 +149,36 @@ mod tests {
             }
         }
     }
+
+    /// The study knobs take their documented words, and a wrong one is refused with the
+    /// value and the words it could have been.
+    #[test]
+    fn basis_fit_and_unobserved_take_their_words_and_name_a_wrong_one() {
+        for args in [
+            "reconstruct j.toml --out o --basis-fit samples --unobserved transfer-basis",
+            "bench accuracy --basis-fit rows --unobserved transfer --min-gain 0.05",
+            "bench external --scenes s --unobserved model --min-gain 0",
+            "bench reconstruct --basis-fit samples",
+        ] {
+            let argv = std::iter::once("brdf-rig").chain(args.split(' '));
+            if let Err(e) = Cli::try_parse_from(argv) {
+                panic!("{args}: {e}");
+            }
+        }
+        for (args, words) in [
+            (
+                "reconstruct j.toml --out o --basis-fit all",
+                "rows or samples",
+            ),
+            (
+                "reconstruct j.toml --out o --unobserved prior",
+                "model, transfer or transfer-basis",
+            ),
+            ("bench external --scenes s --min-gain 2", "in [0, 1]"),
+        ] {
+            let argv = std::iter::once("brdf-rig").chain(args.split(' '));
+            let e = Cli::try_parse_from(argv).err().unwrap().to_string();
+            assert!(e.contains(words), "{args}: {e}");
+        }
+    }
 }
