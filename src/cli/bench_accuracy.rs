@@ -162,6 +162,7 @@ impl EvalCommon {
             basis_fit: self.knobs.basis_fit,
             theta_d_shape: self.knobs.unobserved,
             min_gain: self.knobs.min_gain,
+            etas: self.knobs.etas.clone(),
         })
     }
 

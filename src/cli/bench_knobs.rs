@@ -8,7 +8,7 @@ use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
 use clap::Args;
 
-#[derive(Args, Clone, Copy, Debug, Default)]
+#[derive(Args, Clone, Debug, Default)]
 pub struct FitKnobs {
     /// What each basis fit is given: `rows` (the default) or `samples` (the paper's), as
     /// `reconstruct --basis-fit`.
@@ -22,6 +22,10 @@ pub struct FitKnobs {
     /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub min_gain: Option<f64>,
+    /// Study knob: the ridge weights the ladder tries for each k, before the scaling of a fit
+    /// to every row (`ComponentSettings::etas`; default: the library's 1, 10, 40).
+    #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Closed(1e6)))]
+    pub etas: Option<Vec<f64>>,
 }
 
 impl FitKnobs {
@@ -36,6 +40,9 @@ impl FitKnobs {
         if let Some(g) = self.min_gain {
             core.ladder.min_gain = g;
         }
+        if let Some(e) = &self.etas {
+            core.components.etas = e.clone();
+        }
     }
 
     /// The knobs as typed (each with a leading space), empty when none was given.
@@ -49,6 +56,10 @@ impl FitKnobs {
         }
         if let Some(g) = self.min_gain {
             s += &format!(" --min-gain {g}");
+        }
+        if let Some(e) = &self.etas {
+            let e: Vec<String> = e.iter().map(|x| x.to_string()).collect();
+            s += &format!(" --etas {}", e.join(","));
         }
         s
     }
@@ -72,14 +83,16 @@ mod tests {
             basis_fit: Some(BasisFit::Samples),
             unobserved: Some(ThetaDShape::Basis),
             min_gain: Some(0.05),
+            etas: Some(vec![0.01, 1.0]),
         };
         k.apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
         assert_eq!(core.plausible.theta_d_shape, ThetaDShape::Basis);
         assert_eq!(core.ladder.min_gain, 0.05);
+        assert_eq!(core.components.etas, vec![0.01, 1.0]);
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1"
         );
     }
 }

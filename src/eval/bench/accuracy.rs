@@ -44,6 +44,8 @@ pub struct SceneOptions {
     pub theta_d_shape: Option<crate::reconstruct::plausible::ThetaDShape>,
     /// The ladder's smallest relative gain (`None`: the library's default).
     pub min_gain: Option<f64>,
+    /// The ladder's ridge weights (`None`: the library's default).
+    pub etas: Option<Vec<f64>>,
 }
 
 /// [`SceneOptions`] with their meshes, materials and folders loaded.
@@ -87,6 +89,9 @@ impl SceneOptions {
         }
         if let Some(g) = self.min_gain {
             core.ladder.min_gain = g;
+        }
+        if let Some(e) = &self.etas {
+            core.components.etas = e.clone();
         }
         let scratch = Scratch::new(self.scratch.as_deref())?;
         Ok(Resolved {
