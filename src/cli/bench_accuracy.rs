@@ -159,10 +159,7 @@ impl EvalCommon {
             basis_cache: self.basis_cache.clone(),
             scratch: self.scratch.clone(),
             held_out: self.held_out,
-            basis_fit: self.knobs.basis_fit,
-            theta_d_shape: self.knobs.unobserved,
-            min_gain: self.knobs.min_gain,
-            etas: self.knobs.etas.clone(),
+            overrides: self.knobs.overrides(),
         })
     }
 

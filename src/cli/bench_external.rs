@@ -101,7 +101,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(m) = a.held_out {
         settings.core.ladder.metric = m;
     }
-    a.knobs.apply(&mut settings.core);
+    a.knobs.overrides().apply(&mut settings.core);
     let command = format!(
         "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{} --out {}",
         a.scenes.display(),

@@ -1,9 +1,10 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
-//! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain. Their
-//! parsing, how they set the core's settings, and the words that type them again for a page's
-//! "command" line. No I/O.
+//! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain and
+//! ridge weights. Their parsing, the library's overrides they make
+//! (`reconstruct::overrides`), and the words that type them again for a page's "command" line.
+//! No I/O.
 
-use brdf_rig::reconstruct::core::CoreSettings;
+use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
 use clap::Args;
@@ -29,19 +30,13 @@ pub struct FitKnobs {
 }
 
 impl FitKnobs {
-    /// Sets what was given; the rest keeps the library's defaults.
-    pub fn apply(&self, core: &mut CoreSettings) {
-        if let Some(f) = self.basis_fit {
-            core.trials.basis_fit = f;
-        }
-        if let Some(u) = self.unobserved {
-            core.plausible.theta_d_shape = u;
-        }
-        if let Some(g) = self.min_gain {
-            core.ladder.min_gain = g;
-        }
-        if let Some(e) = &self.etas {
-            core.components.etas = e.clone();
+    /// The knobs as the library's overrides.
+    pub fn overrides(&self) -> CoreOverrides {
+        CoreOverrides {
+            basis_fit: self.basis_fit,
+            theta_d_shape: self.unobserved,
+            min_gain: self.min_gain,
+            etas: self.etas.clone(),
         }
     }
 
@@ -70,14 +65,9 @@ mod tests {
     use super::*;
 
     #[test]
-    fn knobs_set_the_core_and_type_themselves_again() {
+    fn knobs_become_the_overrides_and_type_themselves_again() {
         let none = FitKnobs::default();
-        let mut core = CoreSettings::default();
-        none.apply(&mut core);
-        assert_eq!(
-            core.trials.basis_fit,
-            CoreSettings::default().trials.basis_fit
-        );
+        assert_eq!(none.overrides(), CoreOverrides::default());
         assert_eq!(none.args(), "");
         let k = FitKnobs {
             basis_fit: Some(BasisFit::Samples),
@@ -85,11 +75,11 @@ mod tests {
             min_gain: Some(0.05),
             etas: Some(vec![0.01, 1.0]),
         };
-        k.apply(&mut core);
-        assert_eq!(core.trials.basis_fit, BasisFit::Samples);
-        assert_eq!(core.plausible.theta_d_shape, ThetaDShape::Basis);
-        assert_eq!(core.ladder.min_gain, 0.05);
-        assert_eq!(core.components.etas, vec![0.01, 1.0]);
+        let o = k.overrides();
+        assert_eq!(o.basis_fit, Some(BasisFit::Samples));
+        assert_eq!(o.theta_d_shape, Some(ThetaDShape::Basis));
+        assert_eq!(o.min_gain, Some(0.05));
+        assert_eq!(o.etas, Some(vec![0.01, 1.0]));
         assert_eq!(
             k.args(),
             " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1"

@@ -36,6 +36,7 @@ pub mod nielsen;
 pub mod observation;
 pub mod observe;
 pub mod output;
+pub mod overrides;
 pub mod plausible;
 pub mod prepare;
 pub mod prior;

@@ -38,14 +38,8 @@ pub struct SceneOptions {
     pub scratch: Option<PathBuf>,
     /// The held-out error the ladder's choice reads (`None`: the library's default).
     pub held_out: Option<HeldOutMetric>,
-    /// What each basis fit is given (`None`: the library's default).
-    pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
-    /// Where unobserved cells start from (`None`: the library's default).
-    pub theta_d_shape: Option<crate::reconstruct::plausible::ThetaDShape>,
-    /// The ladder's smallest relative gain (`None`: the library's default).
-    pub min_gain: Option<f64>,
-    /// The ladder's ridge weights (`None`: the library's default).
-    pub etas: Option<Vec<f64>>,
+    /// Study overrides of the core's settings (each `None`: the library's default).
+    pub overrides: crate::reconstruct::overrides::CoreOverrides,
 }
 
 /// [`SceneOptions`] with their meshes, materials and folders loaded.
@@ -81,18 +75,7 @@ impl SceneOptions {
         if let Some(m) = self.held_out {
             core.ladder.metric = m;
         }
-        if let Some(f) = self.basis_fit {
-            core.trials.basis_fit = f;
-        }
-        if let Some(t) = self.theta_d_shape {
-            core.plausible.theta_d_shape = t;
-        }
-        if let Some(g) = self.min_gain {
-            core.ladder.min_gain = g;
-        }
-        if let Some(e) = &self.etas {
-            core.components.etas = e.clone();
-        }
+        self.overrides.apply(&mut core);
         let scratch = Scratch::new(self.scratch.as_deref())?;
         Ok(Resolved {
             meshes,

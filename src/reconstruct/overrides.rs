@@ -1,0 +1,58 @@
+//! Study overrides of the core's settings that the benches share: what a basis fit is given,
+//! where an unobserved cell starts from, the ladder's smallest gain and its ridge weights. Each
+//! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
+//! live in `cli`).
+
+use super::core::CoreSettings;
+use super::plausible::ThetaDShape;
+use super::trials::BasisFit;
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoreOverrides {
+    pub basis_fit: Option<BasisFit>,
+    pub theta_d_shape: Option<ThetaDShape>,
+    pub min_gain: Option<f64>,
+    pub etas: Option<Vec<f64>>,
+}
+
+impl CoreOverrides {
+    /// Sets what was given; the rest keeps what `core` had.
+    pub fn apply(&self, core: &mut CoreSettings) {
+        if let Some(f) = self.basis_fit {
+            core.trials.basis_fit = f;
+        }
+        if let Some(u) = self.theta_d_shape {
+            core.plausible.theta_d_shape = u;
+        }
+        if let Some(g) = self.min_gain {
+            core.ladder.min_gain = g;
+        }
+        if let Some(e) = &self.etas {
+            core.components.etas = e.clone();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_set_what_they_name_and_keep_the_rest() {
+        let mut core = CoreSettings::default();
+        CoreOverrides::default().apply(&mut core);
+        assert_eq!(core, CoreSettings::default());
+        CoreOverrides {
+            basis_fit: Some(BasisFit::Samples),
+            theta_d_shape: Some(ThetaDShape::Basis),
+            min_gain: Some(0.05),
+            etas: Some(vec![0.01, 1.0]),
+        }
+        .apply(&mut core);
+        assert_eq!(core.trials.basis_fit, BasisFit::Samples);
+        assert_eq!(core.plausible.theta_d_shape, ThetaDShape::Basis);
+        assert_eq!(core.ladder.min_gain, 0.05);
+        assert_eq!(core.components.etas, vec![0.01, 1.0]);
+        assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
+    }
+}
