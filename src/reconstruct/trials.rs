@@ -78,14 +78,14 @@ impl Default for TrialSettings {
 }
 
 /// One sample per basis row from every pixel of `pool`: the per-channel median reflectance of
-/// the row's pixels (robust to the few whose normal is far off), `first` (the brightest pixel,
-/// eq. 2) as its own sample, its row's other pixels left out as `select_pixels` does. Each
-/// sample comes with the row's first pixel, to report.
+/// the row's pixels (robust to the few whose normal is far off; `stats::median`), `first` (the
+/// brightest pixel, eq. 2) as its own sample, its row's other pixels left out as
+/// `select_pixels` does. A row whose values are not all numbers gives no sample.
 pub fn dense_samples(
     prior: &dyn Prior,
     pool: &[Observation],
     first: Option<&Observation>,
-) -> Vec<(Sample, SamplePixel)> {
+) -> Vec<Sample> {
     let mut by_row: HashMap<usize, Vec<&Observation>> = HashMap::new();
     for o in pool {
         if let Some(row) = prior.row_of(o.bin) {
@@ -97,36 +97,24 @@ pub fn dense_samples(
         if let Some(row) = prior.row_of(b.bin) {
             by_row.remove(&row);
         }
-        out.push((
-            Sample {
-                bin: b.bin,
-                reflectance: b.reflectance,
-            },
-            SamplePixel::from(b),
-        ));
+        out.push(Sample {
+            bin: b.bin,
+            reflectance: b.reflectance,
+        });
     }
     let mut rows: Vec<(usize, Vec<&Observation>)> = by_row.into_iter().collect();
     rows.sort_unstable_by_key(|(r, _)| *r);
     for (_, px) in rows {
-        let reflectance = std::array::from_fn(|c| {
+        let medians: [Option<f64>; 3] = std::array::from_fn(|c| {
             let mut v: Vec<f64> = px.iter().map(|o| o.reflectance[c]).collect();
-            v.sort_unstable_by(f64::total_cmp);
-            let m = v.len() / 2;
-            if v.len() % 2 == 1 {
-                v[m]
-            } else {
-                0.5 * (v[m - 1] + v[m])
-            }
+            crate::stats::median(&mut v)
         });
-        let mut shown = SamplePixel::from(px[0]);
-        shown.reflectance = reflectance;
-        out.push((
-            Sample {
+        if let [Some(r), Some(g), Some(b)] = medians {
+            out.push(Sample {
                 bin: px[0].bin,
-                reflectance,
-            },
-            shown,
-        ));
+                reflectance: [r, g, b],
+            });
+        }
     }
     out
 }
@@ -159,7 +147,7 @@ pub fn basis_samples(
             let s = dense_samples(prior, pool, first);
             let scale = (s.len() as f64 / samples.max(1) as f64).max(1.0);
             BasisSamples {
-                samples: s.iter().map(|(a, _)| *a).collect(),
+                samples: s,
                 pixels: first.map(SamplePixel::from).into_iter().collect(),
                 eta_scale: scale,
                 rejected_by_monotonicity: 0,
@@ -481,20 +469,19 @@ mod tests {
         let rows: std::collections::HashSet<usize> = clean.iter().map(|o| o.bin).collect();
         let dense = dense_samples(&prior, &pool, None);
         assert_eq!(dense.len(), rows.len());
-        for (s, shown) in &dense {
+        for s in &dense {
             assert!((s.reflectance[0] - truth(s.bin)).abs() < 1e-12, "{s:?}");
-            assert_eq!(shown.bin, s.bin);
+            assert!(rows.contains(&s.bin), "{s:?}");
         }
         // The anchor comes first, and its row's pixels give no second sample.
         let mut anchor = clean[0];
         anchor.reflectance = [7.0; 3];
         let with = dense_samples(&prior, &pool, Some(&anchor));
         assert_eq!(with.len(), rows.len());
-        assert_eq!(with[0].0.reflectance, [7.0; 3]);
-        assert_eq!(with.iter().filter(|(s, _)| s.bin == anchor.bin).count(), 1);
+        assert_eq!(with[0].reflectance, [7.0; 3]);
+        assert_eq!(with.iter().filter(|s| s.bin == anchor.bin).count(), 1);
         // A fit to them recovers the truth.
-        let samples: Vec<Sample> = dense.iter().map(|(s, _)| *s).collect();
-        let fit = prior.fit(&samples, 3, 1.0).unwrap();
+        let fit = prior.fit(&dense, 3, 1.0).unwrap();
         let probe = clean[17].bin;
         assert!((fit.eval_bin(probe)[0] - truth(probe)).abs() < 1e-6);
     }
