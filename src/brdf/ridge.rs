@@ -109,8 +109,9 @@ pub fn solve(
 /// The normal equations of one set of observations on the first `n` components, built once:
 /// a fit at any `k <= n` and any eta reads their leading block (`A^T A` restricted to the
 /// first `k` components is the leading `k x k` block of the whole, and eta only adds to its
-/// diagonal), so a grid of `(k, eta)` costs one product instead of one per point. The same
-/// sums as a product built for one `k`: the coefficients are identical.
+/// diagonal), so a grid of `(k, eta)` costs one product instead of one per point. The sums run
+/// in another order than a column-by-column product: the coefficients agree to rounding (unit
+/// test below to 1e-9; written tables to 3e-11 relative, docs/benchmarks-reconstruct.md).
 pub struct NormalSystem {
     /// `A^T A` on the first `n` components.
     gram: DMatrix<f64>,
