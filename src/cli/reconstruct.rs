@@ -161,11 +161,10 @@ pub(crate) fn parse_choice(s: &str) -> Result<TrialChoice, String> {
 }
 
 pub(crate) fn parse_basis_fit(s: &str) -> Result<BasisFit, String> {
-    match s {
-        "rows" => Ok(BasisFit::Rows),
-        "samples" => Ok(BasisFit::Samples),
-        _ => Err(format!("{s:?}: expected rows or samples")),
-    }
+    [BasisFit::Rows, BasisFit::Samples]
+        .into_iter()
+        .find(|f| f.name() == s)
+        .ok_or_else(|| format!("{s:?}: expected rows or samples"))
 }
 
 pub(crate) fn parse_unobserved(s: &str) -> Result<ThetaDShape, String> {

@@ -92,7 +92,8 @@ impl ExternalResult {
 
 /// The basis for a scene, given the materials it must leave out (built once per list by the
 /// caller).
-pub type BasisFor<'a> = dyn FnMut(&[String]) -> Result<std::rc::Rc<Basis>, EvalError> + 'a;
+pub type BasisFor<'a> = dyn FnMut(&[String]) -> Result<std::rc::Rc<Basis>, crate::brdf::basis_cache::BasisCacheError>
+    + 'a;
 
 /// Runs every selected job of every scene under `dir`, once per seed (`settings`' own seed
 /// when `seeds` is empty).
@@ -111,13 +112,17 @@ pub fn run(
     let mut out = Vec::new();
     for (name, entry) in &index.scenes {
         let scene_dir = dir.join(name);
+        let basis = basis_for(&entry.basis_exclude).map_err(|source| EvalError::SceneBasis {
+            scene: name.clone(),
+            exclude: entry.basis_exclude.clone(),
+            source,
+        })?;
         let truth_path = scene_dir.join(&entry.truth_table);
         let table = MerlTable::read(&truth_path).map_err(|e| EvalError::Scene {
             dir: truth_path.clone(),
             source: std::io::Error::other(e),
         })?;
         let truth = Truth::new(&table, bin_step);
-        let basis = basis_for(&entry.basis_exclude)?;
         let seeds = if seeds.is_empty() {
             vec![settings.core.trials.seed]
         } else {
@@ -344,5 +349,39 @@ mod tests {
         std::fs::write(dir.path().join("index.json"), "{\"scenes\": 3}").unwrap();
         let e = read_index(dir.path()).unwrap_err().to_string();
         assert!(e.contains("index.json"), "{e}");
+    }
+
+    #[test]
+    fn a_scene_whose_basis_cannot_be_built_is_named_with_what_it_leaves_out() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("index.json"),
+            r#"{"scenes": {"bunny-x": {"mesh": "bunny", "rig": "1light", "material": "m",
+                "jobs": {"realistic": "j.toml"}, "truth_table": "truth.binary",
+                "basis_exclude": ["no-such-material"]}}}"#,
+        )
+        .unwrap();
+        let mut asked = Vec::new();
+        let mut basis_for = |exclude: &[String]| {
+            asked.push(exclude.to_vec());
+            Err(crate::brdf::basis_cache::BasisCacheError::Build(
+                crate::brdf::basis::BasisError::UnknownExcluded(exclude[0].clone()),
+            ))
+        };
+        let e = run(
+            dir.path(),
+            &["realistic".to_string()],
+            &[1],
+            &Settings::default(),
+            &mut basis_for,
+            5,
+            &mut |_| {},
+            &mut |_| {},
+        )
+        .unwrap_err();
+        assert_eq!(asked, vec![vec!["no-such-material".to_string()]]);
+        let chain = format!("{e}: {}", std::error::Error::source(&e).unwrap());
+        assert!(chain.contains("bunny-x"), "{chain}");
+        assert!(chain.contains("no-such-material"), "{chain}");
     }
 }

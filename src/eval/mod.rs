@@ -83,6 +83,13 @@ pub enum EvalError {
     Material(#[from] crate::reconstruct::materials::MaterialError),
     #[error("basis: {0}")]
     Basis(#[from] crate::brdf::basis_cache::BasisCacheError),
+    #[error("scene {scene} of index.json: the basis without {exclude:?} (its basis_exclude)")]
+    SceneBasis {
+        scene: String,
+        exclude: Vec<String>,
+        #[source]
+        source: crate::brdf::basis_cache::BasisCacheError,
+    },
 }
 
 /// The errors of docs/error-metrics.md, serialisable: rendered (the headline:

@@ -78,8 +78,7 @@ pub fn run(
             exclude: key.clone(),
             ..BasisSettings::default()
         };
-        let (basis, _) = basis_cache::load_or_build(&basis_settings, &materials, &cache)
-            .map_err(crate::eval::EvalError::Basis)?;
+        let (basis, _) = basis_cache::load_or_build(&basis_settings, &materials, &cache)?;
         let b = std::rc::Rc::new(basis);
         bases.insert(key, b.clone());
         Ok(b)
