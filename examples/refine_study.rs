@@ -7,7 +7,7 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final, passes, and `from_truth=1` (start from the true vertex normals on the
+//! fitcos, facecap, final, passes, margin, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
@@ -26,6 +26,14 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
         let (k, v) = kv
             .split_once('=')
             .ok_or_else(|| anyhow::anyhow!("{kv:?} is not key=value"))?;
+        if k == "starts" {
+            // a list: `starts=0/2/4`
+            s.start_smoothing = v
+                .split('/')
+                .map(str::parse)
+                .collect::<Result<Vec<usize>, _>>()?;
+            continue;
+        }
         let f: f64 = v.parse()?;
         match k {
             "iters" => s.max_iterations = f as usize,
@@ -45,6 +53,7 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "facecap" => s.max_pixels_per_face = f as usize,
             "final" => s.final_alternations = f as usize,
             "passes" => s.table_passes = f as usize,
+            "margin" => s.edge_margin_px = f as usize,
             _ => anyhow::bail!("unknown key {k:?}"),
         }
     }
@@ -137,9 +146,17 @@ fn main() -> anyhow::Result<()> {
             .iter()
             .map(|i| format!("{:.4}/{:.4}", i.train_error, i.held_out_error))
             .collect();
+        let starts: Vec<String> = st
+            .report
+            .starts
+            .iter()
+            .map(|x| format!("{}:{:.4}", x.smoothing_iterations, x.held_out_error))
+            .collect();
         println!(
-            "{v:?}: normal error median {:.2} -> {:.2} (mean {:.2} -> {:.2}), accepted {} ({} it), \
+            "{v:?}: start {} of [{}]; normal error median {:.2} -> {:.2} (mean {:.2} -> {:.2}), accepted {} ({} it), \
              train/held {}, {secs:.1} s (refinement {:.1} s on {} of {} pixels)",
+            st.report.chosen_start_smoothing,
+            starts.join(" "),
             st.median_before_deg,
             st.median_after_deg,
             st.mean_before_deg,

@@ -361,7 +361,7 @@ fn normal_refinement_recovers_turned_normals_from_the_rendered_images() {
     };
     let (b, a) = (e(&before), e(prepared.scene.mesh.vertex_normals()));
     // The error as the images see it: the normal each pixel gets (its face's corners blended).
-    let px = brdf_rig::reconstruct::prepare::refine_pixels(&prepared.scene, &settings.observe);
+    let px = brdf_rig::reconstruct::prepare::refine_pixels(&prepared.scene, &settings.observe, 0);
     let pe = |n: &[Vector3<f64>]| {
         brdf_rig::reconstruct::refine::pixel_normal_error_deg(
             prepared.scene.mesh.faces(),

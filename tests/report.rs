@@ -273,6 +273,8 @@ fn example_report(job: PathBuf) -> Report {
             pixels_offered: 1000,
             held_out_images: vec![1],
             vertices_refined: 3,
+            starts: Vec::new(),
+            chosen_start_smoothing: 0,
             iterations: vec![iteration(0, 0.0, 0.4), iteration(1, 1.4, 0.35)],
             chosen_iterations: 1,
             mean_tilt_deg: 1.5,

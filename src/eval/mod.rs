@@ -376,7 +376,7 @@ pub fn refine_case(
     refine: &RefineSettings,
     truth: &Mesh,
 ) -> RefinedCase {
-    let (observed, pixels) = observe_scene_and_pixels(&scene, observe);
+    let (observed, pixels) = observe_scene_and_pixels(&scene, observe, refine.edge_margin_px);
     let unrefined = observed.observations.clone();
     let before = scene.mesh.vertex_normals().to_vec();
     let mut prepared = Prepared {

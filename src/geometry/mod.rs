@@ -1,6 +1,6 @@
 //! Geometry: reflection about a normal, cameras, meshes and their import/export (PLY, OBJ), COLMAP
 //! models, the BVH, the rasteriser (z-buffer visibility, exact per-pixel rays), shadows,
-//! curvature, SfM-like meshes and per-face material labels.
+//! curvature, Taubin smoothing, SfM-like meshes and per-face material labels.
 //! Pure computation except the importers/exporters (`mesh_io`, `colmap`), which read and write
 //! files and name them in their errors (writes go through `crate::atomic::write_atomic`). Must
 //! not depend on `render`, `brdf` or anything at the edges (devices, capture, sim): those depend
@@ -16,6 +16,7 @@ pub mod mesh_io;
 pub mod raster;
 pub mod sfm_like;
 pub mod shadow;
+pub mod taubin;
 pub mod zbuffer;
 
 use nalgebra::Vector3;

@@ -13,7 +13,8 @@
 //! on `mesh`.
 
 use super::mesh::Mesh;
-use nalgebra::{Point3, Vector3};
+use super::taubin::taubin_smooth;
+use nalgebra::Point3;
 use rand::{Rng, SeedableRng};
 
 /// Parameters of [`sfm_like`]; see the module header for what each models.
@@ -50,34 +51,6 @@ pub fn mean_edge_length(mesh: &Mesh) -> f64 {
         }
     }
     sum / (3 * mesh.faces().len()).max(1) as f64
-}
-
-/// Taubin-smooths the positions in place (uniform Laplacian).
-pub fn taubin_smooth(mesh: &mut Mesh, iterations: usize, lambda: f64, mu: f64) {
-    let nb = mesh.vertex_neighbours();
-    let mut p: Vec<Point3<f64>> = mesh.positions().to_vec();
-    for _ in 0..iterations {
-        for factor in [lambda, mu] {
-            let next: Vec<Point3<f64>> = p
-                .iter()
-                .enumerate()
-                .map(|(i, pi)| {
-                    if nb[i].is_empty() {
-                        return *pi;
-                    }
-                    let mean: Vector3<f64> = nb[i]
-                        .iter()
-                        .map(|&j| p[j as usize].coords)
-                        .sum::<Vector3<f64>>()
-                        / nb[i].len() as f64;
-                    pi + (mean - pi.coords) * factor
-                })
-                .collect();
-            p = next;
-        }
-    }
-    // finite in, finite out: a convex blend and a bounded extrapolation of finite points
-    let _ = mesh.set_positions(p);
 }
 
 /// The SfM-like version of `truth` (same vertex count and faces).

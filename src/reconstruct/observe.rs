@@ -221,6 +221,37 @@ pub fn check_pixel(
     .ok_or(Dropped::Grazing)
 }
 
+/// Which of `surface` lie at least `margin` pixels inside the lit surface: every pixel of the
+/// (2 margin + 1)^2 square around them is a lit surface pixel of this view. Where the mesh's
+/// positions are off by a little, the pixels at its silhouette and at its cast shadows' edges
+/// see background or shadow in the image (the refinement leaves them out). `margin` 0: all.
+pub fn inside_lit_surface(surface: &[SurfacePixel], margin: usize) -> Vec<bool> {
+    if margin == 0 {
+        return vec![true; surface.len()];
+    }
+    let width = surface.iter().map(|s| s.x as usize + 1).max().unwrap_or(0);
+    let height = surface.iter().map(|s| s.y as usize + 1).max().unwrap_or(0);
+    let mut lit = vec![false; width * height];
+    for s in surface.iter().filter(|s| s.lit) {
+        lit[s.y as usize * width + s.x as usize] = true;
+    }
+    let m = margin as i64;
+    let is_lit = |x: i64, y: i64| {
+        x >= 0
+            && y >= 0
+            && (x as usize) < width
+            && (y as usize) < height
+            && lit[y as usize * width + x as usize]
+    };
+    surface
+        .iter()
+        .map(|s| {
+            let (x, y) = (i64::from(s.x), i64::from(s.y));
+            (-m..=m).all(|dy| (-m..=m).all(|dx| is_lit(x + dx, y + dy)))
+        })
+        .collect()
+}
+
 /// Turns the surface pixels of one view into observations, counting what was dropped and why
 /// (every pixel; no reduction).
 pub fn observe_view(
@@ -250,6 +281,36 @@ pub fn observe_view(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_pixels_inside_the_lit_surface_are_inside() {
+        // a 5x3 surface, the pixel (4, 1) in shadow: with a margin of 1 only (1, 1) and (2, 1)
+        // have a lit square around them ((3, 1) touches the shadow)
+        let mut surface = Vec::new();
+        for y in 0..3u32 {
+            for x in 0..5u32 {
+                surface.push(SurfacePixel {
+                    x,
+                    y,
+                    position: Point3::origin(),
+                    normal: Vector3::z(),
+                    mean_curvature: 0.0,
+                    face: 0,
+                    lit: !(x == 4 && y == 1),
+                });
+            }
+        }
+        let inside = inside_lit_surface(&surface, 1);
+        let kept: Vec<(u32, u32)> = surface
+            .iter()
+            .zip(&inside)
+            .filter(|(_, k)| **k)
+            .map(|(s, _)| (s.x, s.y))
+            .collect();
+        assert_eq!(kept, vec![(1, 1), (2, 1)]);
+        assert!(inside_lit_surface(&surface, 0).iter().all(|k| *k));
+        assert!(inside_lit_surface(&[], 2).is_empty());
+    }
 
     #[test]
     fn drops_are_counted_by_reason() {

@@ -16,11 +16,13 @@ use super::job::{Job, JobError};
 use super::mask_labels::{LabelImage, LabelMaskError, LabelVotes};
 use super::nielsen::NielsenSettings;
 use super::observe::{
-    DropCounts, ImageCounts, Observation, ObserveSettings, SurfacePixel, ViewInput, observe_view,
+    DropCounts, ImageCounts, Observation, ObserveSettings, SurfacePixel, ViewInput,
+    inside_lit_surface, observe_view,
 };
 use super::reduce::reduce;
 use super::refine::{
-    MeshNormals, RefinePixel, RefineReport, RefineSettings, refine_normals, seen_vertices,
+    MeshNormals, RefinePixel, RefineReport, RefineSettings, StartNormals, refine_normals,
+    seen_vertices,
 };
 use super::sweep::{ViewSweep, sweep_view};
 use crate::brdf::basis::{Basis, BasisSettings};
@@ -34,6 +36,7 @@ use crate::geometry::mesh::{Mesh, MeshReport};
 use crate::geometry::mesh_io::{MeshIoError, load_mesh};
 use crate::geometry::raster::{GBuffer, Rasteriser, rasterise};
 use crate::geometry::shadow::shadow_mask;
+use crate::geometry::taubin::smoothed_normals_each;
 use crate::imageio::{self, ImageIoError};
 use crate::render::image::LinearImage;
 use std::path::{Path, PathBuf};
@@ -689,17 +692,23 @@ pub fn observe_scene_with(
     observed
 }
 
-/// The pixels the normal refinement works on: every observation of every view, with no
+/// The pixels the normal refinement works on: every observation of every view at least
+/// `edge_margin` pixels inside the lit surface (`observe::inside_lit_surface`), with no
 /// grazing threshold beyond the horizon (a refined normal may turn a grazing pixel towards
 /// the light), tied to the face and barycentrics it was rasterised from.
-pub fn refine_pixels(scene: &Scene, settings: &ObserveSettings) -> Vec<RefinePixel> {
-    observe_scene_and_pixels(scene, settings).1
+pub fn refine_pixels(
+    scene: &Scene,
+    settings: &ObserveSettings,
+    edge_margin: usize,
+) -> Vec<RefinePixel> {
+    observe_scene_and_pixels(scene, settings, edge_margin).1
 }
 
 /// [`observe_scene`] and [`refine_pixels`] from one rasterisation of every view.
 pub fn observe_scene_and_pixels(
     scene: &Scene,
     settings: &ObserveSettings,
+    edge_margin: usize,
 ) -> (Observed, Vec<RefinePixel>) {
     let mut pixels = Vec::new();
     let observed = observe_scene_with(scene, settings, |pass| {
@@ -707,7 +716,14 @@ pub fn observe_scene_and_pixels(
             min_cos: 0.0,
             ..*pass.settings
         };
-        let (obs, _) = observe_view(pass.input, pass.surface, &loose);
+        let inside: Vec<SurfacePixel> = pass
+            .surface
+            .iter()
+            .zip(inside_lit_surface(pass.surface, edge_margin))
+            .filter(|(_, k)| *k)
+            .map(|(s, _)| *s)
+            .collect();
+        let (obs, _) = observe_view(pass.input, &inside, &loose);
         pixels.extend(obs.iter().filter_map(|o| {
             let f = pass.gbuffer.get(o.x as usize, o.y as usize)?;
             Some(RefinePixel::new(o, f.face, f.bary, f.normal))
@@ -761,7 +777,8 @@ pub fn prepare(
     progress("rasterising and observing");
     let (observed, pixels) = match settings.refine {
         Some(_) => {
-            let (o, p) = observe_scene_and_pixels(&scene, &settings.observe);
+            let margin = settings.refine.as_ref().map_or(0, |r| r.edge_margin_px);
+            let (o, p) = observe_scene_and_pixels(&scene, &settings.observe, margin);
             (o, Some(p))
         }
         None => (
@@ -833,15 +850,30 @@ pub fn refine_prepared(
     let scene = &mut prepared.scene;
     let pixels = pixels.unwrap_or_else(|| {
         progress("normal refinement: gathering pixels");
-        refine_pixels(scene, observe)
+        refine_pixels(scene, observe, settings.edge_margin_px)
     });
     let seen = seen_vertices(scene.mesh.faces(), &pixels, scene.mesh.positions().len());
     let neighbours = scene.mesh.vertex_neighbours();
+    let ks: Vec<usize> = settings
+        .start_smoothing
+        .iter()
+        .copied()
+        .filter(|&k| k > 0)
+        .collect();
+    let starts: Vec<StartNormals> = ks
+        .iter()
+        .zip(smoothed_normals_each(&scene.mesh, &ks))
+        .map(|(&k, normals)| StartNormals {
+            smoothing_iterations: k,
+            normals,
+        })
+        .collect();
     let refinement = refine_normals(
         &MeshNormals {
             faces: scene.mesh.faces(),
             normals: scene.mesh.vertex_normals(),
             neighbours: &neighbours,
+            starts: &starts,
         },
         &pixels,
         settings,

@@ -12,7 +12,7 @@
 //! Pure: no I/O.
 
 use super::ladder::{ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung};
-use super::refine::{IterationReport, RefineReport, RefineSettings};
+use super::refine::{IterationReport, RefineReport, RefineSettings, StartReport};
 use serde::{Deserialize, Deserializer};
 
 /// `impl Deserialize for $ty` through its remote mirror `$mirror`.
@@ -36,6 +36,7 @@ through_mirror! {
     Ladder => LadderMirror,
     RefineSettings => RefineSettingsMirror,
     IterationReport => IterationReportMirror,
+    StartReport => StartReportMirror,
     RefineReport => RefineReportMirror,
 }
 
@@ -175,6 +176,20 @@ struct RefineSettingsMirror {
     /// Absent in reports written before it existed (no correction passes then).
     #[serde(default)]
     table_passes: usize,
+    /// Absent in reports written before it existed (the mesh's normals were the only start).
+    #[serde(default)]
+    start_smoothing: Vec<usize>,
+    /// Absent in reports written before it existed (every surface pixel entered).
+    #[serde(default)]
+    edge_margin_px: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "StartReport")]
+struct StartReportMirror {
+    smoothing_iterations: usize,
+    train_error: f64,
+    held_out_error: f64,
 }
 
 #[derive(Deserialize)]
@@ -198,6 +213,11 @@ struct RefineReportMirror {
     pixels_offered: usize,
     held_out_images: Vec<usize>,
     vertices_refined: usize,
+    /// Absent in reports written before starts were chosen.
+    #[serde(default)]
+    starts: Vec<StartReport>,
+    #[serde(default)]
+    chosen_start_smoothing: usize,
     iterations: Vec<IterationReport>,
     chosen_iterations: usize,
     mean_tilt_deg: f64,
@@ -272,6 +292,12 @@ mod tests {
             pixels_offered: 20,
             held_out_images: vec![1, 5],
             vertices_refined: 3,
+            starts: vec![StartReport {
+                smoothing_iterations: 4,
+                train_error: 0.2,
+                held_out_error: 0.3,
+            }],
+            chosen_start_smoothing: 4,
             iterations: vec![IterationReport {
                 iteration: 0,
                 mean_tilt_deg: 0.0,

@@ -21,6 +21,14 @@
 //!    like the mean pixels of a vertex, so a vertex finer than the pixels follows its
 //!    neighbours; and never further than a bounded tilt from the mesh's normal.
 //!
+//! Start: the mesh's normals, or them with the mesh's positions Taubin-smoothed
+//! (`geometry::taubin`, the steps in `start_smoothing`, computed by the caller): a
+//! photogrammetry mesh's depth noise tilts every vertex normal, and the refinement keeps part
+//! of its start's error where the pixels do not pin a vertex; the held-out images choose the
+//! start (a smoothed one must lower their error by `min_gain`). Pixels at the edge of the lit
+//! surface (silhouette, cast shadows) are left out by the caller (`edge_margin_px`): where the
+//! positions are off, they see background or shadow.
+//!
 //! Guard against explaining the reflectance away: the number of iterations is chosen on
 //! held-out light images (every `hold_out_every`-th image; they never move a normal), and a
 //! refinement that does not lower their error by `min_gain` is refused: the mesh's normals are
@@ -132,6 +140,14 @@ pub struct RefineSettings {
     /// 0 by default: 2 gave better normals on the grid but chose more alternations, over the
     /// time allowed (docs/normal-refinement.md, "Session 22").
     pub table_passes: usize,
+    /// Taubin iterations of the mesh's positions tried for the starting normals (the mesh's
+    /// vertex-to-vertex noise filtered out, `geometry::taubin`); the held-out images choose
+    /// among them before the first alternation. 0 (the mesh's own normals) is always tried.
+    pub start_smoothing: Vec<usize>,
+    /// Surface pixels within this many pixels of the edge of the lit surface (the mesh's
+    /// silhouette or a cast shadow's edge, where a mesh whose positions are off by a little
+    /// sees background or shadow) do not enter the refinement (`prepare::refine_pixels`).
+    pub edge_margin_px: usize,
 }
 
 impl Default for RefineSettings {
@@ -147,7 +163,7 @@ impl Default for RefineSettings {
             smooth_deg: 20.0,
             smooth_normals: 1.0,
             anchor_deg: 20.0,
-            min_pixels_per_vertex: 2,
+            min_pixels_per_vertex: 1,
             hold_out_every: 4,
             min_gain: 0.005,
             max_fit_pixels: 20_000,
@@ -156,6 +172,8 @@ impl Default for RefineSettings {
             max_pixels_per_face: 6,
             final_alternations: 1,
             table_passes: 0,
+            start_smoothing: vec![0, 2, 4, 8, 16],
+            edge_margin_px: 1,
         }
     }
 }
@@ -173,6 +191,15 @@ pub struct IterationReport {
     pub seconds: f64,
 }
 
+/// One candidate start of the refinement: the mesh's normals after `smoothing_iterations`
+/// Taubin steps, with the reflectance fitted to them, scored on the training and held-out images.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StartReport {
+    pub smoothing_iterations: usize,
+    pub train_error: f64,
+    pub held_out_error: f64,
+}
+
 /// What the refinement did, for `report.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RefineReport {
@@ -186,11 +213,14 @@ pub struct RefineReport {
     pub held_out_images: Vec<usize>,
     /// Vertices with enough pixels to move.
     pub vertices_refined: usize,
+    /// The starts tried (the mesh's normals first) and the one chosen (Taubin iterations).
+    pub starts: Vec<StartReport>,
+    pub chosen_start_smoothing: usize,
     /// Iteration 0 is the mesh's normals.
     pub iterations: Vec<IterationReport>,
     /// Alternations kept (0 when refused).
     pub chosen_iterations: usize,
-    /// Tilt of the normals returned, over the refined vertices, degrees.
+    /// Tilt of the normals returned from the mesh's own, over the refined vertices, degrees.
     pub mean_tilt_deg: f64,
     pub max_tilt_deg: f64,
     pub seconds: f64,
@@ -209,6 +239,15 @@ pub struct MeshNormals<'a> {
     /// Unit vertex normals (zero for unreferenced vertices).
     pub normals: &'a [Vector3<f64>],
     pub neighbours: &'a [Vec<u32>],
+    /// Other starting normals to choose from on the held-out images (the mesh's normals
+    /// smoothed, `RefineSettings::start_smoothing`); empty: the mesh's own alone.
+    pub starts: &'a [StartNormals],
+}
+
+/// Starting normals: the mesh's after `smoothing_iterations` Taubin steps of its positions.
+pub struct StartNormals {
+    pub smoothing_iterations: usize,
+    pub normals: Vec<Vector3<f64>>,
 }
 
 /// Vertices that at least one pixel shows.
@@ -1019,6 +1058,15 @@ fn conjugate_gradients(
     x
 }
 
+/// A start of the refinement with the reflectance fitted to it and its errors.
+struct ScoredStart<'n> {
+    k: usize,
+    normals: &'n [Vector3<f64>],
+    model: Model,
+    train_error: f64,
+    held_out_error: f64,
+}
+
 /// `n` turned back towards `n0` so the angle between them is at most `max` radians.
 fn clamp_tilt(n: &Vector3<f64>, n0: &Vector3<f64>, max: f64) -> Vector3<f64> {
     let angle = n.cross(n0).norm().atan2(n.dot(n0));
@@ -1072,7 +1120,7 @@ pub fn refine_normals(
     progress: &mut dyn FnMut(&str),
 ) -> Refinement {
     let start = Instant::now();
-    let n0 = mesh.normals;
+    let n_mesh = mesh.normals;
     let total_pixels = pixels.len();
     let thinned;
     let pixels = if settings.max_pixels_per_face > 0 {
@@ -1099,6 +1147,8 @@ pub fn refine_normals(
         pixels_offered: total_pixels,
         held_out_images: held.iter().map(|&i| i as usize).collect(),
         vertices_refined: 0,
+        starts: Vec::new(),
+        chosen_start_smoothing: 0,
         iterations: Vec::new(),
         chosen_iterations: 0,
         mean_tilt_deg: 0.0,
@@ -1109,7 +1159,7 @@ pub fn refine_normals(
         report.reason = why;
         report.seconds = start.elapsed().as_secs_f64();
         Refinement {
-            normals: n0.to_vec(),
+            normals: n_mesh.to_vec(),
             report,
         }
     };
@@ -1126,7 +1176,7 @@ pub fn refine_normals(
     let mean_target = pixels.iter().map(|p| p.target).sum::<f64>() / pixels.len() as f64;
     let eps = 0.01 * mean_target.max(1e-300);
     let rings = Rings::new(mesh.neighbours);
-    let problem = Problem {
+    let mut problem = Problem {
         mesh,
         rings: &rings,
         pixels,
@@ -1141,26 +1191,85 @@ pub fn refine_normals(
     let (train, held_idx): (Vec<usize>, Vec<usize>) =
         (0..pixels.len()).partition(|&i| !held.contains(&pixels[i].image));
     let all: Vec<usize> = (0..pixels.len()).collect();
-    let prior_train = problem.prior(&train);
-    let movable = prior_train.movable.clone();
 
-    // Choose the number of alternations on the held-out images. The reflectance is fitted to
-    // every image: the held-out images judge the normals, and where each image has its own
+    // Choose the start on the held-out images: the mesh's normals, or the mesh's normals with
+    // its vertex-to-vertex noise smoothed away (a photogrammetry mesh's depth noise tilts
+    // every vertex's normal; the refinement keeps part of its start's error where the pixels
+    // do not pin a vertex, docs/normal-refinement.md "Session 25"). The reflectance is fitted
+    // to every image: the held-out images judge the normals, and where each image has its own
     // theta_d (a spread rig) a table from the training images alone could not predict a
-    // held-out image at all. Normals move from the training images only.
-    let Some(fit0) = problem.fit(&all, n0) else {
+    // held-out image at all. A smoothed start must lower the held-out error by `min_gain`.
+    let mut candidates: Vec<(usize, &[Vector3<f64>])> = vec![(0, n_mesh)];
+    candidates.extend(
+        mesh.starts
+            .iter()
+            .filter(|st| st.smoothing_iterations > 0 && st.normals.len() == n_mesh.len())
+            .map(|st| (st.smoothing_iterations, &st.normals[..])),
+    );
+    let mut chosen: Option<ScoredStart> = None;
+    let mut e_mesh = f64::NAN;
+    for (k, normals) in candidates {
+        let Some(model) = problem.fit(&all, normals) else {
+            continue;
+        };
+        let train_error = problem.error(&model, &train, normals);
+        let held_out_error = problem.error(&model, &held_idx, normals);
+        report.starts.push(StartReport {
+            smoothing_iterations: k,
+            train_error,
+            held_out_error,
+        });
+        if k == 0 {
+            e_mesh = held_out_error;
+        }
+        let better = match &chosen {
+            None => true,
+            Some(c) => held_out_error < c.held_out_error.min(e_mesh * (1.0 - settings.min_gain)),
+        };
+        if better && e_mesh.is_finite() {
+            chosen = Some(ScoredStart {
+                k,
+                normals,
+                model,
+                train_error,
+                held_out_error,
+            });
+        }
+    }
+    let Some(ScoredStart {
+        k: k_start,
+        normals: n0,
+        model: fit0,
+        train_error: train0,
+        held_out_error: held0,
+    }) = chosen
+    else {
         return refuse(
             report,
             "no reflectance could be fitted to the training pixels".into(),
         );
     };
+    report.chosen_start_smoothing = k_start;
+    let chosen_mesh = MeshNormals {
+        faces: mesh.faces,
+        normals: n0,
+        neighbours: mesh.neighbours,
+        starts: &[],
+    };
+    problem.mesh = &chosen_mesh;
+    let prior_train = problem.prior(&train);
+    let movable = prior_train.movable.clone();
+
+    // Choose the number of alternations on the held-out images. Normals move from the
+    // training images only.
     let mut model = fit0.clone();
+    let (mean_tilt0, max_tilt0) = tilt_stats(n0, n_mesh, &movable);
     report.iterations.push(IterationReport {
         iteration: 0,
-        mean_tilt_deg: 0.0,
-        max_tilt_deg: 0.0,
-        train_error: problem.error(&model, &train, n0),
-        held_out_error: problem.error(&model, &held_idx, n0),
+        mean_tilt_deg: mean_tilt0,
+        max_tilt_deg: max_tilt0,
+        train_error: train0,
+        held_out_error: held0,
         seconds: start.elapsed().as_secs_f64(),
     });
     let mut best = (0usize, report.iterations[0].held_out_error);
@@ -1178,7 +1287,7 @@ pub fn refine_normals(
             break;
         };
         model = fit;
-        let (mean_tilt, max_tilt) = tilt_stats(&n, n0, &movable);
+        let (mean_tilt, max_tilt) = tilt_stats(&n, n_mesh, &movable);
         let held_out_error = problem.error(&model, &held_idx, &n);
         report.iterations.push(IterationReport {
             iteration: it,
@@ -1197,7 +1306,7 @@ pub fn refine_normals(
         }
     }
     let e0 = report.iterations[0].held_out_error;
-    if best.0 == 0 {
+    if best.0 == 0 && k_start == 0 {
         return refuse(
             report,
             format!(
@@ -1206,6 +1315,23 @@ pub fn refine_normals(
                 100.0 * settings.min_gain
             ),
         );
+    }
+    if best.0 == 0 {
+        // the smoothed start alone lowered the held-out error; no alternation did more
+        let (mean_tilt, max_tilt) = tilt_stats(n0, n_mesh, &movable);
+        report.accepted = true;
+        report.vertices_refined = movable.iter().filter(|r| **r).count();
+        report.mean_tilt_deg = mean_tilt;
+        report.max_tilt_deg = max_tilt;
+        report.reason = format!(
+            "the mesh's normals smoothed ({k_start} Taubin steps) lowered the held-out images' \
+             error from {e_mesh:.4} to {e0:.4}; no alternation lowered it further"
+        );
+        report.seconds = start.elapsed().as_secs_f64();
+        return Refinement {
+            normals: n0.to_vec(),
+            report,
+        };
     }
 
     // From the chosen normals, a last alternation (or `final_alternations`) on every image,
@@ -1231,16 +1357,25 @@ pub fn refine_normals(
     } else {
         movable
     };
-    let (mean_tilt, max_tilt) = tilt_stats(&n, n0, &refined);
+    let (mean_tilt, max_tilt) = tilt_stats(&n, n_mesh, &refined);
     report.accepted = true;
     report.chosen_iterations = best.0;
     report.vertices_refined = refined.iter().filter(|r| **r).count();
     report.mean_tilt_deg = mean_tilt;
     report.max_tilt_deg = max_tilt;
-    report.reason = format!(
-        "{} iteration(s) lowered the held-out images' error from {e0:.4} to {:.4}",
-        best.0, best.1
-    );
+    report.reason = if k_start > 0 {
+        format!(
+            "from the mesh's normals smoothed ({k_start} Taubin steps; held-out error {e_mesh:.4} \
+             with the mesh's own), {} iteration(s) lowered the held-out images' error from \
+             {e0:.4} to {:.4}",
+            best.0, best.1
+        )
+    } else {
+        format!(
+            "{} iteration(s) lowered the held-out images' error from {e0:.4} to {:.4}",
+            best.0, best.1
+        )
+    };
     report.seconds = start.elapsed().as_secs_f64();
     Refinement { normals: n, report }
 }
@@ -1336,6 +1471,7 @@ mod tests {
                 faces: mesh.faces(),
                 normals: start,
                 neighbours: &nb,
+                starts: &[],
             },
             px,
             settings,
@@ -1376,6 +1512,83 @@ mod tests {
         let it = &r.report.iterations;
         assert!(it.len() >= 2 && it[0].iteration == 0);
         assert!(it[r.report.chosen_iterations].held_out_error < it[0].held_out_error);
+    }
+
+    #[test]
+    fn a_noisy_mesh_starts_from_the_smoothing_the_held_out_images_choose() {
+        // A sphere whose vertices are displaced along their normals (a photogrammetry mesh's
+        // depth noise), rendered with the true (radial) normals: the mesh's own normals carry
+        // the noise, its smoothed positions' normals less of it; the held-out images choose a
+        // smoothed start, and the refinement from it ends closer to the truth.
+        let clean = sphere(20, 40);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noisy_positions: Vec<nalgebra::Point3<f64>> = clean
+            .positions()
+            .iter()
+            .map(|p| p * (1.0 + 0.012 * (rng.r#gen::<f64>() - 0.5)))
+            .collect();
+        let mut mesh = clean.clone();
+        assert!(mesh.set_positions(noisy_positions));
+        let truth = true_normals(&mesh);
+        let px = pixels(&mesh, 12, 40.0, 20);
+        let seen = seen_vertices(mesh.faces(), &px, truth.len());
+        let starts: Vec<StartNormals> = [2, 4, 8]
+            .into_iter()
+            .map(|k| StartNormals {
+                smoothing_iterations: k,
+                normals: crate::geometry::taubin::smoothed_normals(&mesh, k),
+            })
+            .collect();
+        let nb = mesh.vertex_neighbours();
+        let refine = |starts: &[StartNormals]| {
+            refine_normals(
+                &MeshNormals {
+                    faces: mesh.faces(),
+                    normals: mesh.vertex_normals(),
+                    neighbours: &nb,
+                    starts,
+                },
+                &px,
+                &RefineSettings::default(),
+                &mut |_| {},
+            )
+        };
+        let (with, without) = (refine(&starts), refine(&[]));
+        let e = |n: &[Vector3<f64>]| normal_error_deg(n, &truth, &seen).expect("seen").0;
+        let before = e(mesh.vertex_normals());
+        eprintln!(
+            "median error {before:.2} -> {:.2} from the mesh's normals, {:.2} from the chosen \
+             start ({} steps): {}",
+            e(&without.normals),
+            e(&with.normals),
+            with.report.chosen_start_smoothing,
+            with.report.reason
+        );
+        assert!(with.report.accepted, "{}", with.report.reason);
+        let tried: Vec<usize> = with
+            .report
+            .starts
+            .iter()
+            .map(|s| s.smoothing_iterations)
+            .collect();
+        assert_eq!(tried, vec![0, 2, 4, 8], "the mesh's own normals first");
+        assert!(with.report.chosen_start_smoothing > 0);
+        let chosen = with
+            .report
+            .starts
+            .iter()
+            .find(|s| s.smoothing_iterations == with.report.chosen_start_smoothing)
+            .expect("the chosen start was tried");
+        assert!(chosen.held_out_error < with.report.starts[0].held_out_error);
+        assert_eq!(without.report.chosen_start_smoothing, 0);
+        assert!(e(&with.normals) < 0.95 * e(&without.normals));
+        // the tilt is reported from the mesh's own normals
+        let (_, max) = tilt_stats(
+            &with.normals,
+            mesh.vertex_normals(),
+            &vec![true; truth.len()],
+        );
+        assert!(with.report.max_tilt_deg <= max + 1e-9);
     }
 
     #[test]

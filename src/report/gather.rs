@@ -137,6 +137,9 @@ pub struct NormalsSection {
     pub reason: String,
     pub held_out_images: String,
     pub chosen_iterations: Option<u64>,
+    /// The starts tried, e.g. "0 steps: 0.176; 4 steps: 0.145 (chosen)"; empty when only the
+    /// mesh's own normals were (reports written before starts were chosen).
+    pub starts: String,
     pub mean_tilt_deg: Option<f64>,
     pub max_tilt_deg: Option<f64>,
     pub vertices_refined: Option<u64>,
@@ -401,6 +404,26 @@ fn normals_section(r: &Report) -> Option<NormalsSection> {
         reason: n.reason.clone(),
         held_out_images: format!("{:?}", n.held_out_images),
         chosen_iterations: Some(n.chosen_iterations as u64),
+        starts: if n.starts.len() > 1 {
+            n.starts
+                .iter()
+                .map(|s| {
+                    format!(
+                        "{} steps: {}{}",
+                        s.smoothing_iterations,
+                        fmt_num(s.held_out_error),
+                        if s.smoothing_iterations == n.chosen_start_smoothing {
+                            " (chosen)"
+                        } else {
+                            ""
+                        }
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        } else {
+            String::new()
+        },
         mean_tilt_deg: Some(n.mean_tilt_deg),
         max_tilt_deg: Some(n.max_tilt_deg),
         vertices_refined: Some(n.vertices_refined as u64),

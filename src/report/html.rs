@@ -358,7 +358,8 @@ fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
          normal): {}. Normals returned: mean tilt {} deg, largest {} deg, over {} vertices; \
          with the refined normals when accepted, <code>mesh_refined.ply</code> is beside this \
          report's <code>report.json</code>. Errors: mean robust log residual of the pixels \
-         (docs/normal-refinement.md); iteration 0 is the mesh's own normals.</p>",
+         (docs/normal-refinement.md); iteration 0 is the start the held-out images chose (the \
+         mesh's own normals, or them with the mesh's positions Taubin-smoothed).</p>",
         if n.accepted { "refined" } else { "kept" },
         escape(&n.reason),
         escape(&n.held_out_images),
@@ -367,6 +368,13 @@ fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
         n.vertices_refined
             .map_or("-".to_string(), |v| v.to_string()),
     );
+    if !n.starts.is_empty() {
+        let _ = write!(
+            h,
+            "<p>Starts tried (Taubin steps of the mesh's positions: held-out error): {}.</p>",
+            escape(&n.starts)
+        );
+    }
     if !n.rows.is_empty() {
         h.push_str("<table><tr><th>iteration</th><th>mean tilt (deg)</th><th>largest tilt (deg)</th><th>training error</th><th>held-out error</th><th></th></tr>");
         for r in &n.rows {
