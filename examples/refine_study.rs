@@ -7,7 +7,7 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final, passes, margin, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
+//! fitcos, facecap, final, passes, margin, holdout, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
@@ -54,6 +54,7 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "final" => s.final_alternations = f as usize,
             "passes" => s.table_passes = f as usize,
             "margin" => s.edge_margin_px = f as usize,
+            "holdout" => s.hold_out_every = f as usize,
             _ => anyhow::bail!("unknown key {k:?}"),
         }
     }

@@ -523,6 +523,8 @@ impl Model {
 /// Everything fixed during one refinement.
 struct Problem<'a> {
     mesh: &'a MeshNormals<'a>,
+    /// The mesh's own normals: no normal turns further than `max_tilt_deg` from them.
+    bound: &'a [Vector3<f64>],
     pixels: &'a [RefinePixel],
     settings: &'a RefineSettings,
     eps: f64,
@@ -860,7 +862,7 @@ impl<'a> Problem<'a> {
                     }
                     let (t1, t2) = &frames[v];
                     let moved = (n[v] + (t1 * x[2 * v] + t2 * x[2 * v + 1]) * scale).normalize();
-                    clamp_tilt(&moved, &prior.n0[v], max_tilt)
+                    clamp_tilt(&moved, &self.bound[v], max_tilt)
                 })
                 .collect();
             let c = self.cost(model, idx, &trial, prior);
@@ -1178,6 +1180,7 @@ pub fn refine_normals(
     let rings = Rings::new(mesh.neighbours);
     let mut problem = Problem {
         mesh,
+        bound: n_mesh,
         rings: &rings,
         pixels,
         settings,
@@ -1199,13 +1202,31 @@ pub fn refine_normals(
     // to every image: the held-out images judge the normals, and where each image has its own
     // theta_d (a spread rig) a table from the training images alone could not predict a
     // held-out image at all. A smoothed start must lower the held-out error by `min_gain`.
+    // A smoothed start stays within the tilt bound of the mesh's normals (Taubin steps can
+    // fold a thin or badly shaped region's triangles).
+    let max_tilt = settings.max_tilt_deg.to_radians();
+    let bounded: Vec<(usize, Vec<Vector3<f64>>)> = mesh
+        .starts
+        .iter()
+        .filter(|st| st.smoothing_iterations > 0 && st.normals.len() == n_mesh.len())
+        .map(|st| {
+            let n = st
+                .normals
+                .iter()
+                .zip(n_mesh)
+                .map(|(a, b)| {
+                    if *b == Vector3::zeros() || a.norm() < 1e-9 {
+                        *b
+                    } else {
+                        clamp_tilt(a, b, max_tilt)
+                    }
+                })
+                .collect();
+            (st.smoothing_iterations, n)
+        })
+        .collect();
     let mut candidates: Vec<(usize, &[Vector3<f64>])> = vec![(0, n_mesh)];
-    candidates.extend(
-        mesh.starts
-            .iter()
-            .filter(|st| st.smoothing_iterations > 0 && st.normals.len() == n_mesh.len())
-            .map(|st| (st.smoothing_iterations, &st.normals[..])),
-    );
+    candidates.extend(bounded.iter().map(|(k, n)| (*k, &n[..])));
     let mut chosen: Option<ScoredStart> = None;
     let mut e_mesh = f64::NAN;
     for (k, normals) in candidates {
@@ -1589,6 +1610,25 @@ mod tests {
             &vec![true; truth.len()],
         );
         assert!(with.report.max_tilt_deg <= max + 1e-9);
+
+        // a start far from the mesh's normals somewhere (Taubin steps can fold a badly shaped
+        // region) is held to the tilt bound: no returned normal leaves it
+        let mut far = crate::geometry::taubin::smoothed_normals(&mesh, 4);
+        for n in far.iter_mut().skip(200).take(3) {
+            *n = Rotation3::from_axis_angle(&Vector3::x_axis(), 60f64.to_radians()) * *n;
+        }
+        let folded = [StartNormals {
+            smoothing_iterations: 4,
+            normals: far,
+        }];
+        let r = refine(&folded);
+        assert_eq!(r.report.chosen_start_smoothing, 4, "{}", r.report.reason);
+        let (_, max) = tilt_stats(&r.normals, mesh.vertex_normals(), &vec![true; truth.len()]);
+        let bound = RefineSettings::default().max_tilt_deg;
+        assert!(
+            max <= bound + 1e-6,
+            "a normal turned {max:.2} deg from the mesh's"
+        );
     }
 
     #[test]
