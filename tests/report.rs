@@ -262,6 +262,7 @@ fn example_report(job: PathBuf) -> Report {
             reasons: vec!["medium: the trials disagree by 20 %".into()],
             trial_disagreement: Some(0.2),
             held_out_error: Some(0.2),
+            analytic_held_out_error: None,
             theta_d_span_deg: 12.0,
             unseen_energy: 0.1,
         },

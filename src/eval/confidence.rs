@@ -13,7 +13,7 @@
 //! twice as much as caution: for each run, `2 x (levels too high)` + `1 x (levels too low)`.
 //! Ties keep the current value. Pure: data in, settings and tables out.
 
-use crate::reconstruct::confidence::{ConfidenceSettings, Level, judge};
+use crate::reconstruct::confidence::{ConfidenceSettings, HeldOut, Level, judge};
 use serde::Serialize;
 
 /// One run's recorded indicators and its true error.
@@ -27,6 +27,9 @@ pub struct Run {
     pub baseline: Option<f64>,
     pub trial_disagreement: Option<f64>,
     pub held_out_error: Option<f64>,
+    /// Lambert + GGX's held-out error on the same data (from the ladder's rungs when the run
+    /// did not record it).
+    pub analytic_held_out_error: Option<f64>,
     pub theta_d_span_deg: f64,
     pub unseen_energy: f64,
 }
@@ -48,7 +51,10 @@ pub fn deserved(run: &Run) -> Level {
 pub fn verdict(run: &Run, s: &ConfidenceSettings) -> Level {
     judge(
         run.trial_disagreement,
-        run.held_out_error,
+        HeldOut {
+            chosen: run.held_out_error,
+            analytic: run.analytic_held_out_error,
+        },
         run.theta_d_span_deg,
         run.unseen_energy,
         s,
@@ -216,6 +222,19 @@ pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, GridJs
             .fold(None, |acc: Option<f64>, x| {
                 Some(acc.map_or(x, |a| a.min(x)))
             });
+        // Lambert + GGX's held-out error: recorded by the confidence since session 25, else
+        // the ladder's rung of that family.
+        let analytic_held_out_error = f(c, "analytic_held_out_error").or_else(|| {
+            ok.get("ladder")
+                .and_then(|l| l.get("rungs"))
+                .and_then(|r| r.as_array())
+                .and_then(|rungs| {
+                    rungs
+                        .iter()
+                        .find(|r| r.get("family").and_then(|x| x.as_str()) == Some("lambert-ggx"))
+                })
+                .and_then(|r| f(r, "error"))
+        });
         out.push(Run {
             label,
             group: name("mesh"),
@@ -223,6 +242,7 @@ pub fn runs_from_accuracy_json(v: &serde_json::Value) -> Result<Vec<Run>, GridJs
             baseline,
             trial_disagreement: f(c, "trial_disagreement"),
             held_out_error: f(c, "held_out_error"),
+            analytic_held_out_error,
             theta_d_span_deg: f(c, "theta_d_span_deg").ok_or(GridJsonError::Missing {
                 scene: i,
                 field: "confidence.theta_d_span_deg",
@@ -274,13 +294,14 @@ pub fn settings_table(s: &ConfidenceSettings) -> String {
     format!(
         "| indicator | medium when | low when |\n|---|---|---|\n\
          | trial disagreement (rendered) | > {:.3} | > {:.3} |\n\
-         | held-out image error | > {:.3} | > {:.3} |\n\
+         | held-out image error | > {:.3} | > {:.3}, unless below {:.2} x Lambert + GGX's (then medium at most) |\n\
          | theta_d span, degrees | < {:.1} | < {:.1} |\n\
          | unseen share of the render | > {:.3} | > {:.3} |\n",
         s.disagreement_medium,
         s.disagreement_low,
         s.held_out_medium,
         s.held_out_low,
+        s.held_out_shared_ratio,
         s.theta_d_span_medium_deg,
         s.theta_d_span_low_deg,
         s.unseen_energy_medium,
@@ -311,6 +332,7 @@ mod tests {
             baseline: None,
             trial_disagreement: Some(disagreement),
             held_out_error: Some(0.01),
+            analytic_held_out_error: None,
             theta_d_span_deg: 60.0,
             unseen_energy: 0.0,
         }

@@ -10,7 +10,11 @@
 //!   the result is extrapolated, they do not. When the ladder chose an analytic model, it
 //!   measures how far a data-driven fit of the same pixels renders from it.
 //! - **held-out error**: the chosen model's image-space error on held-out images or blocks
-//!   (`reconstruct::ladder`): the model does not even explain what was seen.
+//!   (`reconstruct::ladder`): the model does not even explain what was seen. Where Lambert +
+//!   GGX, fitted to the same pixels, misses the same held-out data by clearly more (the chosen
+//!   error below `held_out_shared_ratio` times it), the miss is the images' or the mesh's (a
+//!   highlight the normals cannot place) and every model shares it: it then lowers the verdict
+//!   to medium at most, so a result that explains the images best is not called low for it.
 //! - **theta_d span**: the 10th to 90th percentile range of `theta_d` over the reliable pixels.
 //!   One fixed light on a turntable sees a single `theta_d` (METHOD.md section 1), so the rest of
 //!   the domain is extrapolated.
@@ -91,6 +95,10 @@ pub struct ConfidenceSettings {
     pub theta_d_span_low_deg: f64,
     pub unseen_energy_medium: f64,
     pub unseen_energy_low: f64,
+    /// The held-out miss is shared (at most medium) when the chosen model's held-out error is
+    /// below this fraction of Lambert + GGX's on the same data (0: never).
+    #[serde(default)]
+    pub held_out_shared_ratio: f64,
 }
 
 impl Default for ConfidenceSettings {
@@ -104,6 +112,7 @@ impl Default for ConfidenceSettings {
             theta_d_span_low_deg: 3.2,
             unseen_energy_medium: 0.35,
             unseen_energy_low: 0.55,
+            held_out_shared_ratio: 0.8,
         }
     }
 }
@@ -119,6 +128,10 @@ pub struct Confidence {
     pub trial_disagreement: Option<f64>,
     /// The chosen model's held-out image error; `None` when the ladder did not run.
     pub held_out_error: Option<f64>,
+    /// Lambert + GGX's held-out error on the same data; `None` when the ladder did not fit it
+    /// (and in reports written before it was recorded).
+    #[serde(default)]
+    pub analytic_held_out_error: Option<f64>,
     /// 10th-90th percentile range of theta_d over the reliable pixels, degrees.
     pub theta_d_span_deg: f64,
     /// Share of the result's environment render from never-observed (theta_h, theta_d) cells.
@@ -128,13 +141,21 @@ pub struct Confidence {
 /// Cells of `CELL x CELL` (theta_h, theta_d) bins.
 const CELL: usize = 10;
 
+/// The held-out errors the verdict reads: the chosen model's and Lambert + GGX's on the same
+/// held-out data.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeldOut {
+    pub chosen: Option<f64>,
+    pub analytic: Option<f64>,
+}
+
 /// Judges a result: `result` is the reported BRDF (as written), `others` the trials' fits,
-/// `reliable` the pixels the fit used, `held_out_error` the chosen model's held-out error.
+/// `reliable` the pixels the fit used, `held_out` the held-out errors.
 pub fn assess(
     result: &dyn BinValues,
     others: &[&dyn Candidate],
     reliable: &[&Observation],
-    held_out_error: Option<f64>,
+    held_out: HeldOut,
     settings: &ConfidenceSettings,
 ) -> Confidence {
     let probe = probe();
@@ -151,7 +172,7 @@ pub fn assess(
 
     judge(
         trial_disagreement,
-        held_out_error,
+        held_out,
         theta_d_span_deg,
         unseen_energy,
         settings,
@@ -162,7 +183,7 @@ pub fn assess(
 /// threshold tuning of `eval::confidence` replays on recorded indicators.
 pub fn judge(
     trial_disagreement: Option<f64>,
-    held_out_error: Option<f64>,
+    held_out: HeldOut,
     theta_d_span_deg: f64,
     unseen_energy: f64,
     settings: &ConfidenceSettings,
@@ -196,18 +217,34 @@ pub fn judge(
             ),
         );
     }
+    let held_out_error = held_out.chosen;
     if let Some(h) = held_out_error {
-        judge(
-            h,
-            h > settings.held_out_medium,
-            h > settings.held_out_low,
-            format!(
-                "the model misses held-out images by {:.0} %: no single BRDF seen through this \
-                 mesh explains the images (normals too coarse for a narrow highlight, a wrong \
-                 light direction or irradiance, a textured or anisotropic surface?)",
-                100.0 * h
+        match held_out.analytic {
+            Some(a) if a.is_finite() && h < settings.held_out_shared_ratio * a => judge(
+                h,
+                h > settings.held_out_medium,
+                false,
+                format!(
+                    "the model misses held-out images by {:.0} %, and Lambert + GGX fitted to \
+                     the same pixels by {:.0} %: a miss every model shares (normals too coarse \
+                     for a narrow highlight, a wrong light direction or irradiance?), and this \
+                     model explains the images best",
+                    100.0 * h,
+                    100.0 * a
+                ),
             ),
-        );
+            _ => judge(
+                h,
+                h > settings.held_out_medium,
+                h > settings.held_out_low,
+                format!(
+                    "the model misses held-out images by {:.0} %: no single BRDF seen through \
+                     this mesh explains the images (normals too coarse for a narrow highlight, \
+                     a wrong light direction or irradiance, a textured or anisotropic surface?)",
+                    100.0 * h
+                ),
+            ),
+        }
     }
     judge(
         theta_d_span_deg,
@@ -232,6 +269,7 @@ pub fn judge(
         reasons,
         trial_disagreement,
         held_out_error,
+        analytic_held_out_error: held_out.analytic,
         theta_d_span_deg,
         unseen_energy,
     }
@@ -331,7 +369,10 @@ mod tests {
             &CandidateValues(&a),
             &[&b],
             &refs,
-            Some(0.05),
+            HeldOut {
+                chosen: Some(0.05),
+                analytic: None,
+            },
             &ConfidenceSettings::default(),
         );
         assert_eq!(c.level, Level::High, "{c:?}");
@@ -351,7 +392,10 @@ mod tests {
             &CandidateValues(&a),
             &[&b, &c2],
             &refs,
-            Some(0.7),
+            HeldOut {
+                chosen: Some(0.7),
+                analytic: None,
+            },
             &ConfidenceSettings::default(),
         );
         assert_eq!(c.level, Level::Low);
@@ -371,10 +415,45 @@ mod tests {
             &CandidateValues(&Const(0.2)),
             &[],
             &refs,
-            None,
+            HeldOut::default(),
             &ConfidenceSettings::default(),
         );
         assert_eq!(c.trial_disagreement, None);
         assert_eq!(c.level, Level::High);
+    }
+
+    #[test]
+    fn a_held_out_miss_every_model_shares_lowers_the_verdict_to_medium_at_most() {
+        let obs: Vec<Observation> = (0..40)
+            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
+            .collect();
+        let reliable: Vec<&Observation> = obs.iter().collect();
+        let (a, b) = (Const(0.3), Const(0.31));
+        let judge_with = |analytic: Option<f64>| {
+            assess(
+                &CandidateValues(&a),
+                &[&b],
+                &reliable,
+                HeldOut {
+                    chosen: Some(0.6),
+                    analytic,
+                },
+                &ConfidenceSettings::default(),
+            )
+        };
+        // missed by 60 % and nothing else known: low
+        assert_eq!(judge_with(None).level, Level::Low);
+        // Lambert + GGX misses the same images by 95 %: the miss is shared, medium
+        let shared = judge_with(Some(0.95));
+        assert_eq!(shared.level, Level::Medium, "{:?}", shared.reasons);
+        assert!(
+            shared
+                .reasons
+                .iter()
+                .any(|r| r.contains("every model shares"))
+        );
+        assert_eq!(shared.analytic_held_out_error, Some(0.95));
+        // Lambert + GGX does about as well (70 %): not clearly better, low
+        assert_eq!(judge_with(Some(0.7)).level, Level::Low);
     }
 }

@@ -5,7 +5,7 @@
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
-use super::confidence::{Confidence, ConfidenceSettings, assess, render_disagreement};
+use super::confidence::{Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, WithPeak, climb, fit_peak,
     subset,
@@ -456,7 +456,22 @@ pub fn reconstruct_observations(
             .find(|p| p.k == components.k && p.eta == components.eta)
             .and_then(|p| p.error)
     });
-    let confidence = assess(&table, &others, &used, held_out, &settings.confidence);
+    let analytic_held_out = ladder.as_ref().and_then(|l| {
+        l.rungs
+            .iter()
+            .find(|r| r.family == Family::LambertGgx)
+            .and_then(|r| r.error)
+    });
+    let confidence = assess(
+        &table,
+        &others,
+        &used,
+        HeldOut {
+            chosen: held_out,
+            analytic: analytic_held_out,
+        },
+        &settings.confidence,
+    );
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
     let model = ModelReport {
         family,
