@@ -775,10 +775,9 @@ pub fn prepare(
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
     progress("rasterising and observing");
-    let (observed, pixels) = match settings.refine {
-        Some(_) => {
-            let margin = settings.refine.as_ref().map_or(0, |r| r.edge_margin_px);
-            let (o, p) = observe_scene_and_pixels(&scene, &settings.observe, margin);
+    let (observed, pixels) = match &settings.refine {
+        Some(r) => {
+            let (o, p) = observe_scene_and_pixels(&scene, &settings.observe, r.edge_margin_px);
             (o, Some(p))
         }
         None => (

@@ -216,7 +216,7 @@ pub struct RefineReport {
     /// The starts tried (the mesh's normals first) and the one chosen (Taubin iterations).
     pub starts: Vec<StartReport>,
     pub chosen_start_smoothing: usize,
-    /// Iteration 0 is the mesh's normals.
+    /// Iteration 0 is the chosen start (the mesh's normals, or them smoothed).
     pub iterations: Vec<IterationReport>,
     /// Alternations kept (0 when refused).
     pub chosen_iterations: usize,
