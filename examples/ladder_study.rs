@@ -78,6 +78,7 @@ fn main() -> anyhow::Result<()> {
         v
     };
     let mut rows: Vec<Row> = Vec::new();
+    let mut blends: Vec<(String, f64, Vec<f64>)> = Vec::new();
     let mut dump: Vec<serde_json::Value> = Vec::new();
     for name in &materials_wanted {
         let net = find_material(&materials, name)?;
@@ -170,6 +171,45 @@ fn main() -> anyhow::Result<()> {
                         }
                         per_family.push((*f, errs));
                     }
+                    // Blends of the chosen model's plausible table with Lambert + GGX's.
+                    {
+                        let ps = PlausibleSettings::default();
+                        let (chosen_t, _) = make_plausible(
+                            out.brdf.as_ref(),
+                            ggx_model.as_ref().map(|p| (p as &dyn Candidate, "L+GGX")),
+                            &used,
+                            &ps,
+                        );
+                        if let Some((_, lg)) =
+                            out.alternatives.iter().find(|a| a.0 == Family::LambertGgx)
+                        {
+                            let (lg_t, _) = make_plausible(lg.as_ref(), None, &used, &ps);
+                            let mut line = String::new();
+                            let mut errs = Vec::new();
+                            for geo in [false, true] {
+                                let u = out.confidence.unseen_energy;
+                                for w in
+                                    [1.0, 1.0 - 0.25 * u, 1.0 - 0.5 * u, 1.0 - 0.75 * u, 1.0 - u]
+                                {
+                                    let b = Blend {
+                                        a: &chosen_t,
+                                        b: &lg_t,
+                                        w,
+                                        geo,
+                                    };
+                                    let e = truth.errors_of(&b).environment;
+                                    line += &format!(" {e:.3}");
+                                    errs.push(e);
+                                }
+                                line += " |";
+                            }
+                            eprintln!(
+                                "   blend chosen {} unseen {:.2} w 1-c*u c 0/.25/.5/.75/1 arith | geo:{line}",
+                                out.model.family, out.confidence.unseen_energy
+                            );
+                            blends.push((rig.clone(), better, errs));
+                        }
+                    }
                     let mut choices = Vec::new();
                     if let Some(l) = &out.ladder {
                         for (label, rule) in [
@@ -221,6 +261,24 @@ fn main() -> anyhow::Result<()> {
                 }
             }
         }
+    }
+    for rig in ["spread", "one-light", "all"] {
+        let bs: Vec<_> = blends
+            .iter()
+            .filter(|b| rig == "all" || b.0 == rig)
+            .collect();
+        if bs.is_empty() {
+            continue;
+        }
+        let mut line = format!("blend {rig}:");
+        for i in 0..10 {
+            let r: Vec<f64> = bs.iter().map(|b| b.1 / b.2[i]).collect();
+            let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
+            let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+            let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
+            line += &format!(" {g:.3}({min:.2},{worse})");
+        }
+        println!("{line}");
     }
     // Geometric mean of better-baseline / ours, per (family, variant) and per (rule, variant).
     println!(
@@ -276,4 +334,34 @@ fn main() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `w` of table `a` and `1 - w` of table `b`, arithmetic or geometric.
+struct Blend<'a> {
+    a: &'a brdf_rig::brdf::merl::MerlTable,
+    b: &'a brdf_rig::brdf::merl::MerlTable,
+    w: f64,
+    geo: bool,
+}
+
+impl brdf_rig::brdf::BinValues for Blend<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let a = self.a.values_at(bins);
+        let b = self.b.values_at(bins);
+        a.iter()
+            .zip(&b)
+            .map(|(x, y)| {
+                let mut o = [0.0; 3];
+                for c in 0..3 {
+                    o[c] = if self.geo {
+                        let (p, q) = (x[c].max(1e-9), y[c].max(1e-9));
+                        (self.w * p.ln() + (1.0 - self.w) * q.ln()).exp()
+                    } else {
+                        self.w * x[c] + (1.0 - self.w) * y[c]
+                    };
+                }
+                o
+            })
+            .collect()
+    }
 }

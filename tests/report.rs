@@ -255,6 +255,7 @@ fn example_report(job: PathBuf) -> Report {
             max_albedo_theta_deg: 10.0,
             scaled_bins: 0,
             prior: "basis mean".into(),
+            hedge: None,
         },
         comparisons: Vec::new(),
         confidence: Confidence {

@@ -1,6 +1,6 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
-//! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain and
-//! ridge weights. Their parsing, the library's overrides they make
+//! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
+//! ridge weights and the hedge's strength. Their parsing, the library's overrides they make
 //! (`reconstruct::overrides`), and the words that type them again for a page's "command" line.
 //! No I/O.
 
@@ -27,6 +27,10 @@ pub struct FitKnobs {
     /// to every row (`ComponentSettings::etas`; default: the library's 1, 10, 40).
     #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Closed(1e6)))]
     pub etas: Option<Vec<f64>>,
+    /// The weight of Lambert + GGX per unit share of the render from unobserved cells, as
+    /// `reconstruct --hedge` (default: the library's 0.5; 0 turns the averaging off).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub hedge: Option<f64>,
 }
 
 impl FitKnobs {
@@ -37,6 +41,7 @@ impl FitKnobs {
             theta_d_shape: self.unobserved,
             min_gain: self.min_gain,
             etas: self.etas.clone(),
+            hedge: self.hedge,
         }
     }
 
@@ -56,6 +61,9 @@ impl FitKnobs {
             let e: Vec<String> = e.iter().map(|x| x.to_string()).collect();
             s += &format!(" --etas {}", e.join(","));
         }
+        if let Some(h) = self.hedge {
+            s += &format!(" --hedge {h}");
+        }
         s
     }
 }
@@ -74,15 +82,17 @@ mod tests {
             unobserved: Some(ThetaDShape::Basis),
             min_gain: Some(0.05),
             etas: Some(vec![0.01, 1.0]),
+            hedge: Some(0.25),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
         assert_eq!(o.theta_d_shape, Some(ThetaDShape::Basis));
         assert_eq!(o.min_gain, Some(0.05));
         assert_eq!(o.etas, Some(vec![0.01, 1.0]));
+        assert_eq!(o.hedge, Some(0.25));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25"
         );
     }
 }

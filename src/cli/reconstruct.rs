@@ -111,6 +111,12 @@ pub struct Args {
     /// by the basis's mean material). Each is kept within a factor 10 of the prior. docs/reconstruction.md, stage 6.
     #[arg(long, value_parser = parse_unobserved, default_value = "model")]
     pub unobserved: ThetaDShape,
+    /// Where most of the result's rendered sphere comes from cells no pixel observed (one
+    /// light by the camera), average the basis's table with Lambert + GGX's, geometrically,
+    /// with Lambert + GGX's weight this strength times that share (0 to 1; 0 turns it off).
+    /// docs/reconstruction.md, stage 6.
+    #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
+    pub hedge: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). Writes
     /// mesh_refined.ply when the refinement is accepted.
@@ -220,6 +226,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.plausible.shrink = !args.no_shrink;
     settings.core.trials.basis_fit = args.basis_fit;
     settings.core.plausible.theta_d_shape = args.unobserved;
+    settings.core.hedge.strength = args.hedge;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;
@@ -327,6 +334,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         p.max_albedo_after,
         p.max_albedo_before
     );
+    if let Some(h) = &p.hedge {
+        errln!(
+            "hedge: {:.0} % of the rendered sphere from unobserved cells; Lambert + GGX's weight \
+             in the written table {:.2}",
+            100.0 * h.unseen_share,
+            h.analytic_weight
+        );
+    }
     let confidence = &output.report.confidence;
     errln!("confidence: {}", confidence.level);
     for r in &confidence.reasons {

@@ -275,6 +275,13 @@ pub fn judge(
     }
 }
 
+/// The share of `result`'s environment render (the standard probe) that comes from
+/// never-observed (theta_h, theta_d) cells of `reliable`.
+pub fn unseen_render_share(result: &dyn BinValues, reliable: &[&Observation]) -> f64 {
+    let probe = probe();
+    unseen_share(probe, &result.values_at(probe.bins()), reliable)
+}
+
 /// The share of the environment render of `values` (at the probe's bins) that comes from
 /// bins in never-observed (theta_h, theta_d) cells.
 fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {

@@ -5,13 +5,18 @@
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
-use super::confidence::{Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement};
+use super::confidence::{
+    Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement, unseen_render_share,
+};
+use super::hedge::{Hedge, HedgeSettings, blend};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, WithPeak, climb, fit_peak,
     subset,
 };
 use super::observe::Observation;
-use super::plausible::{Plausibility, PlausibleSettings, make_plausible_shaped};
+use super::plausible::{
+    Plausibility, PlausibleSettings, albedo_curve, make_plausible, make_plausible_shaped,
+};
 use super::prior::{Candidate, CandidateValues, Prior};
 use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
@@ -69,6 +74,9 @@ pub struct CoreSettings {
     pub model: ModelSelection,
     /// Shrinkage, non-negativity and albedo of the written table.
     pub plausible: PlausibleSettings,
+    /// Model averaging with Lambert + GGX where the render is mostly unobserved
+    /// (`reconstruct::hedge`).
+    pub hedge: HedgeSettings,
     /// Keep the final fit of every family, not only the chosen one (studies compare them with
     /// the truth; costs one more analytic peak fit).
     pub keep_alternatives: bool,
@@ -87,6 +95,7 @@ impl Default for CoreSettings {
             ladder: LadderSettings::default(),
             model: ModelSelection::Auto,
             plausible: PlausibleSettings::default(),
+            hedge: HedgeSettings::default(),
             keep_alternatives: false,
         }
     }
@@ -429,7 +438,7 @@ pub fn reconstruct_observations(
         _ => None,
     };
     let typical = prior.typical();
-    let (table, plausibility) = make_plausible_shaped(
+    let (mut table, mut plausibility) = make_plausible_shaped(
         brdf.as_ref(),
         prior_model.as_ref().map(|p| {
             (
@@ -441,6 +450,22 @@ pub fn reconstruct_observations(
         &used,
         &settings.plausible,
     );
+    // Where held-out images cannot judge the extrapolation, average it with Lambert + GGX's.
+    if let Some(p) = &prior_model
+        && settings.hedge.strength > 0.0
+    {
+        let unseen_share = unseen_render_share(&table, &used);
+        let analytic_weight = settings.hedge.analytic_weight(unseen_share);
+        if analytic_weight > 0.0 {
+            let (analytic, _) = make_plausible(p, None, &used, &settings.plausible);
+            table = blend(&table, &analytic, analytic_weight);
+            plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);
+        }
+        plausibility.hedge = Some(Hedge {
+            unseen_share,
+            analytic_weight,
+        });
+    }
     timings.push(("plausible".to_string(), t.elapsed().as_secs_f64()));
 
     let t = Instant::now();

@@ -28,6 +28,7 @@ pub mod compare;
 pub mod components;
 pub mod confidence;
 pub mod core;
+pub mod hedge;
 pub mod job;
 pub mod ladder;
 pub mod mask_labels;

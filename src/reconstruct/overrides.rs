@@ -1,5 +1,6 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
-//! where an unobserved cell starts from, the ladder's smallest gain and its ridge weights. Each
+//! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
+//! hedge's strength. Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
@@ -13,6 +14,7 @@ pub struct CoreOverrides {
     pub theta_d_shape: Option<ThetaDShape>,
     pub min_gain: Option<f64>,
     pub etas: Option<Vec<f64>>,
+    pub hedge: Option<f64>,
 }
 
 impl CoreOverrides {
@@ -29,6 +31,9 @@ impl CoreOverrides {
         }
         if let Some(e) = &self.etas {
             core.components.etas = e.clone();
+        }
+        if let Some(h) = self.hedge {
+            core.hedge.strength = h;
         }
     }
 }
@@ -47,12 +52,14 @@ mod tests {
             theta_d_shape: Some(ThetaDShape::Basis),
             min_gain: Some(0.05),
             etas: Some(vec![0.01, 1.0]),
+            hedge: Some(0.0),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
         assert_eq!(core.plausible.theta_d_shape, ThetaDShape::Basis);
         assert_eq!(core.ladder.min_gain, 0.05);
         assert_eq!(core.components.etas, vec![0.01, 1.0]);
+        assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -116,6 +116,10 @@ pub struct Plausibility {
     pub scaled_bins: usize,
     /// What the prior was.
     pub prior: String,
+    /// The model averaging with Lambert + GGX after this step, where it was made
+    /// (`reconstruct::hedge`; absent in reports written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hedge: Option<super::hedge::Hedge>,
 }
 
 /// Pixels per (theta_h bin, theta_d bin), row-major in theta_h.
@@ -356,6 +360,7 @@ pub fn make_plausible_shaped(
         max_albedo_theta_deg: (arg as f64 + 0.5) / THETA_D_BINS as f64 * 90.0,
         scaled_bins: scaled.iter().filter(|s| **s).count(),
         prior: prior.map_or_else(|| "none".to_string(), |(_, name)| name.to_string()),
+        hedge: None,
     };
     (table, report)
 }

@@ -1,0 +1,147 @@
+//! Model averaging where the images cannot judge the result: the chosen data-driven table
+//! (the basis, or the basis with an analytic peak) blended, bin by bin and geometrically, with
+//! the Lambert + GGX fit of the same pixels, in proportion to the share of the result's
+//! environment render that comes from (theta_h, theta_d) cells no pixel observed.
+//!
+//! Why: the model ladder chooses by held-out images, and held-out images only see the cells
+//! the training images saw. With one light fixed to the camera (one theta_d) most of a rendered
+//! sphere comes from cells no image saw (60-70 % on the grid), and there the basis's
+//! extrapolation and Lambert + GGX's are two guesses that no held-out error can rank; which
+//! one is nearer the truth changes from material to material (docs/evaluation.md section 1m).
+//! Averaging the two guesses, in log space, bounds how far the written table can be from the
+//! better of them, at a small cost where the chosen one was right. Where every cell a render
+//! needs was seen (several lights), the weight is near zero and the result is the chosen model.
+//!
+//! The weight given to Lambert + GGX is `strength * unseen_share` (`strength` 0 turns the step
+//! off). Both tables are already plausible (non-negative, directional albedo at most 1); the
+//! weighted geometric mean is at most the weighted arithmetic mean, and the albedo is linear in
+//! the table, so the blend's albedo stays at most 1 as well.
+//!
+//! Pure: no I/O. Must not refit anything: it only combines two finished tables.
+
+use crate::brdf::coords::MERL_BINS;
+use crate::brdf::merl::MerlTable;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Knobs of the hedge.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HedgeSettings {
+    /// The weight of Lambert + GGX per unit share of the render from unobserved cells (0 to 1;
+    /// 0: off).
+    pub strength: f64,
+}
+
+impl Default for HedgeSettings {
+    fn default() -> Self {
+        Self { strength: 0.5 }
+    }
+}
+
+impl HedgeSettings {
+    /// The weight Lambert + GGX gets for a result whose render is `unseen_share` unobserved.
+    pub fn analytic_weight(&self, unseen_share: f64) -> f64 {
+        let u = if unseen_share.is_finite() {
+            unseen_share.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (self.strength.clamp(0.0, 1.0) * u).clamp(0.0, 1.0)
+    }
+}
+
+/// What the hedge did, for `report.json` (inside `plausibility`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Hedge {
+    /// Share of the chosen model's environment render from never-observed cells.
+    pub unseen_share: f64,
+    /// The weight given to Lambert + GGX (the exponent of its table in the geometric blend).
+    pub analytic_weight: f64,
+}
+
+/// `table^(1 - w) * analytic^w`, bin by bin and channel by channel. A bin missing from either
+/// table keeps the other's value; a zero in either gives zero (the geometric mean's own rule).
+pub fn blend(table: &MerlTable, analytic: &MerlTable, w: f64) -> MerlTable {
+    let w = if w.is_finite() {
+        w.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let values: Vec<Option<[f64; 3]>> = (0..MERL_BINS)
+        .into_par_iter()
+        .map(|index| match (table.get(index), analytic.get(index)) {
+            (Some(a), Some(b)) => Some([0, 1, 2].map(|c| {
+                let (x, y) = (a[c].max(0.0), b[c].max(0.0));
+                if x == 0.0 || y == 0.0 {
+                    0.0
+                } else {
+                    ((1.0 - w) * x.ln() + w * y.ln()).exp()
+                }
+            })),
+            (a, b) => a.or(b),
+        })
+        .collect();
+    let mut out = MerlTable::empty();
+    for (index, v) in values.into_iter().enumerate() {
+        if let Some(v) = v {
+            out.set(index, v);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::coords::MerlBin;
+    use crate::reconstruct::plausible::albedo_curve;
+
+    fn constant(v: [f64; 3]) -> MerlTable {
+        let mut t = MerlTable::empty();
+        for i in 0..MERL_BINS {
+            if MerlBin::from_index(i).is_some_and(|b| b.is_above_horizon()) {
+                t.set(i, v);
+            }
+        }
+        t
+    }
+
+    #[test]
+    fn the_weight_follows_the_unseen_share_and_zero_strength_turns_it_off() {
+        let s = HedgeSettings { strength: 0.5 };
+        assert_eq!(s.analytic_weight(0.0), 0.0);
+        assert!((s.analytic_weight(0.6) - 0.3).abs() < 1e-12);
+        assert_eq!(s.analytic_weight(f64::NAN), 0.0);
+        assert_eq!(s.analytic_weight(3.0), 0.5);
+        assert_eq!(HedgeSettings { strength: 0.0 }.analytic_weight(0.9), 0.0);
+    }
+
+    #[test]
+    fn the_blend_is_the_weighted_geometric_mean_and_keeps_the_albedo_at_most_one() {
+        // Two tables whose albedo is near 1 (f = a / pi): a white Lambertian and a darker one.
+        let a = constant([0.3 / std::f64::consts::PI; 3]);
+        let b = constant([0.99 / std::f64::consts::PI; 3]);
+        let m = blend(&a, &b, 0.25);
+        let i = MerlBin {
+            theta_h: 10,
+            theta_d: 20,
+            phi_d: 30,
+        }
+        .index();
+        let got = m.get(i).map(|v| v[0]);
+        let want = (0.75 * (0.3f64).ln() + 0.25 * (0.99f64).ln()).exp() / std::f64::consts::PI;
+        assert!(
+            got.is_some_and(|g| (g - want).abs() < 1e-12),
+            "{got:?} vs {want}"
+        );
+        let near = |x: Option<[f64; 3]>, y: Option<[f64; 3]>| {
+            x.zip(y)
+                .is_some_and(|(x, y)| (0..3).all(|c| (x[c] - y[c]).abs() < 1e-12))
+        };
+        assert!(near(blend(&a, &b, 0.0).get(i), a.get(i)));
+        assert!(near(blend(&a, &b, 1.0).get(i), b.get(i)));
+        let top = albedo_curve(&m).into_iter().fold(0.0, f64::max);
+        assert!(top <= 1.0, "largest albedo {top}");
+        assert!(top > 0.3, "largest albedo {top}");
+    }
+}
