@@ -255,7 +255,10 @@ fn example_report(job: PathBuf) -> Report {
             max_albedo_theta_deg: 10.0,
             scaled_bins: 0,
             prior: "basis mean".into(),
-            hedge: None,
+            hedge: Some(brdf_rig::reconstruct::hedge::Hedge {
+                unseen_share: 0.25,
+                analytic_weight: 0.125,
+            }),
         },
         comparisons: Vec::new(),
         confidence: Confidence {
@@ -410,6 +413,8 @@ fn report_renders_in_headless_chromium() {
         "Provenance: basis built from neural fits &lt;not measured&gt;",
         "channel 1: 1 shots",
         "rasterise",
+        "25 % of the rendered sphere from cells no pixel observed; Lambert + GGX's weight in the \
+         written table 0.12",
     ] {
         assert!(dom.contains(text), "page lacks {text:?}");
     }

@@ -391,7 +391,18 @@ fn ladder_section(r: &Report) -> LadderSection {
         rows,
         plausibility: fields_as_text(&r.plausibility)
             .into_iter()
-            .map(|(k, v)| (k.replace('_', " "), v))
+            .map(|(k, v)| match (k.as_str(), &r.plausibility.hedge) {
+                ("hedge", Some(h)) => (
+                    "hedge (averaged with Lambert + GGX)".to_string(),
+                    format!(
+                        "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + \
+                         GGX's weight in the written table {:.2} (docs/reconstruction.md, stage 6)",
+                        100.0 * h.unseen_share,
+                        h.analytic_weight
+                    ),
+                ),
+                _ => (k.replace('_', " "), v),
+            })
             .collect(),
     }
 }
