@@ -61,22 +61,30 @@ fn small_core() -> CoreSettings {
     core
 }
 
-#[test]
-fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
-    let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
-    let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
-    let spec = small_spec(spot, Rig::Spread, small_core());
+/// Runs the miniature grid in a scratch folder, with the tests' shared basis cache.
+fn run_small(
+    spec: &AccuracySpec,
+    materials: &[(String, brdf_rig::brdf::nbrdf::Nbrdf)],
+) -> Vec<brdf_rig::eval::accuracy::SceneResult> {
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");
-    let results = run(
-        &spec,
-        &materials,
+    run(
+        spec,
+        materials,
         &cache,
         scratch.path(),
         &mut |_| {},
         &mut |_| {},
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
+    let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
+    let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
+    let spec = small_spec(spot, Rig::Spread, small_core());
+    let results = run_small(&spec, &materials);
     assert_eq!(results.len(), 1);
     let r = &results[0];
     let all = r.all().expect("all three assumptions ran");
@@ -124,22 +132,11 @@ fn one_light_results_are_hedged_towards_lambert_ggx_by_the_unseen_share() {
     let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
     let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
     let rig = Rig::OneLight { alpha_deg: 30.0 };
-    let cache = std::env::temp_dir().join("brdf-rig-test-basis");
     let mut runs = Vec::new();
     for strength in [0.5, 0.0] {
         let mut core = small_core();
         core.hedge.strength = strength;
-        let spec = small_spec(spot.clone(), rig, core);
-        let scratch = tempfile::tempdir().unwrap();
-        let results = run(
-            &spec,
-            &materials,
-            &cache,
-            scratch.path(),
-            &mut |_| {},
-            &mut |_| {},
-        )
-        .unwrap();
+        let results = run_small(&small_spec(spot.clone(), rig, core), &materials);
         let r = &results[0];
         let all = r.all().expect("all three assumptions ran").clone();
         let ggx = r.lambert_ggx.expect("Lambert+GGX fitted").environment;
