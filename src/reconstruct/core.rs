@@ -75,7 +75,8 @@ pub struct CoreSettings {
     /// Shrinkage, non-negativity and albedo of the written table.
     pub plausible: PlausibleSettings,
     /// Model averaging with Lambert + GGX where the render is mostly unobserved
-    /// (`reconstruct::hedge`).
+    /// (`reconstruct::hedge`). Off in reports written before it existed.
+    #[serde(default = "HedgeSettings::off")]
     pub hedge: HedgeSettings,
     /// Keep the final fit of every family, not only the chosen one (studies compare them with
     /// the truth; costs one more analytic peak fit).
@@ -676,6 +677,22 @@ mod tests {
     use super::super::components::held_out_error;
     use super::super::prior::synthetic::{CosinePrior, cap_pixels};
     use super::*;
+
+    #[test]
+    fn settings_written_before_the_hedge_read_back_with_it_off() {
+        let mut json = serde_json::to_value(CoreSettings::default()).unwrap();
+        let old = json.as_object_mut().unwrap();
+        assert!(old.remove("hedge").is_some());
+        let read: CoreSettings = serde_json::from_value(json).unwrap();
+        assert_eq!(read.hedge.strength, 0.0);
+        assert_eq!(
+            CoreSettings {
+                hedge: HedgeSettings::default(),
+                ..read
+            },
+            CoreSettings::default()
+        );
+    }
 
     /// Noisy pixels, so the trials (different pixel subsets) differ.
     fn scene() -> Vec<Observation> {
