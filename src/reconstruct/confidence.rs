@@ -365,11 +365,16 @@ mod tests {
         }
     }
 
+    /// One pixel per (theta_h, theta_d) degree, theta_h below `h_max`, theta_d over 0-89.
+    fn cells(h_max: usize) -> Vec<Observation> {
+        (0..h_max)
+            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
+            .collect()
+    }
+
     #[test]
     fn agreeing_trials_over_a_wide_domain_are_trusted() {
-        let obs: Vec<Observation> = (0..90)
-            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
-            .collect();
+        let obs: Vec<Observation> = cells(90);
         let refs: Vec<&Observation> = obs.iter().collect();
         let (a, b) = (Const(0.3), Const(0.31));
         let c = assess(
@@ -414,9 +419,7 @@ mod tests {
 
     #[test]
     fn a_single_trial_has_no_disagreement_figure() {
-        let obs: Vec<Observation> = (0..90)
-            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
-            .collect();
+        let obs: Vec<Observation> = cells(90);
         let refs: Vec<&Observation> = obs.iter().collect();
         let c = assess(
             &CandidateValues(&Const(0.2)),
@@ -431,9 +434,7 @@ mod tests {
 
     #[test]
     fn a_held_out_miss_every_model_shares_lowers_the_verdict_to_medium_at_most() {
-        let obs: Vec<Observation> = (0..40)
-            .flat_map(|h| (0..90).map(move |d| obs(h as f64, d as f64 * 0.99)))
-            .collect();
+        let obs: Vec<Observation> = cells(40);
         let reliable: Vec<&Observation> = obs.iter().collect();
         let (a, b) = (Const(0.3), Const(0.31));
         let judge_with = |analytic: Option<f64>| {
