@@ -249,6 +249,24 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         .unwrap();
     assert_eq!(file.count, 2, "{}", file.reason);
     assert_eq!(file.materials.len(), 2);
+    // the pixels on faces across the boundary are counted, left out of both fits, and said
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    for m in &file.materials {
+        assert!(
+            m.boundary_pixels > 0 && 2 * m.boundary_pixels < m.observed_pixels,
+            "{}: {} of {} pixels on the boundary",
+            m.name,
+            m.boundary_pixels,
+            m.observed_pixels
+        );
+        assert!(
+            stderr.contains(&format!(
+                "{} pixels ({} on faces across a boundary, left out of its fit)",
+                m.observed_pixels, m.boundary_pixels
+            )),
+            "{stderr}"
+        );
+    }
     for m in &file.materials {
         let table = brdf_rig::brdf::merl::MerlTable::read(&out.join(&m.file)).unwrap();
         assert!(table.get(0).is_some(), "{} reads back", m.file);
@@ -272,6 +290,13 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         assert!(s.contains(&format!("id=\"material-{}\"", i + 1)), "{s}");
         let reason = brdf_rig::report::html::escape(&m.model_reason);
         assert!(s.contains(&m.name) && s.contains(&reason), "{}", m.name);
+        assert!(
+            s.contains(&format!(
+                "{} pixels on faces across a boundary",
+                m.boundary_pixels
+            )),
+            "{s}"
+        );
         assert_eq!(
             s.matches("<img src=\"data:image/png;base64,").count(),
             3,

@@ -36,6 +36,10 @@ pub struct BenchMaterialsArgs {
     /// The largest number of materials the segmentation tries (1 to 8).
     #[arg(long, default_value_t = 4, value_parser = int_in(1usize, 8))]
     pub max_materials: usize,
+    /// Fit each found material to every pixel of its label, the boundary faces' too
+    /// (`reconstruct --keep-boundary-pixels`; by default they are left out).
+    #[arg(long)]
+    pub keep_boundary_pixels: bool,
     /// Output folder for materials.md and materials.json.
     #[arg(long, default_value = "docs/eval/materials")]
     pub out: PathBuf,
@@ -53,13 +57,18 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
         a.rigs.join(","),
         a.one_light_deg,
         a.max_materials,
+        if a.keep_boundary_pixels {
+            " --keep-boundary-pixels"
+        } else {
+            ""
+        },
         a.out.display()
     );
     let options = MaterialsBenchOptions {
@@ -69,6 +78,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         seeds: a.seeds,
         rigs,
         max_materials: a.max_materials,
+        keep_boundary_pixels: a.keep_boundary_pixels,
         out: a.out.clone(),
         command,
     };

@@ -135,6 +135,11 @@ pub struct Args {
     /// With `--materials auto`: the largest number of materials tried (1 to 8).
     #[arg(long, default_value_t = 4, value_parser = int_in(1usize, 8))]
     pub max_materials: usize,
+    /// With `--materials auto`: fit each material to every pixel of its label, those on faces
+    /// across a boundary too (by default they are left out of every material's fit: they may
+    /// mix two materials; docs/materials.md, "Boundary pixels").
+    #[arg(long)]
+    pub keep_boundary_pixels: bool,
     /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
     /// "Cost at camera resolution"; slower and larger at camera resolutions).
     #[arg(long)]
@@ -276,6 +281,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.materials == MaterialsArg::Auto {
         settings.materials = Some(reconstruct::segment::SegmentSettings {
             max_materials: args.max_materials,
+            fit_interior_only: !args.keep_boundary_pixels,
             ..Default::default()
         });
     }
@@ -305,8 +311,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let given = e
                 .mask_label
                 .map_or(String::new(), |l| format!(" (mask label {l})"));
+            let boundary = if e.boundary_pixels > 0 {
+                format!(
+                    " ({} on faces across a boundary, left out of its fit)",
+                    e.boundary_pixels
+                )
+            } else {
+                String::new()
+            };
             errln!(
-                "  {}{given}: {} pixels, {}, confidence {}; wrote {}",
+                "  {}{given}: {} pixels{boundary}, {}, confidence {}; wrote {}",
                 e.name,
                 e.observed_pixels,
                 e.model,

@@ -20,9 +20,10 @@ use crate::geometry::zbuffer::face_buffer;
 use crate::reconstruct::core::{CoreSettings, reconstruct_observations};
 use crate::reconstruct::materials::reconstruct_materials;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
+use crate::reconstruct::observation::Observation;
 use crate::reconstruct::observe::{NO_FACE, ObserveSettings};
 use crate::reconstruct::prepare::observe_scene;
-use crate::reconstruct::segment::SegmentSettings;
+use crate::reconstruct::segment::{SegmentSettings, interior_groups};
 use crate::sim::job_scene::{view_geometry, write_scene_materials};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -225,15 +226,20 @@ pub fn run(
                             })
                             .collect()
                     };
+                    // the pixels each material's fit had (the baselines get the same)
+                    let (mut groups, _) = interior_groups(
+                        &loaded.mesh,
+                        &m.segmentation.vertex_labels,
+                        m.segmentation.count,
+                        &obs,
+                        m.settings.fit_interior_only,
+                    );
                     for (i, (name, table, model, confidence)) in tables.into_iter().enumerate() {
-                        let own: Vec<_> = obs
-                            .iter()
-                            .filter(|o| {
-                                cores.is_empty()
-                                    || m.segmentation.label_of(&loaded.mesh, o) == Some(i as u32)
-                            })
-                            .copied()
-                            .collect();
+                        let own: Vec<Observation> = if cores.is_empty() {
+                            obs.to_vec()
+                        } else {
+                            groups.get_mut(i).map(std::mem::take).unwrap_or_default()
+                        };
                         let mut votes = vec![0usize; names.len()];
                         for o in &own {
                             if o.face != NO_FACE

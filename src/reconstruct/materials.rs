@@ -14,7 +14,9 @@ use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_
 use super::mask_labels::FixedLabels;
 use super::observation::Observation;
 use super::prior::Prior;
-use super::segment::{CountScore, SegmentSettings, Segmentation, segment_with_labels};
+use super::segment::{
+    CountScore, SegmentSettings, Segmentation, interior_groups, segment_with_labels,
+};
 use crate::brdf::merl::MerlTable;
 use crate::format::{FormatError, Versioned};
 use crate::geometry::mesh::Mesh;
@@ -52,6 +54,9 @@ pub struct MaterialResult {
     pub name: String,
     /// Its observations (pixels).
     pub observed_pixels: usize,
+    /// Of those, the pixels on faces across a boundary, left out of its fit
+    /// ([`SegmentSettings::fit_interior_only`]).
+    pub boundary_pixels: usize,
     /// Mesh vertices observed with this label.
     pub observed_vertices: usize,
     /// Mean chromaticity of its pixels (r, g, b shares).
@@ -112,15 +117,16 @@ pub fn reconstruct_materials(
     let mut results = Vec::new();
     let mut cores = Vec::new();
     if segmentation.count > 1 {
-        let mut groups: Vec<Vec<Observation>> = vec![Vec::new(); segmentation.count];
-        for o in observations {
-            if let Some(l) = segmentation.label_of(mesh, o) {
-                groups[l as usize].push(*o);
-            }
-        }
+        let (mut groups, mut boundary) = interior_groups(
+            mesh,
+            &segmentation.vertex_labels,
+            segmentation.count,
+            observations,
+            settings.fit_interior_only,
+        );
         // largest first, labels renumbered to match
         let mut order: Vec<usize> = (0..groups.len()).collect();
-        order.sort_by_key(|&i| std::cmp::Reverse(groups[i].len()));
+        order.sort_by_key(|&i| std::cmp::Reverse(groups[i].len() + boundary[i]));
         let mut new_label = vec![0u32; order.len()];
         for (new, &old) in order.iter().enumerate() {
             new_label[old] = new as u32;
@@ -141,6 +147,7 @@ pub fn reconstruct_materials(
             .map(|&i| segmentation.fixed_vertices[i])
             .collect();
         mask_labels = order.iter().map(|&i| mask_labels[i]).collect();
+        boundary = order.iter().map(|&i| boundary[i]).collect();
         let groups: Vec<Vec<Observation>> = order
             .iter()
             .map(|&i| std::mem::take(&mut groups[i]))
@@ -191,7 +198,8 @@ pub fn reconstruct_materials(
             })?;
             results.push(MaterialResult {
                 name,
-                observed_pixels: obs.len(),
+                observed_pixels: obs.len() + boundary[i],
+                boundary_pixels: boundary[i],
                 observed_vertices: segmentation.observed_vertices[i],
                 chromaticity: segmentation.chromaticity[i],
                 mask_label: mask_labels[i],
@@ -233,6 +241,10 @@ pub struct MaterialEntry {
     /// Its MERL table, relative to the folder of `materials.json`.
     pub file: String,
     pub observed_pixels: usize,
+    /// Of `observed_pixels`, those on faces across a boundary, left out of its fit (0 in a
+    /// file written before they were).
+    #[serde(default)]
+    pub boundary_pixels: usize,
     pub observed_vertices: usize,
     /// Mean chromaticity of its pixels (r, g, b shares).
     pub chromaticity: [f64; 3],
@@ -293,6 +305,7 @@ impl MaterialsFile {
                     name: r.name.clone(),
                     file: material_file(&r.name),
                     observed_pixels: r.observed_pixels,
+                    boundary_pixels: r.boundary_pixels,
                     observed_vertices: r.observed_vertices,
                     chromaticity: r.chromaticity,
                     mask_label: r.mask_label,

@@ -70,6 +70,11 @@ pub struct SegmentSettings {
     /// The model fitted per material to score a count on held-out images.
     pub count_model: CountModel,
     pub seed: u64,
+    /// Fit each material's BRDF only to the pixels of faces whose three corners all carry its
+    /// label ([`interior_groups`]). `false` (what a `materials.json` written before it means):
+    /// every pixel goes to the material of the face corner nearest to it.
+    #[serde(default)]
+    pub fit_interior_only: bool,
 }
 
 impl Default for SegmentSettings {
@@ -87,6 +92,7 @@ impl Default for SegmentSettings {
             max_fit_pixels: 1500,
             count_model: CountModel::SharedShape,
             seed: 0x5E6,
+            fit_interior_only: true,
         }
     }
 }
@@ -152,6 +158,56 @@ impl Segmentation {
         let v = nearest_corner(mesh, o)?;
         self.vertex_labels.get(v).copied()
     }
+}
+
+/// The pixels of each of `count` materials that its fit uses, and how many of the pixels
+/// labelled with it were left out. A pixel belongs to the material of its face's nearest corner
+/// ([`Segmentation::label_of`]); with `interior_only`, a pixel whose face has corners of
+/// another material is left out of every fit: it may mix two materials (the camera sees both
+/// across the boundary), and the boundary is where the labels themselves are least sure. A
+/// material keeps every pixel when its interior ones would be fewer than half of them (a thin
+/// strip, or labels broken into specks): a fit to a few boundary-free pixels is worse than one
+/// to some mixed ones. Pure.
+pub fn interior_groups(
+    mesh: &Mesh,
+    vertex_labels: &[u32],
+    count: usize,
+    observations: &[Observation],
+    interior_only: bool,
+) -> (Vec<Vec<Observation>>, Vec<usize>) {
+    let mut all: Vec<Vec<Observation>> = vec![Vec::new(); count];
+    let mut inner: Vec<Vec<Observation>> = vec![Vec::new(); count];
+    for o in observations {
+        let Some(l) = nearest_corner(mesh, o)
+            .and_then(|v| vertex_labels.get(v))
+            .map(|&l| l as usize)
+            .filter(|&l| l < count)
+        else {
+            continue;
+        };
+        all[l].push(*o);
+        let pure = mesh.faces().get(o.face as usize).is_some_and(|f| {
+            f.iter().all(|&v| {
+                vertex_labels
+                    .get(v as usize)
+                    .is_some_and(|&x| x as usize == l)
+            })
+        });
+        if interior_only && pure {
+            inner[l].push(*o);
+        }
+    }
+    all.into_iter()
+        .zip(inner)
+        .map(|(all, inner)| {
+            if interior_only && inner.len() * 2 >= all.len() {
+                let dropped = all.len() - inner.len();
+                (inner, dropped)
+            } else {
+                (all, 0)
+            }
+        })
+        .unzip()
 }
 
 /// The vertex of `o`'s face nearest to where it was seen.
@@ -1023,6 +1079,55 @@ pub(crate) mod tests {
         // the held-out error of two materials is far below that of one
         let e = |n: usize| s.scores.iter().find(|c| c.found == n).and_then(|c| c.error);
         assert!(e(2).unwrap() < 0.5 * e(1).unwrap(), "{:?}", s.scores);
+    }
+
+    #[test]
+    fn boundary_faces_are_left_out_of_the_fits_unless_a_material_would_lose_half() {
+        let mesh = grid(8);
+        let obs = scene(&mesh, &[ggx([0.3, 0.2, 0.1], 0.3)], 8.0, 2);
+        let p = mesh.positions();
+        // Two materials split at x = 3.5, and a third that is one column of vertices (x = 7):
+        // no face has all three corners in it.
+        let labels: Vec<u32> = p
+            .iter()
+            .map(|v| match v.x {
+                x if x < 3.5 => 0,
+                x if x > 6.5 => 2,
+                _ => 1,
+            })
+            .collect();
+        let seg = Segmentation {
+            count: 3,
+            vertex_labels: labels.clone(),
+            observed_vertices: vec![0; 3],
+            chromaticity: vec![[1.0 / 3.0; 3]; 3],
+            fixed_vertices: vec![0; 3],
+            given: 0,
+            scores: Vec::new(),
+            reason: String::new(),
+        };
+        let (all, none_dropped) = interior_groups(&mesh, &labels, 3, &obs, false);
+        assert_eq!(none_dropped, vec![0, 0, 0]);
+        for (l, g) in all.iter().enumerate() {
+            assert!(!g.is_empty());
+            assert!(g.iter().all(|o| seg.label_of(&mesh, o) == Some(l as u32)));
+        }
+        let (inner, dropped) = interior_groups(&mesh, &labels, 3, &obs, true);
+        let pure = |o: &Observation, l: usize| {
+            mesh.faces()[o.face as usize]
+                .iter()
+                .all(|&v| labels[v as usize] as usize == l)
+        };
+        for l in 0..2 {
+            assert!(inner[l].iter().all(|o| pure(o, l)), "material {l}");
+            let mixed = all[l].iter().filter(|o| !pure(o, l)).count();
+            assert!(mixed > 0, "material {l} has boundary pixels");
+            assert_eq!(dropped[l], mixed);
+            assert_eq!(inner[l].len() + dropped[l], all[l].len());
+        }
+        // The one-column material has no interior face: it keeps every pixel.
+        assert_eq!(dropped[2], 0);
+        assert_eq!(inner[2].len(), all[2].len());
     }
 
     #[test]

@@ -498,6 +498,17 @@ fn section_material(
         &[
             ("label in material_map.ply".into(), i.to_string()),
             ("observed pixels".into(), e.observed_pixels.to_string()),
+            (
+                "left out of its fit".into(),
+                if e.boundary_pixels > 0 {
+                    format!(
+                        "{} pixels on faces across a boundary with another material (they may mix the two)",
+                        e.boundary_pixels
+                    )
+                } else {
+                    "none".to_string()
+                },
+            ),
             ("observed vertices".into(), e.observed_vertices.to_string()),
             (
                 "found by".into(),

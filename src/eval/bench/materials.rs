@@ -22,6 +22,9 @@ pub struct MaterialsBenchOptions {
     pub seeds: u64,
     pub rigs: Vec<Rig>,
     pub max_materials: usize,
+    /// Fit each material to the boundary faces' pixels too (`SegmentSettings::fit_interior_only`
+    /// off).
+    pub keep_boundary_pixels: bool,
     /// Folder of materials.md and materials.json.
     pub out: PathBuf,
     /// The command as typed, quoted by the page.
@@ -62,6 +65,7 @@ pub fn run(
         core: c.core,
         segment: SegmentSettings {
             max_materials: o.max_materials,
+            fit_interior_only: !o.keep_boundary_pixels,
             ..SegmentSettings::default()
         },
         seeds: o.seeds.max(1),
