@@ -6,10 +6,18 @@
 //!
 //! `cargo run --release --example ladder_study -- [MATERIALS] [MESHES] [RIGS] [SEEDS]`
 //! (comma lists; defaults: the paper's six, spot,bunny, spread,one-light, 1). Scenes are
-//! written once to `$STUDY_DIR` (default /tmp/ladder-study) and reused.
+//! written once to `$STUDY_DIR` (default /tmp/ladder-study) and reused; `$SIZE` (`WxH`,
+//! default 128x96) sets their light images' size. With `DIAG=1`, per scene also: where in
+//! (theta_h, theta_d) the rendered error lies (each region set to the truth in turn), the
+//! pixels in the grazing peak, a per-cell correction of the table by its pixels' residuals,
+//! the families' training error weighted by each cell's share of the render, and cell-wise
+//! blends with Lambert + GGX by the cell's pixel count (docs/evaluation.md section 1n).
 
+use brdf_rig::brdf::BinValues;
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
+use brdf_rig::brdf::coords::MerlBin;
+use brdf_rig::brdf::merl::MerlTable;
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
 use brdf_rig::eval::{
     PAPER_MATERIALS, Perturb, Truth, baseline_errors, find_material, observe_case,
@@ -22,7 +30,7 @@ use brdf_rig::reconstruct::ladder::{AnalyticCandidate, ChoiceRule, Family, choos
 use brdf_rig::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use brdf_rig::reconstruct::observe::{Observation, ObserveSettings};
 use brdf_rig::reconstruct::plausible::{PlausibleSettings, make_plausible};
-use brdf_rig::reconstruct::prior::Candidate;
+use brdf_rig::reconstruct::prior::{Candidate, CandidateValues};
 use brdf_rig::reconstruct::reliable::select_reliable;
 use brdf_rig::sim::job_scene::{SceneSpec, write_scene};
 use std::path::PathBuf;
@@ -79,6 +87,7 @@ fn main() -> anyhow::Result<()> {
     };
     let mut rows: Vec<Row> = Vec::new();
     let mut blends: Vec<(String, f64, Vec<f64>)> = Vec::new();
+    let mut locals: Vec<(String, f64, Vec<f64>)> = Vec::new();
     let mut dump: Vec<serde_json::Value> = Vec::new();
     for name in &materials_wanted {
         let net = find_material(&materials, name)?;
@@ -102,10 +111,17 @@ fn main() -> anyhow::Result<()> {
                     let job = if job_file.exists() {
                         Job::from_file(&job_file)?
                     } else {
-                        let spec = match rig.as_str() {
+                        let mut spec = match rig.as_str() {
                             "one-light" => SceneSpec::one_light(30.0),
                             _ => SceneSpec::default(),
                         };
+                        if let Ok(size) = std::env::var("SIZE") {
+                            let (w, h) = size
+                                .split_once('x')
+                                .ok_or_else(|| anyhow::anyhow!("SIZE={size:?}: write WxH"))?;
+                            spec.width = w.parse()?;
+                            spec.height = h.parse()?;
+                        }
                         let sfm = sfm_like(
                             &mesh,
                             &SfmLikeParams {
@@ -208,6 +224,23 @@ fn main() -> anyhow::Result<()> {
                                 out.model.family, out.confidence.unseen_energy
                             );
                             blends.push((rig.clone(), better, errs));
+                            if std::env::var("DIAG").is_ok() {
+                                let fams: Vec<(String, &dyn Candidate)> =
+                                    fams.iter().map(|(f, c)| (f.to_string(), *c)).collect();
+                                let hedged =
+                                    out.plausibility.hedge.map_or(0.0, |h| h.analytic_weight);
+                                let errs = diagnose(&Diag {
+                                    truth: &truth,
+                                    net,
+                                    table: &out.table,
+                                    analytic: &lg_t,
+                                    ggx: ggx_model.as_ref().map(|m| m as &dyn Candidate),
+                                    families: &fams,
+                                    used: &used,
+                                    hedged,
+                                });
+                                locals.push((rig.clone(), better, errs));
+                            }
                         }
                     }
                     let mut choices = Vec::new();
@@ -260,6 +293,25 @@ fn main() -> anyhow::Result<()> {
                     rows.push((label, rig.clone(), better, per_family, choices));
                 }
             }
+        }
+    }
+    for rig in ["spread", "one-light", "all"] {
+        let ls: Vec<_> = locals
+            .iter()
+            .filter(|b| rig == "all" || b.0 == rig)
+            .collect();
+        if let Some(first) = ls.first() {
+            let mut line = format!(
+                "cell-wise blends {rig} (as written, then cell 5|10 x s .5,1 x n0 3,10,30):"
+            );
+            for i in 0..first.2.len() {
+                let r: Vec<f64> = ls.iter().map(|b| b.1 / b.2[i]).collect();
+                let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
+                let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+                let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
+                line += &format!(" {g:.3}({min:.2},{worse})");
+            }
+            println!("{line}");
         }
     }
     for rig in ["spread", "one-light", "all"] {
@@ -361,6 +413,311 @@ impl brdf_rig::brdf::BinValues for Blend<'_> {
                     };
                 }
                 o
+            })
+            .collect()
+    }
+}
+
+/// What [`diagnose`] reads of one scene.
+struct Diag<'a> {
+    truth: &'a Truth,
+    net: &'a dyn BinValues,
+    /// The result as written.
+    table: &'a MerlTable,
+    /// Lambert + GGX, plausible (the hedge's partner).
+    analytic: &'a MerlTable,
+    ggx: Option<&'a dyn Candidate>,
+    families: &'a [(String, &'a dyn Candidate)],
+    used: &'a [&'a Observation],
+    /// The hedge's weight already in `table`.
+    hedged: f64,
+}
+
+/// `(theta_h, theta_d)` of a bin's centre, degrees (theta_h in MERL's square-root spacing).
+fn angles_deg(bin: usize) -> Option<(f64, f64)> {
+    let m = MerlBin::from_index(bin)?;
+    let h = (m.theta_h as f64 + 0.5) / 90.0;
+    Some((h * h * 90.0, m.theta_d as f64 + 0.5))
+}
+
+/// Cell of `cell x cell` (theta_h, theta_d) bins.
+fn cell_of(bin: usize, cell: usize) -> Option<usize> {
+    let m = MerlBin::from_index(bin)?;
+    Some((m.theta_h / cell) * 90usize.div_ceil(cell) + m.theta_d / cell)
+}
+
+/// Pixels per cell.
+fn counts(used: &[&Observation], cell: usize) -> Vec<usize> {
+    let mut n = vec![0usize; 90usize.div_ceil(cell).pow(2)];
+    for c in used.iter().filter_map(|o| cell_of(o.bin, cell)) {
+        n[c] += 1;
+    }
+    n
+}
+
+/// Prints the diagnosis (see the module header); returns the environment errors of the table
+/// as written and of the cell-wise blends, for the summary.
+fn diagnose(d: &Diag) -> Vec<f64> {
+    let env = |v: &dyn BinValues| d.truth.errors_of(v).environment;
+    // 1. Where the error lies: each region set to the truth in turn.
+    let ggx_values = d.ggx.map(CandidateValues);
+    let h_ranges = [
+        (0.0, 2.0),
+        (2.0, 8.0),
+        (8.0, 20.0),
+        (20.0, 45.0),
+        (45.0, 90.0),
+    ];
+    let d_ranges = [(0.0, 30.0), (30.0, 60.0), (60.0, 75.0), (75.0, 90.0)];
+    eprintln!(
+        "   error with one region set to the truth; theta_h {h_ranges:?} x theta_d {d_ranges:?}"
+    );
+    for (label, rec) in [
+        ("ours", Some(d.table as &dyn BinValues)),
+        ("L+GGX", ggx_values.as_ref().map(|v| v as &dyn BinValues)),
+    ] {
+        let Some(rec) = rec else { continue };
+        let mut line = format!("   {label:<6} {:.3} |", env(rec));
+        for &h in &h_ranges {
+            for &dd in &d_ranges {
+                let swapped = Swap {
+                    rec,
+                    truth: d.net,
+                    h,
+                    d: dd,
+                };
+                line += &format!(" {:.3}", env(&swapped));
+            }
+            line += " |";
+        }
+        eprintln!("{line}");
+    }
+    // 2. The pixels in the grazing peak (theta_h < 8, theta_d >= 55 degrees).
+    let peak = |b: usize| angles_deg(b).is_some_and(|(h, dd)| h < 8.0 && dd >= 55.0);
+    let bins: Vec<usize> = d.truth.bins.iter().copied().filter(|&b| peak(b)).collect();
+    let mean = |v: Vec<[f64; 3]>| {
+        v.iter().map(|x| x[0] + x[1] + x[2]).sum::<f64>() / v.len().max(1) as f64
+    };
+    eprintln!(
+        "   {} pixels used, {} in the grazing peak; its mean f (r + g + b): truth {:.2}, ours {:.2}, L+GGX {:.2}",
+        d.used.len(),
+        d.used.iter().filter(|o| peak(o.bin)).count(),
+        mean(d.net.values_at(&bins)),
+        mean(d.table.values_at(&bins)),
+        ggx_values
+            .as_ref()
+            .map_or(f64::NAN, |v| mean(v.values_at(&bins)))
+    );
+    // 3. The table times each cell's mean pixel / table ratio, shrunk by the cell's count.
+    let pred = d
+        .table
+        .values_at(&d.used.iter().map(|o| o.bin).collect::<Vec<_>>());
+    let mut line = "   residual correction:".to_string();
+    for cell in [5usize, 10] {
+        let mut sum = vec![[0.0f64; 3]; 90usize.div_ceil(cell).pow(2)];
+        let mut cnt = vec![0usize; sum.len()];
+        for (o, p) in d.used.iter().zip(&pred) {
+            if let Some(c) = cell_of(o.bin, cell)
+                && (0..3).all(|k| o.reflectance[k] > 0.0 && p[k] > 0.0)
+            {
+                for k in 0..3 {
+                    sum[c][k] += (o.reflectance[k] / p[k]).ln();
+                }
+                cnt[c] += 1;
+            }
+        }
+        for n0 in [10.0, 50.0, 200.0] {
+            let c = Corrected {
+                rec: d.table,
+                cell,
+                sum: &sum,
+                cnt: &cnt,
+                n0,
+            };
+            line += &format!(" cell {cell} n0 {n0}: {:.3}", env(&c));
+        }
+    }
+    eprintln!("{line}");
+    // 4. Training log error with each pixel weighted by (its cell's share of the Lambert +
+    //    GGX render / the cell's pixels)^lambda: does it rank the families as the render does?
+    if let Some(g) = d.ggx {
+        let probe = brdf_rig::eval::probe();
+        let vals = CandidateValues(g).values_at(probe.bins());
+        let energy = |v: &[[f64; 3]]| -> f64 {
+            probe
+                .render_values(v)
+                .environment
+                .iter()
+                .flatten()
+                .map(|x| x.max(0.0))
+                .sum()
+        };
+        let total = energy(&vals);
+        let cnt = counts(d.used, 10);
+        let share: Vec<f64> = (0..cnt.len())
+            .map(|c| {
+                let masked: Vec<[f64; 3]> = probe
+                    .bins()
+                    .iter()
+                    .zip(&vals)
+                    .map(|(&b, v)| {
+                        if cell_of(b, 10) == Some(c) {
+                            *v
+                        } else {
+                            [0.0; 3]
+                        }
+                    })
+                    .collect();
+                energy(&masked) / total
+            })
+            .collect();
+        let mut radiance: Vec<f64> = d
+            .used
+            .iter()
+            .map(|o| o.radiance.iter().sum::<f64>() / 3.0)
+            .collect();
+        radiance.sort_by(f64::total_cmp);
+        let scale = radiance
+            .get(radiance.len() / 2)
+            .copied()
+            .unwrap_or(1.0)
+            .max(1e-12);
+        let mut line = "   render-weighted training error:".to_string();
+        for lambda in [0.0, 0.5, 1.0] {
+            line += &format!(" lambda {lambda}:");
+            for (name, c) in d.families {
+                let (mut num, mut den) = (0.0, 0.0);
+                for o in d.used {
+                    let Some(cc) = cell_of(o.bin, 10) else {
+                        continue;
+                    };
+                    let w = (share[cc] / cnt[cc] as f64).powf(lambda);
+                    let f = c.eval_bin(o.bin);
+                    #[allow(clippy::needless_range_loop)] // three parallel channel arrays
+                    for ch in 0..3 {
+                        let a = (1.0 + (f[ch] * o.irradiance[ch] * o.cos_theta_i).max(0.0) / scale)
+                            .ln();
+                        let b = (1.0 + o.radiance[ch].max(0.0) / scale).ln();
+                        if a.is_finite() && b.is_finite() {
+                            num += w * (a - b) * (a - b);
+                            den += w * b * b;
+                        }
+                    }
+                }
+                line += &format!(" {name} {:.4}", num / den);
+            }
+        }
+        eprintln!("{line}");
+        let envs: Vec<String> = d
+            .families
+            .iter()
+            .map(|(name, c)| format!("{name} {:.3}", d.truth.errors_of_candidate(*c).environment))
+            .collect();
+        eprintln!("   rendered: {}", envs.join(", "));
+    }
+    // 5. Cell-wise blends: weight max(hedged, s n0 / (n + n0)) of Lambert + GGX per cell.
+    let mut errs = vec![env(d.table)];
+    let mut line = "   cell-wise blends (cell 5|10; s .5,1 x n0 3,10,30):".to_string();
+    for cell in [5usize, 10] {
+        let cnt = counts(d.used, cell);
+        for s in [0.5, 1.0] {
+            for n0 in [3.0, 10.0, 30.0] {
+                let b = CellBlend {
+                    a: d.table,
+                    b: d.analytic,
+                    cell,
+                    cnt: &cnt,
+                    s,
+                    n0,
+                    hedged: d.hedged,
+                };
+                let e = env(&b);
+                line += &format!(" {e:.3}");
+                errs.push(e);
+            }
+        }
+        line += " |";
+    }
+    eprintln!("{line}");
+    errs
+}
+
+/// `rec` with the bins whose (theta_h, theta_d) lie in `h` x `d` (degrees) from the truth.
+struct Swap<'a> {
+    rec: &'a dyn BinValues,
+    truth: &'a dyn BinValues,
+    h: (f64, f64),
+    d: (f64, f64),
+}
+
+impl BinValues for Swap<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let a = self.rec.values_at(bins);
+        let t = self.truth.values_at(bins);
+        bins.iter()
+            .enumerate()
+            .map(|(i, &b)| match angles_deg(b) {
+                Some((h, d)) if h >= self.h.0 && h < self.h.1 && d >= self.d.0 && d < self.d.1 => {
+                    t[i]
+                }
+                _ => a[i],
+            })
+            .collect()
+    }
+}
+
+/// `rec` times each cell's mean pixel / table ratio (log space), shrunk by `n / (n + n0)`.
+struct Corrected<'a> {
+    rec: &'a MerlTable,
+    cell: usize,
+    sum: &'a [[f64; 3]],
+    cnt: &'a [usize],
+    n0: f64,
+}
+
+impl BinValues for Corrected<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let a = self.rec.values_at(bins);
+        bins.iter()
+            .zip(a)
+            .map(|(&b, v)| {
+                let Some(c) = cell_of(b, self.cell).filter(|&c| self.cnt[c] > 0) else {
+                    return v;
+                };
+                let n = self.cnt[c] as f64;
+                let s = n / (n + self.n0);
+                [0, 1, 2].map(|k| v[k] * (s * self.sum[c][k] / n).exp())
+            })
+            .collect()
+    }
+}
+
+/// `a` leaning (geometrically) to `b` per cell by `max(hedged, s n0 / (n + n0))`, `n` the
+/// cell's pixels; `a` already carries `hedged` of `b`.
+struct CellBlend<'a> {
+    a: &'a MerlTable,
+    b: &'a MerlTable,
+    cell: usize,
+    cnt: &'a [usize],
+    s: f64,
+    n0: f64,
+    hedged: f64,
+}
+
+impl BinValues for CellBlend<'_> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let a = self.a.values_at(bins);
+        let b = self.b.values_at(bins);
+        bins.iter()
+            .zip(a.iter().zip(&b))
+            .map(|(&bin, (x, y))| {
+                let n = cell_of(bin, self.cell).map_or(0.0, |c| self.cnt[c] as f64);
+                let w = (self.s * self.n0 / (n + self.n0)).max(self.hedged);
+                let extra = ((w - self.hedged) / (1.0 - self.hedged)).clamp(0.0, 1.0);
+                [0, 1, 2].map(|c| {
+                    let (p, q) = (x[c].max(1e-12), y[c].max(1e-12));
+                    ((1.0 - extra) * p.ln() + extra * q.ln()).exp()
+                })
             })
             .collect()
     }
