@@ -7,7 +7,9 @@
 //! `materials.json` version 1 gained `mask_labels` (top level) and `mask_label`,
 //! `mask_vertices` (per material) when label masks came; they read as "no label mask" when
 //! absent, which is what a file written before them means, and a reader that predates them
-//! ignores them, so the version stayed 1.
+//! ignores them, so the version stayed 1. Likewise `boundary_pixels` (per material) and
+//! `settings.fit_interior_only` (session 27): absent, they read as 0 and `false`, what a file
+//! written before them did (every labelled pixel in its material's fit).
 
 use super::confidence::Confidence;
 use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_observations};
@@ -380,6 +382,58 @@ mod tests {
     use super::super::prior::synthetic::CosinePrior;
     use super::super::segment::tests::{ggx, grid, scene};
     use super::*;
+
+    #[test]
+    fn a_file_written_before_boundary_pixels_reads_back_with_every_pixel_fitted() {
+        let entry = MaterialEntry {
+            name: material_name(0),
+            file: material_file(&material_name(0)),
+            observed_pixels: 10,
+            boundary_pixels: 3,
+            observed_vertices: 4,
+            chromaticity: [1.0 / 3.0; 3],
+            mask_label: None,
+            mask_vertices: 0,
+            model: "basis".into(),
+            model_reason: String::new(),
+            confidence: "high".into(),
+            confidence_reasons: Vec::new(),
+            held_out_error: None,
+        };
+        let file = MaterialsFile {
+            format_version: MATERIALS_FORMAT_VERSION,
+            count: 2,
+            reason: String::new(),
+            scores: Vec::new(),
+            settings: SegmentSettings::default(),
+            mask_labels: Vec::new(),
+            material_map: MATERIAL_MAP_FILE.into(),
+            materials: vec![entry],
+        };
+        assert!(
+            file.settings.fit_interior_only,
+            "the default leaves them out"
+        );
+        let mut old = serde_json::to_value(&file).unwrap();
+        assert!(
+            old["settings"]
+                .as_object_mut()
+                .unwrap()
+                .remove("fit_interior_only")
+                .is_some()
+        );
+        assert!(
+            old["materials"][0]
+                .as_object_mut()
+                .unwrap()
+                .remove("boundary_pixels")
+                .is_some()
+        );
+        let back: MaterialsFile = serde_json::from_value(old).unwrap();
+        assert!(!back.settings.fit_interior_only);
+        assert_eq!(back.materials[0].boundary_pixels, 0);
+        assert_eq!(back.materials[0].observed_pixels, 10);
+    }
 
     #[test]
     fn a_mask_material_without_pixels_is_an_error_naming_it_before_any_fit() {
