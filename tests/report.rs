@@ -259,6 +259,7 @@ fn example_report(job: PathBuf) -> Report {
                 unseen_share: 0.25,
                 analytic_weight: 0.125,
             }),
+            peak_average: None,
         },
         comparisons: Vec::new(),
         confidence: Confidence {

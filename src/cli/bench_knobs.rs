@@ -1,6 +1,6 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
-//! ridge weights and the hedge's strength. Their parsing, the library's overrides they make
+//! ridge weights, the hedge's strength and the peak average's weight. Their parsing, the library's overrides they make
 //! (`reconstruct::overrides`), and the words that type them again for a page's "command" line.
 //! No I/O.
 
@@ -31,6 +31,10 @@ pub struct FitKnobs {
     /// `reconstruct --hedge` (default: the library's 0.5; 0 turns the averaging off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub hedge: Option<f64>,
+    /// The weight of the basis + peak averaged into a basis result the held-out images cannot
+    /// tell from it, as `reconstruct --peak-average` (default: the library's 0.5; 0: never).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub peak_average: Option<f64>,
 }
 
 impl FitKnobs {
@@ -42,6 +46,7 @@ impl FitKnobs {
             min_gain: self.min_gain,
             etas: self.etas.clone(),
             hedge: self.hedge,
+            peak_average: self.peak_average,
         }
     }
 
@@ -64,6 +69,9 @@ impl FitKnobs {
         if let Some(h) = self.hedge {
             s += &format!(" --hedge {h}");
         }
+        if let Some(w) = self.peak_average {
+            s += &format!(" --peak-average {w}");
+        }
         s
     }
 }
@@ -83,6 +91,7 @@ mod tests {
             min_gain: Some(0.05),
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.25),
+            peak_average: Some(0.75),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -90,9 +99,10 @@ mod tests {
         assert_eq!(o.min_gain, Some(0.05));
         assert_eq!(o.etas, Some(vec![0.01, 1.0]));
         assert_eq!(o.hedge, Some(0.25));
+        assert_eq!(o.peak_average, Some(0.75));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75"
         );
     }
 }

@@ -117,6 +117,11 @@ pub struct Args {
     /// docs/reconstruction.md, stage 6.
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub hedge: f64,
+    /// Where the model ladder chose the basis and a GGX peak on top of it scored within noise
+    /// of it on the held-out images, average the two tables geometrically with this weight on
+    /// the basis + peak (0 to 1; 0: the basis alone). docs/reconstruction.md, stage 6.
+    #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
+    pub peak_average: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). Writes
     /// mesh_refined.ply when the refinement is accepted.
@@ -232,6 +237,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.trials.basis_fit = args.basis_fit;
     settings.core.plausible.theta_d_shape = args.unobserved;
     settings.core.hedge.strength = args.hedge;
+    settings.core.peak_average = args.peak_average;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;

@@ -10,8 +10,8 @@ use super::confidence::{
 };
 use super::hedge::{Hedge, HedgeSettings, blend};
 use super::ladder::{
-    AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, WithPeak, climb, fit_peak,
-    subset,
+    AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, NO_PEAK, WithPeak, climb,
+    fit_peak, subset,
 };
 use super::observe::Observation;
 use super::plausible::{
@@ -78,6 +78,12 @@ pub struct CoreSettings {
     /// (`reconstruct::hedge`). Off in reports written before it existed.
     #[serde(default = "HedgeSettings::off")]
     pub hedge: HedgeSettings,
+    /// Where the ladder chose the basis and the basis + peak rung scored within noise of it
+    /// (`Ladder::peak_within_noise`), the written table is the basis's and the basis + peak's,
+    /// averaged geometrically with this weight on the latter (0: never). 0 in reports written
+    /// before it existed.
+    #[serde(default)]
+    pub peak_average: f64,
     /// Keep the final fit of every family, not only the chosen one (studies compare them with
     /// the truth; costs one more analytic peak fit).
     pub keep_alternatives: bool,
@@ -97,6 +103,7 @@ impl Default for CoreSettings {
             model: ModelSelection::Auto,
             plausible: PlausibleSettings::default(),
             hedge: HedgeSettings::default(),
+            peak_average: 0.5,
             keep_alternatives: false,
         }
     }
@@ -438,6 +445,15 @@ pub fn reconstruct_observations(
         (Family::Basis | Family::Hybrid, Some(m)) => Some(AnalyticCandidate(m)),
         _ => None,
     };
+    // Where the held-out images cannot tell whether a peak sits on the basis, both are kept:
+    // the basis + peak's table is averaged in after the plausibility step.
+    let averaged_peak = (family == Family::Basis
+        && settings.peak_average > 0.0
+        && ladder
+            .as_ref()
+            .is_some_and(|l| l.peak_within_noise(&settings.ladder)))
+    .then(|| fit_peak(brdf.as_ref(), &peak_pixels))
+    .flatten();
     let typical = prior.typical();
     let (mut table, mut plausibility) = make_plausible_shaped(
         brdf.as_ref(),
@@ -451,6 +467,38 @@ pub fn reconstruct_observations(
         &used,
         &settings.plausible,
     );
+    if let Some(peak) = averaged_peak {
+        let with_peak = WithPeak {
+            base: Box::new(Borrowed(brdf.as_ref())),
+            peak,
+        };
+        let (peaked, _) = make_plausible_shaped(
+            &with_peak,
+            prior_model.as_ref().map(|p| {
+                (
+                    p as &dyn Candidate,
+                    "Lambert + GGX fitted to the same pixels",
+                )
+            }),
+            typical.as_deref(),
+            &used,
+            &settings.plausible,
+        );
+        let w = settings.peak_average.clamp(0.0, 1.0);
+        table = blend(&table, &peaked, w);
+        plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);
+        plausibility.peak_average = Some(w);
+        let said = format!(
+            "a GGX peak on top neither lowers nor raises the held-out error beyond noise, so \
+             the written table is the basis averaged (geometrically, weight {w}) with the \
+             basis + that peak"
+        );
+        reason = if reason.contains(NO_PEAK) {
+            reason.replace(NO_PEAK, &said)
+        } else {
+            format!("{reason}; {said}")
+        };
+    }
     // Where held-out images cannot judge the extrapolation, average it with Lambert + GGX's.
     if let Some(p) = &prior_model
         && settings.hedge.strength > 0.0
@@ -672,6 +720,15 @@ pub fn half_disagreement(full: &LambertGgx, pixels: &[Observation], seed: u64) -
     render_disagreement(&CandidateValues(&AnalyticCandidate(*full)), &others)
 }
 
+/// A borrowed candidate as a boxed one (the averaged peak sits on the basis fit in place).
+struct Borrowed<'a>(&'a dyn Candidate);
+
+impl Candidate for Borrowed<'_> {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.0.eval_bin(bin)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::components::held_out_error;
@@ -679,15 +736,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn settings_written_before_the_hedge_read_back_with_it_off() {
+    fn settings_written_before_the_hedge_and_peak_average_read_back_with_them_off() {
         let mut json = serde_json::to_value(CoreSettings::default()).unwrap();
         let old = json.as_object_mut().unwrap();
         assert!(old.remove("hedge").is_some());
+        assert!(old.remove("peak_average").is_some());
         let read: CoreSettings = serde_json::from_value(json).unwrap();
         assert_eq!(read.hedge.strength, 0.0);
+        assert_eq!(read.peak_average, 0.0);
         assert_eq!(
             CoreSettings {
                 hedge: HedgeSettings::default(),
+                peak_average: CoreSettings::default().peak_average,
                 ..read
             },
             CoreSettings::default()

@@ -322,9 +322,39 @@ pub struct Ladder {
     pub reason: String,
 }
 
+/// What the ladder's reason says when the basis + peak did not beat the basis beyond noise.
+pub const NO_PEAK: &str =
+    "a GGX peak on top does not lower the held-out error beyond noise, so none is added";
+
 impl Ladder {
     pub fn chosen(&self) -> &Rung {
         &self.rungs[self.chosen]
+    }
+
+    /// The chosen rung is the basis and the basis + peak rung scored within noise of it, both
+    /// ways (neither is better beyond noise under `settings`' held-out error): the held-out
+    /// images cannot tell whether the peak is there.
+    pub fn peak_within_noise(&self, settings: &LadderSettings) -> bool {
+        let b = self.chosen();
+        if b.family != Family::Basis {
+            return false;
+        }
+        let Some(h) = self.rungs.iter().rev().find(|r| r.family == Family::Hybrid) else {
+            return false;
+        };
+        let n = settings.noise();
+        let tie = |h: &Rung, b: &Rung| within_noise(h, b, n) && within_noise(b, h, n);
+        match settings.metric {
+            HeldOutMetric::Linear => tie(h, b),
+            HeldOutMetric::Log => tie(&h.as_log(), &b.as_log()),
+            HeldOutMetric::Patches => tie(&h.as_patch(), &b.as_patch()),
+            HeldOutMetric::Both | HeldOutMetric::Pareto | HeldOutMetric::Front => {
+                tie(h, b) && tie(&h.as_log(), &b.as_log())
+            }
+            HeldOutMetric::ParetoPatches => {
+                tie(&h.as_patch(), &b.as_patch()) && tie(&h.as_log(), &b.as_log())
+            }
+        }
     }
 
     /// Chooses again among the analytic rungs only, by the same metric and rule, when the
@@ -923,8 +953,8 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
             reason += "; with a GGX peak fitted to its residual, which lowers the held-out \
                        error beyond noise";
         } else {
-            reason += "; a GGX peak on top does not lower the held-out error beyond noise, so \
-                       none is added";
+            reason += "; ";
+            reason += NO_PEAK;
         }
     }
     Some(Ladder {
@@ -1476,6 +1506,48 @@ mod tests {
             standard_error_patch,
             image_errors: vec![],
         }
+    }
+
+    #[test]
+    fn the_peak_is_within_noise_only_when_neither_beats_the_other_beyond_it() {
+        let ladder = |chosen: Rung, hybrid: Rung| Ladder {
+            scheme: FoldScheme::Images { folds: 5 },
+            held_out_pixels: 100,
+            rungs: vec![chosen, hybrid],
+            chosen: 0,
+            reason: String::new(),
+        };
+        let basis = || {
+            scored(
+                Family::Basis,
+                30,
+                &[0.20, 0.22, 0.18, 0.21, 0.19],
+                &[0.050, 0.055, 0.045, 0.052, 0.048],
+            )
+        };
+        let log = with(HeldOutMetric::Log);
+        // the same errors give or take a fraction of the folds' spread: a tie
+        let tied = scored(
+            Family::Hybrid,
+            35,
+            &[0.21, 0.21, 0.19, 0.20, 0.20],
+            &[0.051, 0.054, 0.047, 0.050, 0.049],
+        );
+        assert!(ladder(basis(), tied.clone()).peak_within_noise(&log));
+        // the peak far worse on held-out images: no tie
+        let worse = scored(
+            Family::Hybrid,
+            35,
+            &[0.40, 0.42, 0.38, 0.41, 0.39],
+            &[0.100, 0.110, 0.090, 0.104, 0.096],
+        );
+        assert!(!ladder(basis(), worse).peak_within_noise(&log));
+        // the chosen model is not the basis: nothing to average
+        assert!(!ladder(steady_ggx(), tied.clone()).peak_within_noise(&log));
+        // no basis + peak rung: nothing to average
+        let mut alone = ladder(basis(), tied);
+        alone.rungs.pop();
+        assert!(!alone.peak_within_noise(&log));
     }
 
     #[test]

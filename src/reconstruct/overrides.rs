@@ -1,6 +1,6 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
-//! hedge's strength. Each
+//! hedge's strength and the peak average's weight. Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
@@ -15,6 +15,7 @@ pub struct CoreOverrides {
     pub min_gain: Option<f64>,
     pub etas: Option<Vec<f64>>,
     pub hedge: Option<f64>,
+    pub peak_average: Option<f64>,
 }
 
 impl CoreOverrides {
@@ -35,6 +36,9 @@ impl CoreOverrides {
         if let Some(h) = self.hedge {
             core.hedge.strength = h;
         }
+        if let Some(w) = self.peak_average {
+            core.peak_average = w;
+        }
     }
 }
 
@@ -53,6 +57,7 @@ mod tests {
             min_gain: Some(0.05),
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.0),
+            peak_average: Some(0.25),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -60,6 +65,7 @@ mod tests {
         assert_eq!(core.ladder.min_gain, 0.05);
         assert_eq!(core.components.etas, vec![0.01, 1.0]);
         assert_eq!(core.hedge.strength, 0.0);
+        assert_eq!(core.peak_average, 0.25);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

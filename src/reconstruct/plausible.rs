@@ -120,6 +120,11 @@ pub struct Plausibility {
     /// (`reconstruct::hedge`; absent in reports written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hedge: Option<super::hedge::Hedge>,
+    /// The weight of the basis + peak table averaged (geometrically) into the basis's, where
+    /// the held-out images could not tell them apart (`CoreSettings::peak_average`; absent
+    /// where it was not done and in reports written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_average: Option<f64>,
 }
 
 /// Pixels per (theta_h bin, theta_d bin), row-major in theta_h.
@@ -361,6 +366,7 @@ pub fn make_plausible_shaped(
         scaled_bins: scaled.iter().filter(|s| **s).count(),
         prior: prior.map_or_else(|| "none".to_string(), |(_, name)| name.to_string()),
         hedge: None,
+        peak_average: None,
     };
     (table, report)
 }
