@@ -11,7 +11,9 @@
 //! (theta_h, theta_d) the rendered error lies (each region set to the truth in turn), the
 //! pixels in the grazing peak, a per-cell correction of the table by its pixels' residuals,
 //! the families' training error weighted by each cell's share of the render, and cell-wise
-//! blends with Lambert + GGX by the cell's pixel count (docs/evaluation.md section 1n).
+//! blends with Lambert + GGX by the cell's pixel count (docs/evaluation.md section 1n). With
+//! `AVG_HYBRID=1`, where the basis was chosen: the written table averaged (geometrically) with
+//! the basis + peak at several weights (section 1o).
 
 use brdf_rig::brdf::BinValues;
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
@@ -88,6 +90,7 @@ fn main() -> anyhow::Result<()> {
     let mut rows: Vec<Row> = Vec::new();
     let mut blends: Vec<(String, f64, Vec<f64>)> = Vec::new();
     let mut locals: Vec<(String, f64, Vec<f64>)> = Vec::new();
+    let mut hybrids: Vec<(String, f64, Vec<f64>)> = Vec::new();
     let mut dump: Vec<serde_json::Value> = Vec::new();
     for name in &materials_wanted {
         let net = find_material(&materials, name)?;
@@ -196,6 +199,36 @@ fn main() -> anyhow::Result<()> {
                             &used,
                             &ps,
                         );
+                        if std::env::var("AVG_HYBRID").is_ok()
+                            && out.model.family == Family::Basis
+                            && let Some((_, hy)) =
+                                out.alternatives.iter().find(|a| a.0 == Family::Hybrid)
+                        {
+                            let (hy_t, _) = make_plausible(
+                                hy.as_ref(),
+                                ggx_model.as_ref().map(|p| (p as &dyn Candidate, "L+GGX")),
+                                &used,
+                                &ps,
+                            );
+                            let mut line = String::new();
+                            let mut errs = vec![truth.errors_of(&out.table).environment];
+                            for w in [0.75, 0.5, 0.25] {
+                                let b = Blend {
+                                    a: &out.table,
+                                    b: &hy_t,
+                                    w,
+                                    geo: true,
+                                };
+                                let e = truth.errors_of(&b).environment;
+                                line += &format!(" {e:.3}");
+                                errs.push(e);
+                            }
+                            eprintln!(
+                                "   basis with basis + peak, geometric, basis weight .75/.5/.25:{line} (written {:.3})",
+                                errs[0]
+                            );
+                            hybrids.push((rig.clone(), better, errs));
+                        }
                         if let Some((_, lg)) =
                             out.alternatives.iter().find(|a| a.0 == Family::LambertGgx)
                         {
@@ -293,6 +326,26 @@ fn main() -> anyhow::Result<()> {
                     rows.push((label, rig.clone(), better, per_family, choices));
                 }
             }
+        }
+    }
+    for rig in ["spread", "one-light", "all"] {
+        let hs: Vec<_> = hybrids
+            .iter()
+            .filter(|b| rig == "all" || b.0 == rig)
+            .collect();
+        if let Some(first) = hs.first() {
+            let mut line = format!(
+                "basis with basis + peak {rig}, {} scenes (written, then basis weight .75/.5/.25):",
+                hs.len()
+            );
+            for i in 0..first.2.len() {
+                let r: Vec<f64> = hs.iter().map(|b| b.1 / b.2[i]).collect();
+                let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
+                let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+                let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
+                line += &format!(" {g:.3}({min:.2},{worse})");
+            }
+            println!("{line}");
         }
     }
     for rig in ["spread", "one-light", "all"] {
