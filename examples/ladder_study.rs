@@ -328,63 +328,21 @@ fn main() -> anyhow::Result<()> {
             }
         }
     }
-    for rig in ["spread", "one-light", "all"] {
-        let hs: Vec<_> = hybrids
-            .iter()
-            .filter(|b| rig == "all" || b.0 == rig)
-            .collect();
-        if let Some(first) = hs.first() {
-            let mut line = format!(
-                "basis with basis + peak {rig}, {} scenes (written, then basis weight .75/.5/.25):",
-                hs.len()
-            );
-            for i in 0..first.2.len() {
-                let r: Vec<f64> = hs.iter().map(|b| b.1 / b.2[i]).collect();
-                let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
-                let min = r.iter().copied().fold(f64::INFINITY, f64::min);
-                let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
-                line += &format!(" {g:.3}({min:.2},{worse})");
-            }
-            println!("{line}");
-        }
-    }
-    for rig in ["spread", "one-light", "all"] {
-        let ls: Vec<_> = locals
-            .iter()
-            .filter(|b| rig == "all" || b.0 == rig)
-            .collect();
-        if let Some(first) = ls.first() {
-            let mut line = format!(
-                "cell-wise blends {rig} (as written, then cell 5|10 x s .5,1 x n0 3,10,30):"
-            );
-            for i in 0..first.2.len() {
-                let r: Vec<f64> = ls.iter().map(|b| b.1 / b.2[i]).collect();
-                let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
-                let min = r.iter().copied().fold(f64::INFINITY, f64::min);
-                let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
-                line += &format!(" {g:.3}({min:.2},{worse})");
-            }
-            println!("{line}");
-        }
-    }
-    for rig in ["spread", "one-light", "all"] {
-        let bs: Vec<_> = blends
-            .iter()
-            .filter(|b| rig == "all" || b.0 == rig)
-            .collect();
-        if bs.is_empty() {
-            continue;
-        }
-        let mut line = format!("blend {rig}:");
-        for i in 0..10 {
-            let r: Vec<f64> = bs.iter().map(|b| b.1 / b.2[i]).collect();
-            let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
-            let min = r.iter().copied().fold(f64::INFINITY, f64::min);
-            let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
-            line += &format!(" {g:.3}({min:.2},{worse})");
-        }
-        println!("{line}");
-    }
+    summary(
+        &hybrids,
+        "basis with basis + peak",
+        "written, then basis weight .75/.5/.25",
+    );
+    summary(
+        &locals,
+        "cell-wise blends",
+        "as written, then cell 5|10 x s .5,1 x n0 3,10,30",
+    );
+    summary(
+        &blends,
+        "blend",
+        "w 1-c*u, c 0/.25/.5/.75/1, arithmetic then geometric",
+    );
     // Geometric mean of better-baseline / ours, per (family, variant) and per (rule, variant).
     println!(
         "variants: {}",
@@ -773,5 +731,23 @@ impl BinValues for CellBlend<'_> {
                 })
             })
             .collect()
+    }
+}
+
+/// Per rig: the better baseline's error over each variant's, geometric mean (min, scenes worse
+/// by more than 10 %), for rows of (rig, better baseline's error, the variants' errors).
+fn summary(rows: &[(String, f64, Vec<f64>)], what: &str, variants: &str) {
+    for rig in ["spread", "one-light", "all"] {
+        let rs: Vec<_> = rows.iter().filter(|b| rig == "all" || b.0 == rig).collect();
+        let Some(first) = rs.first() else { continue };
+        let mut line = format!("{what} {rig}, {} scenes ({variants}):", rs.len());
+        for i in 0..first.2.len() {
+            let r: Vec<f64> = rs.iter().map(|b| b.1 / b.2[i]).collect();
+            let g = (r.iter().map(|x| x.ln()).sum::<f64>() / r.len() as f64).exp();
+            let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+            let worse = r.iter().filter(|x| **x < 1.0 / 1.1).count();
+            line += &format!(" {g:.3}({min:.2},{worse})");
+        }
+        println!("{line}");
     }
 }

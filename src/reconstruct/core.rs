@@ -455,25 +455,9 @@ pub fn reconstruct_observations(
     .then(|| fit_peak(brdf.as_ref(), &peak_pixels))
     .flatten();
     let typical = prior.typical();
-    let (mut table, mut plausibility) = make_plausible_shaped(
-        brdf.as_ref(),
-        prior_model.as_ref().map(|p| {
-            (
-                p as &dyn Candidate,
-                "Lambert + GGX fitted to the same pixels",
-            )
-        }),
-        typical.as_deref(),
-        &used,
-        &settings.plausible,
-    );
-    if let Some(peak) = averaged_peak {
-        let with_peak = WithPeak {
-            base: Box::new(Borrowed(brdf.as_ref())),
-            peak,
-        };
-        let (peaked, _) = make_plausible_shaped(
-            &with_peak,
+    let plausible_of = |c: &dyn Candidate| {
+        make_plausible_shaped(
+            c,
             prior_model.as_ref().map(|p| {
                 (
                     p as &dyn Candidate,
@@ -483,7 +467,15 @@ pub fn reconstruct_observations(
             typical.as_deref(),
             &used,
             &settings.plausible,
-        );
+        )
+    };
+    let (mut table, mut plausibility) = plausible_of(brdf.as_ref());
+    if let Some(peak) = averaged_peak {
+        let with_peak = WithPeak {
+            base: Box::new(Borrowed(brdf.as_ref())),
+            peak,
+        };
+        let (peaked, _) = plausible_of(&with_peak);
         let w = settings.peak_average.clamp(0.0, 1.0);
         table = blend(&table, &peaked, w);
         plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);

@@ -343,18 +343,9 @@ impl Ladder {
             return false;
         };
         let n = settings.noise();
-        let tie = |h: &Rung, b: &Rung| within_noise(h, b, n) && within_noise(b, h, n);
-        match settings.metric {
-            HeldOutMetric::Linear => tie(h, b),
-            HeldOutMetric::Log => tie(&h.as_log(), &b.as_log()),
-            HeldOutMetric::Patches => tie(&h.as_patch(), &b.as_patch()),
-            HeldOutMetric::Both | HeldOutMetric::Pareto | HeldOutMetric::Front => {
-                tie(h, b) && tie(&h.as_log(), &b.as_log())
-            }
-            HeldOutMetric::ParetoPatches => {
-                tie(&h.as_patch(), &b.as_patch()) && tie(&h.as_log(), &b.as_log())
-            }
-        }
+        in_every_space(settings.metric, h, b, |h, b| {
+            within_noise(h, b, n) && within_noise(b, h, n)
+        })
     }
 
     /// Chooses again among the analytic rungs only, by the same metric and rule, when the
@@ -935,18 +926,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                 && seen.error < basis.error
                 && !within_noise(basis, seen, settings.noise())
         };
-        let (h, b) = (&hybrid, &rungs[chosen]);
-        let keep = match settings.metric {
-            HeldOutMetric::Linear => better(h, b),
-            HeldOutMetric::Log => better(&h.as_log(), &b.as_log()),
-            HeldOutMetric::Patches => better(&h.as_patch(), &b.as_patch()),
-            HeldOutMetric::Both | HeldOutMetric::Pareto | HeldOutMetric::Front => {
-                better(h, b) && better(&h.as_log(), &b.as_log())
-            }
-            HeldOutMetric::ParetoPatches => {
-                better(&h.as_patch(), &b.as_patch()) && better(&h.as_log(), &b.as_log())
-            }
-        };
+        let keep = in_every_space(settings.metric, &hybrid, &rungs[chosen], better);
         rungs.push(hybrid);
         if keep {
             chosen = rungs.len() - 1;
@@ -964,6 +944,27 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         chosen,
         reason,
     })
+}
+
+/// `test(h, b)` in every error space `metric` reads (pixel, log or patch errors; `Both`,
+/// `Pareto` and `Front` read pixel and log, `ParetoPatches` patch and log).
+fn in_every_space(
+    metric: HeldOutMetric,
+    h: &Rung,
+    b: &Rung,
+    test: impl Fn(&Rung, &Rung) -> bool,
+) -> bool {
+    match metric {
+        HeldOutMetric::Linear => test(h, b),
+        HeldOutMetric::Log => test(&h.as_log(), &b.as_log()),
+        HeldOutMetric::Patches => test(&h.as_patch(), &b.as_patch()),
+        HeldOutMetric::Both | HeldOutMetric::Pareto | HeldOutMetric::Front => {
+            test(h, b) && test(&h.as_log(), &b.as_log())
+        }
+        HeldOutMetric::ParetoPatches => {
+            test(&h.as_patch(), &b.as_patch()) && test(&h.as_log(), &b.as_log())
+        }
+    }
 }
 
 fn parameters(key: &RungKey) -> usize {
