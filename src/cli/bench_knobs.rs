@@ -1,7 +1,8 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
-//! ridge weights, the hedge's strength and the peak average's weight. Their parsing, the library's overrides they make
-//! (`reconstruct::overrides`), and the words that type them again for a page's "command" line.
+//! ridge weights, the hedge's strength and the peak average's weight. Their parsing, the
+//! library's overrides they make (`reconstruct::overrides`), and the words that type them
+//! again for a page's "command" line.
 //! No I/O.
 
 use brdf_rig::reconstruct::overrides::CoreOverrides;
