@@ -7,7 +7,7 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final, passes, margin, holdout, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
+//! fitcos, facecap, final, passes, margin, holdout, depth (0/1), dsigma, dcg, dsweeps, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
@@ -55,6 +55,10 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             "passes" => s.table_passes = f as usize,
             "margin" => s.edge_margin_px = f as usize,
             "holdout" => s.hold_out_every = f as usize,
+            "depth" => s.depth = f != 0.0,
+            "dsigma" => s.depth_sigma_edges = f,
+            "dcg" => s.depth_cg_iterations = f as usize,
+            "dsweeps" => s.depth_sweeps = f as usize,
             _ => anyhow::bail!("unknown key {k:?}"),
         }
     }
@@ -124,7 +128,11 @@ fn main() -> anyhow::Result<()> {
         // `from_truth` (a key of its own): the SfM-like mesh with the true vertex normals, to
         // see whether the objective's minimum stays at the truth.
         let from_truth = v.split(',').any(|kv| kv == "from_truth=1");
-        let spec: Vec<&str> = v.split(',').filter(|kv| *kv != "from_truth=1").collect();
+        let true_pos = v.split(',').any(|kv| kv == "true_pos=1");
+        let spec: Vec<&str> = v
+            .split(',')
+            .filter(|kv| *kv != "from_truth=1" && *kv != "true_pos=1")
+            .collect();
         let s = variant(&spec.join(","))?;
         let mut scene = load_case(&job, &observe, &Perturb::default())?;
         if from_truth
@@ -133,6 +141,16 @@ fn main() -> anyhow::Result<()> {
                 .set_vertex_normals(mesh.vertex_normals().to_vec())
         {
             anyhow::bail!("the true mesh's normals do not fit the scene's mesh");
+        }
+        if true_pos {
+            // the true positions under the SfM-like normals: how far the refinement gets when the
+            // pixels land where they should
+            let n = scene.mesh.vertex_normals().to_vec();
+            if !(scene.mesh.set_positions(mesh.positions().to_vec())
+                && scene.mesh.set_vertex_normals(n))
+            {
+                anyhow::bail!("the true mesh's positions do not fit the scene's mesh");
+            }
         }
         let t = Instant::now();
         let c = refine_case(scene, &observe, &s, &mesh);

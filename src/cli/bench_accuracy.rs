@@ -86,6 +86,16 @@ pub struct BenchAccuracyArgs {
     /// unrefined normals and reports the normal error against the truth.
     #[arg(long)]
     pub refine_normals: bool,
+    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    #[arg(long, value_enum, default_value = "depth")]
+    pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
+    /// The SfM-like mesh's normal noise: standard deviation of each vertex's displacement along
+    /// its normal, in mean edge lengths (`geometry::sfm_like`).
+    #[arg(long, default_value_t = 0.05, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(2.0)))]
+    pub sfm_noise: f64,
+    /// The SfM-like mesh's smoothing: Taubin iterations before the noise.
+    #[arg(long, default_value_t = 10, value_parser = int_in(0usize, 1000))]
+    pub sfm_smoothing: usize,
     /// Also reconstruct from the exact mesh (the reference for the refinement).
     #[arg(long)]
     pub exact_reference: bool,
@@ -203,9 +213,18 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
     );
     if a.refine_normals {
         command += " --refine-normals";
+        if a.refine_unknowns != super::reconstruct::RefineUnknownsArg::Depth {
+            command += &format!(" --refine-unknowns {}", a.refine_unknowns.name());
+        }
     }
     if a.exact_reference {
         command += " --exact-reference";
+    }
+    if a.sfm_noise != 0.05 || a.sfm_smoothing != 10 {
+        command += &format!(
+            " --sfm-noise {} --sfm-smoothing {}",
+            a.sfm_noise, a.sfm_smoothing
+        );
     }
     command += &format!(" --out {}", a.out.display());
     let options = AccuracyBenchOptions {
@@ -216,6 +235,9 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         rigs,
         no_ablation: a.no_ablation,
         refine_normals: a.refine_normals,
+        sfm_noise_rel: a.sfm_noise,
+        sfm_iterations: a.sfm_smoothing,
+        refine_depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
         exact_reference: a.exact_reference,
         out: a.out.clone(),
         command,

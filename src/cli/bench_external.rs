@@ -32,6 +32,9 @@ pub struct BenchExternalArgs {
     /// Reconstruct with the normals refined from the images (`reconstruct --refine-normals`).
     #[arg(long)]
     pub refine_normals: bool,
+    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    #[arg(long, value_enum, default_value = "depth")]
+    pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
     /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub seeds: Vec<u64>,
@@ -87,7 +90,10 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let mut settings = Settings {
         refine: a
             .refine_normals
-            .then(brdf_rig::reconstruct::refine::RefineSettings::default),
+            .then(|| brdf_rig::reconstruct::refine::RefineSettings {
+                depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
+                ..Default::default()
+            }),
         ..Settings::default()
     };
     settings.core.choose = a.choose;
@@ -112,10 +118,10 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(","),
         a.bin_step,
-        if a.refine_normals {
-            " --refine-normals"
-        } else {
-            ""
+        match (a.refine_normals, a.refine_unknowns) {
+            (false, _) => String::new(),
+            (true, super::reconstruct::RefineUnknownsArg::Depth) => " --refine-normals".into(),
+            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
         },
         match a.choose {
             brdf_rig::reconstruct::core::TrialChoice::Similarity => "",

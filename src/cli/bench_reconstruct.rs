@@ -53,6 +53,10 @@ pub struct BenchReconstructArgs {
     /// Time the reconstruction with `--refine-normals` (the normal refinement's cost).
     #[arg(long)]
     pub refine_normals: bool,
+    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`;
+    /// default: its default).
+    #[arg(long, value_enum)]
+    pub refine_unknowns: Option<super::reconstruct::RefineUnknownsArg>,
     /// Time the reconstruction with `--all-pixels` (no reduction of redundant pixels).
     #[arg(long)]
     pub all_pixels: bool,
@@ -84,6 +88,9 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
     }
     if a.refine_normals {
         command += " --refine-normals";
+        if let Some(u) = a.refine_unknowns {
+            command += &format!(" --refine-unknowns {}", u.name());
+        }
     }
     if a.all_pixels {
         command += " --all-pixels";
@@ -114,6 +121,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         write: a.write.clone(),
         keep: a.keep.clone(),
         refine_normals: a.refine_normals,
+        refine_unknowns: a.refine_unknowns.map(|u| u.name().to_string()),
         all_pixels: a.all_pixels,
         basis_fit: a.basis_fit,
         seed: a.seed,

@@ -127,6 +127,12 @@ pub struct Args {
     /// mesh_refined.ply when the refinement is accepted.
     #[arg(long)]
     pub refine_normals: bool,
+    /// What the refinement moves: `depth` (one displacement per vertex along its normal, the
+    /// normals following from the displaced positions: a photogrammetry mesh's error is its
+    /// depth noise) or `normals` (two free angles per vertex normal: also normals that are wrong
+    /// independently of the positions). docs/normal-refinement.md, "Session 28".
+    #[arg(long, value_enum, default_value = "depth")]
+    pub refine_unknowns: RefineUnknownsArg,
     /// Largest tilt the refinement may give a normal, degrees (0 to 60).
     #[arg(long, default_value_t = 20.0, value_parser = real_in(Closed(0.0), Closed(60.0)))]
     pub max_tilt: f64,
@@ -159,6 +165,22 @@ pub struct Args {
     /// medium or high. Default: never (the confidence is always printed and in report.json).
     #[arg(long, value_parser = parse_level)]
     pub min_confidence: Option<Level>,
+}
+
+/// `--refine-unknowns`: what the normal refinement moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RefineUnknownsArg {
+    Depth,
+    Normals,
+}
+
+impl RefineUnknownsArg {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Depth => "depth",
+            Self::Normals => "normals",
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -281,6 +303,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.refine_normals {
         settings.refine = Some(reconstruct::refine::RefineSettings {
             max_tilt_deg: args.max_tilt,
+            depth: args.refine_unknowns == RefineUnknownsArg::Depth,
             ..Default::default()
         });
     }

@@ -230,37 +230,49 @@ impl Mesh {
             hi = hi.sup(p);
         }
         self.bounds = (lo, hi);
-        let mut vn = vec![Vector3::zeros(); self.positions.len()];
-        let mut fnorm = Vec::with_capacity(self.faces.len());
-        for f in &self.faces {
-            let p = [
-                self.positions[f[0] as usize],
-                self.positions[f[1] as usize],
-                self.positions[f[2] as usize],
-            ];
-            let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
-            let len = n.norm();
-            let n = if len > 0.0 { n / len } else { Vector3::zeros() };
-            fnorm.push(n);
-            for k in 0..3 {
-                let e1 = p[(k + 1) % 3] - p[k];
-                let e2 = p[(k + 2) % 3] - p[k];
-                let denom = e1.norm() * e2.norm();
-                if denom > 0.0 {
-                    let angle = (e1.dot(&e2) / denom).clamp(-1.0, 1.0).acos();
-                    vn[f[k] as usize] += n * angle;
-                }
-            }
-        }
-        for n in &mut vn {
-            let len = n.norm();
-            if len > 0.0 {
-                *n /= len;
-            }
-        }
+        let (vn, fnorm) = angle_weighted_normals(&self.faces, &self.positions);
         self.vertex_normals = vn;
         self.face_normals = fnorm;
     }
+}
+
+/// Unit vertex normals (each the angle-weighted mean of its faces' normals; zero for a vertex no
+/// face uses) and unit face normals (zero for a degenerate face) of the triangles `faces` over
+/// `positions`: what [`Mesh`] computes, for callers that move positions without a mesh (the
+/// normal refinement's depth unknowns). Faces must index `positions`.
+pub fn angle_weighted_normals(
+    faces: &[[u32; 3]],
+    positions: &[Point3<f64>],
+) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+    let mut vn = vec![Vector3::zeros(); positions.len()];
+    let mut fnorm = Vec::with_capacity(faces.len());
+    for f in faces {
+        let p = [
+            positions[f[0] as usize],
+            positions[f[1] as usize],
+            positions[f[2] as usize],
+        ];
+        let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
+        let len = n.norm();
+        let n = if len > 0.0 { n / len } else { Vector3::zeros() };
+        fnorm.push(n);
+        for k in 0..3 {
+            let e1 = p[(k + 1) % 3] - p[k];
+            let e2 = p[(k + 2) % 3] - p[k];
+            let denom = e1.norm() * e2.norm();
+            if denom > 0.0 {
+                let angle = (e1.dot(&e2) / denom).clamp(-1.0, 1.0).acos();
+                vn[f[k] as usize] += n * angle;
+            }
+        }
+    }
+    for n in &mut vn {
+        let len = n.norm();
+        if len > 0.0 {
+            *n /= len;
+        }
+    }
+    (vn, fnorm)
 }
 
 /// A UV sphere of radius `r` about the origin with outward faces: `rings` latitude bands (at

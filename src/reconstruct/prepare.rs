@@ -870,6 +870,7 @@ pub fn refine_prepared(
     let refinement = refine_normals(
         &MeshNormals {
             faces: scene.mesh.faces(),
+            positions: scene.mesh.positions(),
             normals: scene.mesh.vertex_normals(),
             neighbours: &neighbours,
             starts: &starts,

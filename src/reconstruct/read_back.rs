@@ -182,6 +182,18 @@ struct RefineSettingsMirror {
     /// Absent in reports written before it existed (every surface pixel entered).
     #[serde(default)]
     edge_margin_px: usize,
+    /// Absent in reports written before it existed (the normals were the unknowns).
+    #[serde(default)]
+    depth: bool,
+    /// Absent in reports written before it existed (unused without `depth`).
+    #[serde(default)]
+    depth_sigma_edges: f64,
+    /// Absent in reports written before it existed (unused without `depth`).
+    #[serde(default)]
+    depth_sweeps: usize,
+    /// Absent in reports written before it existed (unused without `depth`).
+    #[serde(default)]
+    depth_cg_iterations: usize,
 }
 
 #[derive(Deserialize)]

@@ -43,9 +43,12 @@
 //!
 //! Pure: pixels come from `prepare::refine_pixels`; no I/O.
 
+#[path = "refine_depth.rs"]
+mod depth;
+
 use super::observe::Observation;
 use crate::render::frame::ShadingFrame;
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -148,6 +151,17 @@ pub struct RefineSettings {
     /// silhouette or a cast shadow's edge, where a mesh whose positions are off by a little
     /// sees background or shadow) do not enter the refinement (`prepare::refine_pixels`).
     pub edge_margin_px: usize,
+    /// The unknowns: false, two tangent angles per vertex normal; true, one displacement per
+    /// vertex along its normal, the normals following from the displaced positions
+    /// (`refine_depth`; the mesh's positions are needed).
+    pub depth: bool,
+    /// With `depth`: the expected displacement, in mean edge lengths (a ridge on each).
+    pub depth_sigma_edges: f64,
+    /// With `depth`: Gauss-Newton steps per alternation, and most conjugate-gradient
+    /// iterations per step (one step of 10 ended on the same normals as three of 60 in the
+    /// study of docs/normal-refinement.md "Session 28", in a third of the time).
+    pub depth_sweeps: usize,
+    pub depth_cg_iterations: usize,
 }
 
 impl Default for RefineSettings {
@@ -174,6 +188,10 @@ impl Default for RefineSettings {
             table_passes: 0,
             start_smoothing: vec![0, 2, 4, 8, 16],
             edge_margin_px: 1,
+            depth: true,
+            depth_sigma_edges: 0.5,
+            depth_sweeps: 1,
+            depth_cg_iterations: 10,
         }
     }
 }
@@ -236,6 +254,8 @@ pub struct Refinement {
 /// The mesh's topology and normals, as the refinement needs them.
 pub struct MeshNormals<'a> {
     pub faces: &'a [[u32; 3]],
+    /// The vertices' positions (only `RefineSettings::depth` uses them; empty: not given).
+    pub positions: &'a [Point3<f64>],
     /// Unit vertex normals (zero for unreferenced vertices).
     pub normals: &'a [Vector3<f64>],
     pub neighbours: &'a [Vec<u32>],
@@ -756,40 +776,10 @@ impl<'a> Problem<'a> {
         prior: &Prior,
         c0: f64,
     ) -> (Vec<Vector3<f64>>, f64) {
-        let frames: Vec<(Vector3<f64>, Vector3<f64>)> = n
-            .par_iter()
-            .map(|v| {
-                let f = ShadingFrame::new(*v);
-                (f.t, f.b)
-            })
-            .collect();
+        let frames = frames_of(n);
         let lins = self.linearise(model, idx, n, &frames);
         let vars = 2 * n.len();
-        // Gradient and diagonal of the data term.
-        let (grad, diag) = lins
-            .par_chunks(LIN_CHUNK)
-            .map(|chunk| {
-                let (mut g, mut d) = (vec![0.0; vars], vec![0.0; vars]);
-                for l in chunk {
-                    let w = l.weight * l.irls;
-                    for k in 0..3 {
-                        let v = 2 * l.vertices[k] as usize;
-                        for a in 0..2 {
-                            g[v + a] += w * l.j[k][a] * l.r;
-                            d[v + a] += w * l.j[k][a] * l.j[k][a];
-                        }
-                    }
-                }
-                (g, d)
-            })
-            .reduce(
-                || (vec![0.0; vars], vec![0.0; vars]),
-                |(mut g, mut d), (g2, d2)| {
-                    add_into(&mut g, &g2);
-                    add_into(&mut d, &d2);
-                    (g, d)
-                },
-            );
+        let (grad, diag) = data_gradient(&lins, vars);
         let offsets: Vec<Vector3<f64>> = n.par_iter().zip(prior.n0).map(|(a, b)| a - b).collect();
         let mut rhs = grad;
         add_into(&mut rhs, &prior.gradient(&offsets, &frames, true));
@@ -799,35 +789,7 @@ impl<'a> Problem<'a> {
         }
         let damping = 1e-6 * diag.iter().sum::<f64>() / vars.max(1) as f64;
         let apply = |x: &[f64]| -> Vec<f64> {
-            // Large chunks: each accumulates into its own vector of every unknown.
-            let mut out = lins
-                .par_chunks(LIN_CHUNK)
-                .fold(
-                    || vec![0.0; vars],
-                    |mut acc, chunk| {
-                        for l in chunk {
-                            let w = l.weight * l.irls;
-                            let mut z = 0.0;
-                            for k in 0..3 {
-                                let v = 2 * l.vertices[k] as usize;
-                                z += l.j[k][0] * x[v] + l.j[k][1] * x[v + 1];
-                            }
-                            for k in 0..3 {
-                                let v = 2 * l.vertices[k] as usize;
-                                acc[v] += w * l.j[k][0] * z;
-                                acc[v + 1] += w * l.j[k][1] * z;
-                            }
-                        }
-                        acc
-                    },
-                )
-                .reduce(
-                    || vec![0.0; vars],
-                    |mut a, b| {
-                        add_into(&mut a, &b);
-                        a
-                    },
-                );
+            let mut out = data_product(&lins, vars, x);
             let moves: Vec<Vector3<f64>> = (0..n.len())
                 .into_par_iter()
                 .map(|v| frames[v].0 * x[2 * v] + frames[v].1 * x[2 * v + 1])
@@ -873,6 +835,76 @@ impl<'a> Problem<'a> {
         }
         (n.to_vec(), c0)
     }
+}
+
+/// Each vertex's tangent axes at normals `n` (the two angles a vertex turns by).
+fn frames_of(n: &[Vector3<f64>]) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+    n.par_iter()
+        .map(|v| {
+            let f = ShadingFrame::new(*v);
+            (f.t, f.b)
+        })
+        .collect()
+}
+
+/// The data term's gradient `J^T W r` and the diagonal of `J^T W J` over every vertex's two
+/// tangent angles (`vars` = twice the vertices).
+fn data_gradient(lins: &[Lin], vars: usize) -> (Vec<f64>, Vec<f64>) {
+    lins.par_chunks(LIN_CHUNK)
+        .map(|chunk| {
+            let (mut g, mut d) = (vec![0.0; vars], vec![0.0; vars]);
+            for l in chunk {
+                let w = l.weight * l.irls;
+                for k in 0..3 {
+                    let v = 2 * l.vertices[k] as usize;
+                    for a in 0..2 {
+                        g[v + a] += w * l.j[k][a] * l.r;
+                        d[v + a] += w * l.j[k][a] * l.j[k][a];
+                    }
+                }
+            }
+            (g, d)
+        })
+        .reduce(
+            || (vec![0.0; vars], vec![0.0; vars]),
+            |(mut g, mut d), (g2, d2)| {
+                add_into(&mut g, &g2);
+                add_into(&mut d, &d2);
+                (g, d)
+            },
+        )
+}
+
+/// The data term's `J^T W J x` over the tangent angles.
+fn data_product(lins: &[Lin], vars: usize, x: &[f64]) -> Vec<f64> {
+    // Large chunks: each accumulates into its own vector of every unknown.
+    lins.par_chunks(LIN_CHUNK)
+        .fold(
+            || vec![0.0; vars],
+            |mut acc, chunk| {
+                for l in chunk {
+                    let w = l.weight * l.irls;
+                    let mut z = 0.0;
+                    for k in 0..3 {
+                        let v = 2 * l.vertices[k] as usize;
+                        z += l.j[k][0] * x[v] + l.j[k][1] * x[v + 1];
+                    }
+                    for k in 0..3 {
+                        let v = 2 * l.vertices[k] as usize;
+                        acc[v] += w * l.j[k][0] * z;
+                        acc[v + 1] += w * l.j[k][1] * z;
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![0.0; vars],
+            |mut a, b| {
+                add_into(&mut a, &b);
+                a
+            },
+        )
 }
 
 /// Linearised pixels per parallel chunk of the normal equations' product.
@@ -1273,6 +1305,7 @@ pub fn refine_normals(
     report.chosen_start_smoothing = k_start;
     let chosen_mesh = MeshNormals {
         faces: mesh.faces,
+        positions: mesh.positions,
         normals: n0,
         neighbours: mesh.neighbours,
         starts: &[],
@@ -1297,13 +1330,32 @@ pub fn refine_normals(
     let mut n = n0.to_vec();
     let mut best_normals = n0.to_vec();
     let mut best_model = fit0;
+    let mut depth = if settings.depth {
+        depth::Depth::new(
+            mesh.faces,
+            mesh.positions,
+            n0,
+            n_mesh,
+            movable.clone(),
+            settings,
+            prior_train.anchor,
+        )
+    } else {
+        None
+    };
+    // what moved (a mesh without positions falls back to the free normals)
+    report.settings.depth = depth.is_some();
+    let mut best_d = depth.as_ref().map(|dp| dp.d.clone());
     for it in 1..=settings.max_iterations {
         progress(&format!(
             "normal refinement: iteration {it} of at most {} (held-out images {:?})",
             settings.max_iterations, report.held_out_images
         ));
         let t = Instant::now();
-        n = problem.sweeps(&model, &train, n, &prior_train);
+        n = match depth.as_mut() {
+            Some(dp) => dp.sweeps(&problem, &model, &train, &prior_train),
+            None => problem.sweeps(&model, &train, n, &prior_train),
+        };
         let Some(fit) = problem.fit(&all, &n) else {
             break;
         };
@@ -1322,6 +1374,7 @@ pub fn refine_normals(
             best = (it, held_out_error);
             best_normals.clone_from(&n);
             best_model = model.clone();
+            best_d = depth.as_ref().map(|dp| dp.d.clone());
         } else {
             break;
         }
@@ -1362,6 +1415,10 @@ pub fn refine_normals(
     let prior_all = problem.prior(&all);
     let mut n = best_normals;
     let mut model = best_model;
+    if let (Some(dp), Some(d)) = (depth.as_mut(), best_d) {
+        dp.d = d;
+        dp.free.clone_from(&prior_all.movable);
+    }
     for it in 0..settings.final_alternations {
         progress(&format!(
             "normal refinement: final alternation {} of {} on every image",
@@ -1371,7 +1428,10 @@ pub fn refine_normals(
         if let Some(f) = problem.fit(&all, &n) {
             model = f;
         }
-        n = problem.sweeps(&model, &all, n, &prior_all);
+        n = match depth.as_mut() {
+            Some(dp) => dp.sweeps(&problem, &model, &all, &prior_all),
+            None => problem.sweeps(&model, &all, n, &prior_all),
+        };
     }
     let refined = if settings.final_alternations > 0 {
         prior_all.movable.clone()
@@ -1397,6 +1457,10 @@ pub fn refine_normals(
             best.0, best.1
         )
     };
+    if depth.is_some() {
+        report.reason +=
+            " (the normals of the mesh's positions, each vertex displaced along its normal)";
+    }
     report.seconds = start.elapsed().as_secs_f64();
     Refinement { normals: n, report }
 }
@@ -1490,6 +1554,7 @@ mod tests {
         refine_normals(
             &MeshNormals {
                 faces: mesh.faces(),
+                positions: mesh.positions(),
                 normals: start,
                 neighbours: &nb,
                 starts: &[],
@@ -1498,6 +1563,16 @@ mod tests {
             settings,
             &mut |_| {},
         )
+    }
+
+    /// The free-normal unknowns (two tangent angles per vertex): the tests whose meshes have
+    /// their normals turned at random, not their positions displaced, which displacements
+    /// cannot undo.
+    fn free_normals() -> RefineSettings {
+        RefineSettings {
+            depth: false,
+            ..RefineSettings::default()
+        }
     }
 
     fn true_normals(mesh: &Mesh) -> Vec<Vector3<f64>> {
@@ -1515,7 +1590,7 @@ mod tests {
         let px = pixels(&mesh, 12, 40.0, 20);
         let seen = seen_vertices(mesh.faces(), &px, truth.len());
         let before = normal_error_deg(&start, &truth, &seen).expect("seen").0;
-        let r = run(&mesh, &start, &px, &RefineSettings::default());
+        let r = run(&mesh, &start, &px, &free_normals());
         let after = normal_error_deg(&r.normals, &truth, &seen).expect("seen").0;
         eprintln!(
             "median error {before:.2} -> {after:.2} deg: {}",
@@ -1565,6 +1640,7 @@ mod tests {
             refine_normals(
                 &MeshNormals {
                     faces: mesh.faces(),
+                    positions: mesh.positions(),
                     normals: mesh.vertex_normals(),
                     neighbours: &nb,
                     starts,
@@ -1649,7 +1725,7 @@ mod tests {
         let error = |smooth_normals: f64| {
             let settings = RefineSettings {
                 smooth_normals,
-                ..RefineSettings::default()
+                ..free_normals()
             };
             let r = run(&mesh, &start, &px, &settings);
             assert!(r.report.accepted, "{}", r.report.reason);
@@ -1739,21 +1815,69 @@ mod tests {
         let mesh = sphere(12, 16);
         let start = perturbed(&mesh, 8.0, 5);
         let px = pixels(&mesh, 12, 40.0, 20);
-        let settings = RefineSettings {
-            max_tilt_deg: 1.0,
-            min_gain: -1.0, // accept whatever the held-out images say: the bound is tested
-            ..RefineSettings::default()
-        };
-        let r = run(&mesh, &start, &px, &settings);
-        assert!(r.report.accepted);
-        let worst = r
-            .normals
+        for depth in [false, true] {
+            let settings = RefineSettings {
+                max_tilt_deg: 1.0,
+                min_gain: -1.0, // accept whatever the held-out images say: the bound is tested
+                depth,
+                ..RefineSettings::default()
+            };
+            let r = run(&mesh, &start, &px, &settings);
+            assert!(r.report.accepted, "depth {depth}: {}", r.report.reason);
+            let worst = r
+                .normals
+                .iter()
+                .zip(&start)
+                .map(|(a, b)| angle_deg(a, b))
+                .fold(0.0, f64::max);
+            assert!(worst <= 1.0 + 1e-6, "depth {depth}: tilt {worst} deg");
+            assert!(worst > 0.0, "depth {depth}: nothing moved");
+            assert!(r.report.max_tilt_deg <= 1.0 + 1e-6);
+        }
+    }
+
+    #[test]
+    fn displacements_undo_a_noisy_mesh_better_than_free_normals() {
+        // A sphere whose vertices are displaced along their normals (a photogrammetry mesh's
+        // depth noise), rendered with the true normals, refined from the mesh's own normals:
+        // one displacement per vertex, held by the pixels of every face around it, gets closer
+        // to the truth than two free angles per vertex, held by the vertex's own faces, where
+        // pixels are few (each image shows one face in four, 6 views; with every face shown
+        // in 12 views both end near 0.3 degrees).
+        let clean = sphere(32, 48);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noisy_positions: Vec<nalgebra::Point3<f64>> = clean
+            .positions()
             .iter()
-            .zip(&start)
-            .map(|(a, b)| angle_deg(a, b))
-            .fold(0.0, f64::max);
-        assert!(worst <= 1.0 + 1e-6, "tilt {worst} deg");
-        assert!(r.report.max_tilt_deg <= 1.0 + 1e-6);
+            .map(|p| p * (1.0 + 0.012 * (rng.r#gen::<f64>() - 0.5)))
+            .collect();
+        let mut mesh = clean.clone();
+        assert!(mesh.set_positions(noisy_positions));
+        let truth = true_normals(&mesh);
+        let px: Vec<RefinePixel> = pixels(&mesh, 6, 40.0, 20)
+            .into_iter()
+            .filter(|p| (p.face + 3 * p.image) % 4 == 0)
+            .collect();
+        let seen = seen_vertices(mesh.faces(), &px, truth.len());
+        let e = |n: &[Vector3<f64>]| normal_error_deg(n, &truth, &seen).expect("seen").0;
+        let before = e(mesh.vertex_normals());
+        let depth = run(
+            &mesh,
+            mesh.vertex_normals(),
+            &px,
+            &RefineSettings::default(),
+        );
+        let free = run(&mesh, mesh.vertex_normals(), &px, &free_normals());
+        eprintln!(
+            "median error {before:.2} -> {:.2} (displacements), {:.2} (free normals): {}",
+            e(&depth.normals),
+            e(&free.normals),
+            depth.report.reason
+        );
+        assert!(depth.report.accepted && free.report.accepted);
+        assert!(e(&depth.normals) < 0.5 * before);
+        assert!(e(&depth.normals) < 0.9 * e(&free.normals));
+        assert!(depth.report.settings.depth && !free.report.settings.depth);
     }
 
     #[test]

@@ -104,6 +104,11 @@ pub struct AccuracyBenchOptions {
     /// Only "all three assumptions" (no ablation).
     pub no_ablation: bool,
     pub refine_normals: bool,
+    /// The SfM-like mesh (`geometry::sfm_like`): noise in mean edge lengths, Taubin iterations.
+    pub sfm_noise_rel: f64,
+    pub sfm_iterations: usize,
+    /// With `refine_normals`: displacements as the unknowns (`RefineSettings::depth`).
+    pub refine_depth: bool,
     pub exact_reference: bool,
     /// Folder of accuracy.md and accuracy.json.
     pub out: PathBuf,
@@ -211,15 +216,18 @@ pub fn run(
         basis_components: o.scene.basis_components,
         core: c.core,
         nielsen: NielsenSettings::default(),
-        sfm_iterations: 10,
-        sfm_noise_rel: 0.05,
+        sfm_iterations: o.sfm_iterations,
+        sfm_noise_rel: o.sfm_noise_rel,
         variants,
         bin_step: o.scene.bin_step,
         seeds: o.seeds.max(1),
         rigs: o.rigs.clone(),
         refine: o
             .refine_normals
-            .then(crate::reconstruct::refine::RefineSettings::default),
+            .then(|| crate::reconstruct::refine::RefineSettings {
+                depth: o.refine_depth,
+                ..Default::default()
+            }),
         exact_reference: o.exact_reference,
     };
     let command = &o.command;

@@ -48,6 +48,8 @@ pub struct ReconstructBenchOptions {
     /// Keep the scene folders here instead of a temporary folder.
     pub keep: Option<PathBuf>,
     pub refine_normals: bool,
+    /// With `refine_normals`: `reconstruct --refine-unknowns` (None: its default).
+    pub refine_unknowns: Option<String>,
     pub all_pixels: bool,
     /// What each basis fit is given (`None`: the default).
     pub basis_fit: Option<crate::reconstruct::trials::BasisFit>,
@@ -171,6 +173,10 @@ pub fn run(
     ];
     if o.refine_normals {
         cmd_args.push("--refine-normals".into());
+        if let Some(u) = &o.refine_unknowns {
+            cmd_args.push("--refine-unknowns".into());
+            cmd_args.push(u.clone());
+        }
     }
     if o.all_pixels {
         cmd_args.push("--all-pixels".into());
