@@ -725,15 +725,29 @@ fn normals_section(spec: &AccuracySpec, results: &[SceneResult]) -> String {
           pipeline on the refined normals (ours), on the unrefined ones, and on the exact mesh; \
           \"/ exact\" = that error over the exact mesh's (1 = as good as the true geometry).\n\n";
     if let Some(r) = &spec.refine {
+        let (unknowns, sweeps, cg) = if r.depth {
+            (
+                format!(
+                    "one displacement per vertex along its normal (ridge {} mean edges)",
+                    r.depth_sigma_edges
+                ),
+                r.depth_sweeps,
+                r.depth_cg_iterations,
+            )
+        } else {
+            (
+                "two free angles per vertex normal".to_string(),
+                r.sweeps,
+                r.cg_iterations,
+            )
+        };
         s += &format!(
-            "Refinement settings: {} iterations at most, {} Gauss-Newton steps of at most {} \
-             conjugate-gradient iterations each (stopped at a residual of {} of the right-hand \
-             side), at most {} pixels per face and image, {} final alternation(s) on every \
-             image, tilt at most {} deg, sigma {}, smoothness {} deg, anchor {} deg, every {}th \
-             image held out.\n\n",
+            "Refinement settings: unknowns {unknowns}, {} iterations at most, {sweeps} \
+             Gauss-Newton steps of at most {cg} conjugate-gradient iterations each (stopped at \
+             a residual of {} of the right-hand side), at most {} pixels per face and image, {} \
+             final alternation(s) on every image, tilt at most {} deg, sigma {}, smoothness {} \
+             deg, anchor {} deg, every {}th image held out.\n\n",
             r.max_iterations,
-            r.sweeps,
-            r.cg_iterations,
             r.cg_tolerance,
             r.max_pixels_per_face,
             r.final_alternations,
