@@ -20,6 +20,11 @@
 //!    the mesh's vertex-to-vertex noise wherever the pixels did not hold a vertex), weighted
 //!    like the mean pixels of a vertex, so a vertex finer than the pixels follows its
 //!    neighbours; and never further than a bounded tilt from the mesh's normal.
+//!    By default (`RefineSettings::depth`, since session 28) the unknowns are not the normals'
+//!    angles but one displacement per vertex along its normal, the normals those of the
+//!    displaced positions (`refine_depth`): a photogrammetry mesh's error is depth noise, and a
+//!    displacement is held by every face around its vertex. The same linearised pixels and
+//!    priors, composed with the normals' derivative by the displacements.
 //!
 //! Start: the mesh's normals, or them with the mesh's positions Taubin-smoothed
 //! (`geometry::taubin`, the steps in `start_smoothing`, computed by the caller): a
@@ -32,8 +37,9 @@
 //! Guard against explaining the reflectance away: the number of iterations is chosen on
 //! held-out light images (every `hold_out_every`-th image; they never move a normal), and a
 //! refinement that does not lower their error by `min_gain` is refused: the mesh's normals are
-//! kept. With the count chosen, the normals are refined once more from every image. Positions
-//! (hence shadows and visibility) are never changed.
+//! kept. With the count chosen, the normals are refined once more from every image. The mesh's
+//! positions (hence pixels, shadows and visibility) are never changed: the displacements only
+//! make normals.
 //!
 //! Residual of one pixel: `r = ln(eps + sum_c f_c cos theta_i) - ln(eps + sum_c I_c / E_c)`
 //! (channels summed: geometry is colourless), `eps` 1 % of the mean target; loss
@@ -1565,6 +1571,20 @@ mod tests {
         )
     }
 
+    /// A sphere whose vertices are displaced along their normals by up to 0.6 % of the radius
+    /// (a photogrammetry mesh's depth noise); its normals are those of the displaced positions.
+    fn noisy_sphere(rings: usize, segments: usize) -> Mesh {
+        let mut mesh = sphere(rings, segments);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noisy: Vec<nalgebra::Point3<f64>> = mesh
+            .positions()
+            .iter()
+            .map(|p| p * (1.0 + 0.012 * (rng.r#gen::<f64>() - 0.5)))
+            .collect();
+        assert!(mesh.set_positions(noisy));
+        mesh
+    }
+
     /// The free-normal unknowns (two tangent angles per vertex): the tests whose meshes have
     /// their normals turned at random, not their positions displaced, which displacements
     /// cannot undo.
@@ -1616,15 +1636,7 @@ mod tests {
         // depth noise), rendered with the true (radial) normals: the mesh's own normals carry
         // the noise, its smoothed positions' normals less of it; the held-out images choose a
         // smoothed start, and the refinement from it ends closer to the truth.
-        let clean = sphere(20, 40);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let noisy_positions: Vec<nalgebra::Point3<f64>> = clean
-            .positions()
-            .iter()
-            .map(|p| p * (1.0 + 0.012 * (rng.r#gen::<f64>() - 0.5)))
-            .collect();
-        let mut mesh = clean.clone();
-        assert!(mesh.set_positions(noisy_positions));
+        let mesh = noisy_sphere(20, 40);
         let truth = true_normals(&mesh);
         let px = pixels(&mesh, 12, 40.0, 20);
         let seen = seen_vertices(mesh.faces(), &px, truth.len());
@@ -1844,15 +1856,7 @@ mod tests {
         // to the truth than two free angles per vertex, held by the vertex's own faces, where
         // pixels are few (each image shows one face in four, 6 views; with every face shown
         // in 12 views both end near 0.3 degrees).
-        let clean = sphere(32, 48);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let noisy_positions: Vec<nalgebra::Point3<f64>> = clean
-            .positions()
-            .iter()
-            .map(|p| p * (1.0 + 0.012 * (rng.r#gen::<f64>() - 0.5)))
-            .collect();
-        let mut mesh = clean.clone();
-        assert!(mesh.set_positions(noisy_positions));
+        let mesh = noisy_sphere(32, 48);
         let truth = true_normals(&mesh);
         let px: Vec<RefinePixel> = pixels(&mesh, 6, 40.0, 20)
             .into_iter()
