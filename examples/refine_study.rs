@@ -8,7 +8,9 @@
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
 //! fitcos, facecap, final, passes, margin, holdout, depth (0/1), dsigma, dcg, dsweeps, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
-//! SfM-like mesh's positions: how far the objective's own minimum lies from the truth)
+//! SfM-like mesh's positions: how far the objective's own minimum lies from the truth), and
+//! `true_pos=1` (the true positions under the SfM-like normals: the pixels land where they
+//! should; with `from_truth=1`, the truth on the true positions)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};

@@ -275,6 +275,18 @@ pub fn angle_weighted_normals(
     (vn, fnorm)
 }
 
+/// Mean length of the edges of the triangles `faces` over `positions` (each interior edge
+/// counted twice; a scale, not a statistic; 0 without faces). Faces must index `positions`.
+pub fn mean_edge_length(faces: &[[u32; 3]], positions: &[Point3<f64>]) -> f64 {
+    let mut sum = 0.0;
+    for f in faces {
+        for j in 0..3 {
+            sum += (positions[f[(j + 1) % 3] as usize] - positions[f[j] as usize]).norm();
+        }
+    }
+    sum / (3 * faces.len()).max(1) as f64
+}
+
 /// A UV sphere of radius `r` about the origin with outward faces: `rings` latitude bands (at
 /// least 2) of `segments` quads (at least 3), poles as single vertices. For tests and studies
 /// that need a closed surface whose true normal is known everywhere (`position / r`).

@@ -43,14 +43,7 @@ impl Default for SfmLikeParams {
 
 /// Mean length of the face edges (each interior edge counted twice; a scale, not a statistic).
 pub fn mean_edge_length(mesh: &Mesh) -> f64 {
-    let p = mesh.positions();
-    let mut sum = 0.0;
-    for f in mesh.faces() {
-        for j in 0..3 {
-            sum += (p[f[(j + 1) % 3] as usize] - p[f[j] as usize]).norm();
-        }
-    }
-    sum / (3 * mesh.faces().len()).max(1) as f64
+    crate::geometry::mesh::mean_edge_length(mesh.faces(), mesh.positions())
 }
 
 /// The SfM-like version of `truth` (same vertex count and faces).

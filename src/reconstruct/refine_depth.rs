@@ -23,7 +23,7 @@ use super::{
     Model, Prior, Problem, RefineSettings, clamp_tilt, conjugate_gradients, data_gradient,
     data_product, frames_of,
 };
-use crate::geometry::mesh::angle_weighted_normals;
+use crate::geometry::mesh::{angle_weighted_normals, mean_edge_length};
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
@@ -111,14 +111,7 @@ impl<'a> Depth<'a> {
             return None;
         }
         let (base, _) = angle_weighted_normals(faces, p0);
-        let (mut sum, mut count) = (0.0, 0usize);
-        for f in faces {
-            for j in 0..3 {
-                sum += (p0[f[(j + 1) % 3] as usize] - p0[f[j] as usize]).norm();
-                count += 1;
-            }
-        }
-        let edge = sum / count.max(1) as f64;
+        let edge = mean_edge_length(faces, p0);
         let sigma = settings.depth_sigma_edges * edge;
         if !(sigma.is_finite() && sigma > 0.0) {
             return None;
