@@ -118,7 +118,7 @@ fn main() -> anyhow::Result<()> {
             max_iterations: 1,
             ..RefineSettings::default()
         };
-        let c = refine_case(scene, &observe, &s, &mesh);
+        let c = refine_case(scene, &observe, &s, None, &mesh);
         if let Some(st) = c.study {
             println!(
                 "true normals: held-out error {:.4} (training {:.4})",
@@ -155,7 +155,7 @@ fn main() -> anyhow::Result<()> {
             }
         }
         let t = Instant::now();
-        let c = refine_case(scene, &observe, &s, &mesh);
+        let c = refine_case(scene, &observe, &s, None, &mesh);
         let secs = t.elapsed().as_secs_f64();
         let Some(st) = c.study else {
             println!("{v:?}: no study");

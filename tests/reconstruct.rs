@@ -353,6 +353,7 @@ fn refine_spot(
         None,
         &observe,
         settings,
+        &[],
         &mut |_| {},
     );
     let report = prepared.refinement.clone().expect("the refinement ran");

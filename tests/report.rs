@@ -286,6 +286,7 @@ fn example_report(job: PathBuf) -> Report {
             mean_tilt_deg: 1.5,
             max_tilt_deg: 9.0,
             seconds: 2.0,
+            materials: 1,
         }),
         materials: None,
         timings: [("rasterise", 1.5), ("observe", 0.25), ("trials", 3.0)]

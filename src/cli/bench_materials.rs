@@ -40,6 +40,13 @@ pub struct BenchMaterialsArgs {
     /// (`reconstruct --keep-boundary-pixels`; by default they are left out).
     #[arg(long)]
     pub keep_boundary_pixels: bool,
+    /// Refine the SfM-like mesh's normals from the images before finding the materials
+    /// (`reconstruct --refine-normals`); the baselines are fitted to the unrefined pixels.
+    #[arg(long)]
+    pub refine_normals: bool,
+    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    #[arg(long, value_enum, default_value = "depth")]
+    pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
     /// Output folder for materials.md and materials.json.
     #[arg(long, default_value = "docs/eval/materials")]
     pub out: PathBuf,
@@ -57,7 +64,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
@@ -69,6 +76,11 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         } else {
             ""
         },
+        match (a.refine_normals, a.refine_unknowns) {
+            (false, _) => String::new(),
+            (true, super::reconstruct::RefineUnknownsArg::Depth) => " --refine-normals".into(),
+            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
+        },
         a.out.display()
     );
     let options = MaterialsBenchOptions {
@@ -79,6 +91,12 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         rigs,
         max_materials: a.max_materials,
         keep_boundary_pixels: a.keep_boundary_pixels,
+        refine: a
+            .refine_normals
+            .then(|| brdf_rig::reconstruct::refine::RefineSettings {
+                depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
+                ..Default::default()
+            }),
         out: a.out.clone(),
         command,
     };

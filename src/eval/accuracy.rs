@@ -236,7 +236,7 @@ pub fn run(
             let (obs, unrefined_obs, normals) = match &spec.refine {
                 Some(rs) => {
                     progress(&format!("{name} on {mesh_name}: refining the normals"));
-                    let c = refine_case(loaded, &observe, rs, mesh);
+                    let c = refine_case(loaded, &observe, rs, None, mesh);
                     (c.observations, Some(c.unrefined), c.study)
                 }
                 None => (observe_scene(&loaded, &observe).observations, None, None),

@@ -9,7 +9,7 @@
 //! Writes the scenes (I/O edge of the evaluation, like `eval::accuracy`).
 
 use super::accuracy::Rig;
-use super::{EvalError, Truth, baseline_errors, find_material, load_case};
+use super::{EvalError, Truth, baseline_errors, find_material, load_case, refine_case};
 use crate::brdf::basis_cache;
 use crate::brdf::nbrdf::Nbrdf;
 use crate::brdf::{BinValues, Brdf};
@@ -48,6 +48,11 @@ pub struct MaterialsSpec {
     pub seeds: u64,
     pub rigs: Vec<Rig>,
     pub bin_step: usize,
+    /// Refine the SfM-like mesh's normals from the images before finding the materials, as
+    /// `reconstruct --refine-normals` does (`None`: off). The baselines are then fitted to the
+    /// unrefined pixels of each found material (the mesh the user was given), as in
+    /// `eval::accuracy`.
+    pub refine: Option<crate::reconstruct::refine::RefineSettings>,
 }
 
 /// One found material against its true one.
@@ -98,6 +103,19 @@ pub struct ObjectResult {
     /// Of `seconds`, finding the materials (the count's held-out fits included).
     pub segment_seconds: f64,
     pub seconds_one: f64,
+    /// With `refine`: the median vertex-normal error against the truth before and after, in
+    /// degrees, and whether the refinement was accepted.
+    pub normals: Option<NormalsChange>,
+}
+
+/// What the normal refinement did to one object's normals.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct NormalsChange {
+    pub median_before_deg: f64,
+    pub median_after_deg: f64,
+    pub accepted: bool,
+    /// Reflectance tables the refinement fitted (one per material found before it).
+    pub tables: usize,
 }
 
 /// Faces of `mesh` seen by any view of the scene.
@@ -181,13 +199,27 @@ pub fn run(
                     })?;
                     let observe = ObserveSettings::default();
                     let loaded = load_case(&job, &observe, &super::Perturb::default())?;
-                    let obs = observe_scene(&loaded, &observe).observations;
+                    let seg_mesh = loaded.mesh.clone();
+                    let (obs, unrefined, normals) = match &spec.refine {
+                        Some(rs) => {
+                            progress(&format!("{object} on {mesh_name}: refining the normals"));
+                            let c = refine_case(loaded, &observe, rs, Some(spec.segment), mesh);
+                            let normals = c.study.map(|n| NormalsChange {
+                                median_before_deg: n.median_before_deg,
+                                median_after_deg: n.median_after_deg,
+                                accepted: n.report.accepted,
+                                tables: n.report.materials,
+                            });
+                            (c.observations, Some(c.unrefined), normals)
+                        }
+                        None => (observe_scene(&loaded, &observe).observations, None, None),
+                    };
                     let mut core = spec.core.clone();
                     core.trials.seed += seed;
                     let t = Instant::now();
                     progress(&format!("{object} on {mesh_name}: materials"));
                     let (m, cores) = reconstruct_materials(
-                        &loaded.mesh,
+                        &seg_mesh,
                         &obs,
                         None,
                         &prior,
@@ -200,7 +232,7 @@ pub fn run(
                     let one = reconstruct_observations(&obs, &prior, &core, &mut |_| {})?;
                     let seconds_one = t.elapsed().as_secs_f64();
                     let found =
-                        FaceLabels::from_vertex_labels(&loaded.mesh, &m.segmentation.vertex_labels);
+                        FaceLabels::from_vertex_labels(&seg_mesh, &m.segmentation.vertex_labels);
                     let visible = visible_faces(mesh, &scene);
                     let agreement = area_agreement(mesh, &truth_labels, &found, Some(&visible));
                     // each found material against the true material most of its pixels have
@@ -228,17 +260,33 @@ pub fn run(
                     };
                     // the pixels each material's fit had (the baselines get the same)
                     let (mut groups, _) = interior_groups(
-                        &loaded.mesh,
+                        &seg_mesh,
                         &m.segmentation.vertex_labels,
                         m.segmentation.count,
                         &obs,
                         m.settings.fit_interior_only,
                     );
+                    // with a refinement the baselines get the same faces' unrefined pixels
+                    let mut base_groups = unrefined.as_ref().map(|u| {
+                        interior_groups(
+                            &seg_mesh,
+                            &m.segmentation.vertex_labels,
+                            m.segmentation.count,
+                            u,
+                            m.settings.fit_interior_only,
+                        )
+                        .0
+                    });
                     for (i, (name, table, model, confidence)) in tables.into_iter().enumerate() {
                         let own: Vec<Observation> = if cores.is_empty() {
                             obs.to_vec()
                         } else {
                             groups.get_mut(i).map(std::mem::take).unwrap_or_default()
+                        };
+                        let base_own: Option<Vec<Observation>> = match &mut base_groups {
+                            None => None,
+                            Some(_) if cores.is_empty() => unrefined.clone(),
+                            Some(g) => Some(g.get_mut(i).map(std::mem::take).unwrap_or_default()),
                         };
                         let mut votes = vec![0usize; names.len()];
                         for o in &own {
@@ -253,7 +301,8 @@ pub fn run(
                             .enumerate()
                             .max_by_key(|(_, n)| **n)
                             .unwrap_or((0, &0));
-                        let (lambert, lambert_ggx) = baseline_errors(&truths[t], &own);
+                        let (lambert, lambert_ggx) =
+                            baseline_errors(&truths[t], base_own.as_deref().unwrap_or(&own));
                         scores.push(MaterialScore {
                             truth: names[t].clone(),
                             found: name,
@@ -280,6 +329,7 @@ pub fn run(
                         seconds,
                         segment_seconds: m.segment_seconds,
                         seconds_one,
+                        normals,
                     };
                     progress(&format!(
                         "  {} materials found, agreement {:.3}, {:.1} s ({:.1} s one-material) [{:.0} s]",
@@ -353,6 +403,18 @@ pub fn markdown(
         single.iter().filter(|r| r.count == 1).count(),
         single.len()
     );
+    let normals: Vec<&NormalsChange> = results.iter().filter_map(|r| r.normals.as_ref()).collect();
+    if spec.refine.is_some() {
+        s += &format!(
+            "| normals refined first (a reflectance table per material): median vertex-normal error after / before | gm {} over {} objects, accepted in {} |\n",
+            f3(gm(&normals
+                .iter()
+                .map(|n| n.median_after_deg / n.median_before_deg)
+                .collect::<Vec<_>>())),
+            normals.len(),
+            normals.iter().filter(|n| n.accepted).count()
+        );
+    }
     let times: Vec<f64> = multi.iter().map(|r| r.seconds / r.seconds_one).collect();
     s += &format!(
         "| time / one-material time (several materials) | gm {}, max {} (finding the materials: gm {} of the one-material time) |\n\n",

@@ -36,12 +36,13 @@ use crate::reconstruct::ladder::Family;
 use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observe::{Observation, ObserveSettings};
 use crate::reconstruct::prepare::{
-    Prepared, ReconstructError, Scene, Settings, load_scene, observe_scene,
+    Prepared, ReconstructError, Scene, Settings, load_scene, material_labels, observe_scene,
     observe_scene_and_pixels, refine_prepared,
 };
 use crate::reconstruct::refine::{
     RefineReport, RefineSettings, normal_error_deg, pixel_normal_error_deg,
 };
+use crate::reconstruct::segment::SegmentSettings;
 use crate::reconstruct::{Job, prior::Candidate};
 use crate::render::probe::{
     ProbeRenders, ProbeSettings, RenderedErrors, SphereProbe, compare as compare_rendered,
@@ -369,11 +370,14 @@ pub struct RefinedCase {
     pub study: Option<NormalStudy>,
 }
 
-/// Refines the normals of `scene` and observes it both ways.
+/// Refines the normals of `scene` and observes it both ways. `materials`: find the object's
+/// materials first and give each its own reflectance table (`prepare::material_labels`), as
+/// `reconstruct --materials auto --refine-normals` does.
 pub fn refine_case(
     scene: Scene,
     observe: &ObserveSettings,
     refine: &RefineSettings,
+    materials: Option<SegmentSettings>,
     truth: &Mesh,
 ) -> RefinedCase {
     let (observed, pixels) = observe_scene_and_pixels(&scene, observe, refine.edge_margin_px);
@@ -385,11 +389,19 @@ pub fn refine_case(
         refinement: None,
         timings: Vec::new(),
     };
+    let labels = material_labels(
+        &prepared.scene.mesh,
+        &prepared.observed,
+        materials,
+        &mut |_| {},
+    )
+    .unwrap_or_default();
     let seen = refine_prepared(
         &mut prepared,
         Some(pixels.clone()),
         observe,
         refine,
+        &labels,
         &mut |_| {},
     );
     let after = prepared.scene.mesh.vertex_normals();

@@ -24,6 +24,7 @@ use super::refine::{
     MeshNormals, RefinePixel, RefineReport, RefineSettings, StartNormals, refine_normals,
     seen_vertices,
 };
+use super::segment::{SegmentSettings, segment_with_labels};
 use super::sweep::{ViewSweep, sweep_view};
 use crate::brdf::basis::{Basis, BasisSettings};
 use crate::brdf::basis_cache::{self, BasisCacheError, CacheStatus};
@@ -829,9 +830,77 @@ pub fn prepare(
         timings,
     };
     if let Some(refine) = &settings.refine {
-        let _seen = refine_prepared(&mut prepared, pixels, &settings.observe, refine, progress);
+        let t = Instant::now();
+        let labels = material_labels(
+            &prepared.scene.mesh,
+            &prepared.observed,
+            settings.materials,
+            progress,
+        );
+        if let Some(labels) = &labels {
+            prepared.timings.push((
+                format!(
+                    "materials for the refinement ({})",
+                    labels.iter().max().map_or(1, |m| m + 1)
+                ),
+                t.elapsed().as_secs_f64(),
+            ));
+        }
+        let labels = labels.unwrap_or_default();
+        let _seen = refine_prepared(
+            &mut prepared,
+            pixels,
+            &settings.observe,
+            refine,
+            &labels,
+            progress,
+        );
     }
     Ok(prepared)
+}
+
+/// The segmentation a job gets: `materials` (`--materials auto`) when asked; else, when the
+/// job's label masks fix some vertices, exactly the masks' materials; else none (one
+/// material).
+pub fn segmentation_for(
+    materials: Option<SegmentSettings>,
+    has_fixed_labels: bool,
+) -> Option<SegmentSettings> {
+    match (materials, has_fixed_labels) {
+        (Some(seg), _) => Some(seg),
+        (None, true) => Some(SegmentSettings {
+            max_materials: 1,
+            ..SegmentSettings::default()
+        }),
+        (None, false) => None,
+    }
+}
+
+/// The materials of the mesh's vertices as the normal refinement needs them (one reflectance
+/// table each): the segmentation of [`segmentation_for`] on the observations of the unrefined
+/// normals (its features do not depend on the normals' error). `None` when the job is one
+/// material (nothing was run); empty when one material is found. The materials reported are
+/// found again after the refinement.
+pub fn material_labels(
+    mesh: &Mesh,
+    observed: &Observed,
+    materials: Option<SegmentSettings>,
+    progress: &mut dyn FnMut(&str),
+) -> Option<Vec<u32>> {
+    let fixed = observed.label_votes.fixed(mesh.positions().len());
+    let seg = segmentation_for(materials, fixed.is_some())?;
+    progress("normal refinement: finding the materials first (a reflectance table each)");
+    let found = segment_with_labels(
+        mesh,
+        &observed.observations,
+        &seg,
+        fixed.as_ref().map_or(&[][..], |f| &f.vertex[..]),
+    );
+    Some(if found.count > 1 {
+        found.vertex_labels
+    } else {
+        Vec::new()
+    })
 }
 
 /// Refines the normals of a prepared scene from its images; when the refinement is accepted,
@@ -843,6 +912,7 @@ pub fn refine_prepared(
     pixels: Option<Vec<RefinePixel>>,
     observe: &ObserveSettings,
     settings: &RefineSettings,
+    labels: &[u32],
     progress: &mut dyn FnMut(&str),
 ) -> Vec<bool> {
     let t = Instant::now();
@@ -874,6 +944,7 @@ pub fn refine_prepared(
             normals: scene.mesh.vertex_normals(),
             neighbours: &neighbours,
             starts: &starts,
+            labels,
         },
         &pixels,
         settings,

@@ -235,6 +235,13 @@ struct RefineReportMirror {
     mean_tilt_deg: f64,
     max_tilt_deg: f64,
     seconds: f64,
+    /// Absent in reports written before a table per material: one table.
+    #[serde(default = "one")]
+    materials: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 #[cfg(test)]
@@ -322,6 +329,7 @@ mod tests {
             mean_tilt_deg: 1.5,
             max_tilt_deg: 9.0,
             seconds: 2.0,
+            materials: 2,
         });
     }
 }

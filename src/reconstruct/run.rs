@@ -9,8 +9,9 @@ use super::materials::{MaterialError, Materials, material_name, reconstruct_mate
 use super::nielsen::NielsenPrior;
 use super::observe::Observation;
 use super::output::{Output, report_of};
-use super::prepare::{Observed, Prepared, ReconstructError, Scene, Settings, load_basis, prepare};
-use super::segment::SegmentSettings;
+use super::prepare::{
+    Observed, Prepared, ReconstructError, Scene, Settings, load_basis, prepare, segmentation_for,
+};
 use crate::brdf::basis::Basis;
 use crate::brdf::basis_cache::CacheStatus;
 use crate::brdf::merl::MerlTable;
@@ -76,14 +77,7 @@ pub fn finish(
     let fixed = observed.label_votes.fixed(scene.mesh.positions().len());
     // Label masks split the object into their materials even with one material asked (the
     // default): a user who drew labels wants them. Nothing is added to them then.
-    let segment_settings = match (&settings.materials, &fixed) {
-        (Some(seg), _) => Some(*seg),
-        (None, Some(_)) => Some(SegmentSettings {
-            max_materials: 1,
-            ..SegmentSettings::default()
-        }),
-        (None, None) => None,
-    };
+    let segment_settings = segmentation_for(settings.materials, fixed.is_some());
     if let Some(seg) = &segment_settings {
         let (m, cores) = reconstruct_materials(
             &scene.mesh,

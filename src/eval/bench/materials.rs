@@ -25,6 +25,8 @@ pub struct MaterialsBenchOptions {
     /// Fit each material to the boundary faces' pixels too (`SegmentSettings::fit_interior_only`
     /// off).
     pub keep_boundary_pixels: bool,
+    /// Refine the normals from the images first (`reconstruct --refine-normals`).
+    pub refine: Option<crate::reconstruct::refine::RefineSettings>,
     /// Folder of materials.md and materials.json.
     pub out: PathBuf,
     /// The command as typed, quoted by the page.
@@ -71,6 +73,7 @@ pub fn run(
         seeds: o.seeds.max(1),
         rigs: o.rigs.clone(),
         bin_step: o.scene.bin_step,
+        refine: o.refine.clone(),
     };
     let machine = crate::eval::host::machine();
     create_dir(&o.out)?;
