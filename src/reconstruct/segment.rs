@@ -24,7 +24,12 @@
 //!    pixels, and the image-space error is averaged over the folds. The simplest count whose
 //!    error is within one standard error (of its paired difference to the best) or within
 //!    `min_gain` (5 %) of the best wins: the model ladder's rule, so a
-//!    one-material object gives one.
+//!    one-material object gives one. The count's fits and scores leave out the pixels near
+//!    the specular peak (`count_min_theta_h_deg`, 10 degrees): the shared shape's coarse
+//!    table cannot follow a sharp peak, a held-out image with a highlight is missed by far,
+//!    and a second scale on a region of one shiny material then lowers that miss as much as a
+//!    true second material does (docs/materials.md, "One material at the accuracy grid's
+//!    size").
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::ladder::{AnalyticCandidate, image_residual, subset};
@@ -70,6 +75,11 @@ pub struct SegmentSettings {
     /// The model fitted per material to score a count on held-out images.
     pub count_model: CountModel,
     pub seed: u64,
+    /// The count's fits and held-out scores use only pixels whose half-vector is at least
+    /// this far from the normal (degrees; 0: every pixel, what a `materials.json` written
+    /// before session 29 means).
+    #[serde(default)]
+    pub count_min_theta_h_deg: f64,
     /// Fit each material's BRDF only to the pixels of faces whose three corners all carry its
     /// label ([`interior_groups`]). `false` (what a `materials.json` written before it means):
     /// every pixel goes to the material of the face corner nearest to it.
@@ -92,6 +102,7 @@ impl Default for SegmentSettings {
             max_fit_pixels: 1500,
             count_model: CountModel::SharedShape,
             seed: 0x5E6,
+            count_min_theta_h_deg: 10.0,
             fit_interior_only: true,
         }
     }
@@ -724,6 +735,13 @@ pub fn segment_with_labels(
     images.dedup();
     let folds = settings.folds.min(images.len());
     let fold_of = |o: &Observation| images.binary_search(&o.image).unwrap_or(0) % folds.max(1);
+    // the count is judged away from the specular peak (see the module header)
+    let min_h = settings.count_min_theta_h_deg.to_radians();
+    let off_peak = |o: &Observation| {
+        min_h <= 0.0
+            || crate::brdf::coords::MerlBin::from_index(o.bin)
+                .is_some_and(|b| b.centre().theta_h >= min_h)
+    };
     // The features depend on the pixels, not on the count: once for every pixel and once per
     // fold's training pixels.
     let all_features = features(mesh, &nb, obs, settings);
@@ -771,11 +789,14 @@ pub fn segment_with_labels(
                     let label = |o: &Observation| {
                         nearest_corner(mesh, o).and_then(|v| train_labels.get(v).copied())
                     };
-                    let labelled: Vec<(u32, &Observation)> =
-                        train.iter().filter_map(|o| Some((label(o)?, o))).collect();
+                    let labelled: Vec<(u32, &Observation)> = train
+                        .iter()
+                        .filter(|o| off_peak(o))
+                        .filter_map(|o| Some((label(o)?, o)))
+                        .collect();
                     let held: Vec<(u32, &Observation)> = obs
                         .iter()
-                        .filter(|o| fold_of(o) == k)
+                        .filter(|o| fold_of(o) == k && off_peak(o))
                         .filter_map(|o| Some((label(o)?, o)))
                         .collect();
                     let fits = fit_per_material(&labelled, train_found, settings);
