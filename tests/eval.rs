@@ -121,25 +121,25 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
     assert!(r.variants.iter().all(|(_, x)| x.is_ok()));
 }
 
-/// The multi-material study in miniature (`bench materials --refine-normals`): a two-material
-/// Spot, the normals refined first with a reflectance table per material, then the materials
-/// found and fitted. The count and the labels are right, the refinement fitted two tables and
-/// lowered the normals' error, and every found material is scored against its truth beside the
-/// baselines (fitted to the unrefined pixels).
-#[test]
-fn small_materials_study_refines_the_normals_with_a_table_per_material() {
-    use brdf_rig::eval::materials::{MaterialsSpec, run};
-    use brdf_rig::reconstruct::refine::RefineSettings;
-    use brdf_rig::reconstruct::segment::SegmentSettings;
+/// The multi-material study in miniature: `objects` on Spot (`views` light images of `width` x
+/// `height`), spread lights, one seed, a coarse
+/// basis without the objects' materials, the tests' small core; run in a scratch folder with
+/// the tests' shared basis cache.
+fn run_small_materials(
+    objects: &[&str],
+    (width, height, views): (usize, usize, usize),
+    segment: brdf_rig::reconstruct::segment::SegmentSettings,
+    refine: Option<brdf_rig::reconstruct::refine::RefineSettings>,
+) -> Vec<brdf_rig::eval::materials::ObjectResult> {
     let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
     let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
-    let spec = MaterialsSpec {
-        objects: vec![vec!["green-latex".to_string(), "pink-fabric".to_string()]],
+    let spec = brdf_rig::eval::materials::MaterialsSpec {
+        objects: vec![objects.iter().map(|m| m.to_string()).collect()],
         meshes: vec![("spot".to_string(), spot)],
         mesh_names: vec!["spot".to_string()],
-        views: 8,
-        width: 128,
-        height: 96,
+        views,
+        width,
+        height,
         basis: BasisSettings {
             stride: GridStride {
                 theta_h: 1,
@@ -150,15 +150,15 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
             exclude: Vec::new(),
         },
         core: small_core(),
-        segment: SegmentSettings::default(),
+        segment,
         seeds: 1,
         rigs: vec![Rig::Spread],
         bin_step: 5,
-        refine: Some(RefineSettings::default()),
+        refine,
     };
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");
-    let results = run(
+    brdf_rig::eval::materials::run(
         &spec,
         &materials,
         &cache,
@@ -166,7 +166,24 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
         &mut |_| {},
         &mut |_| {},
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// The multi-material study in miniature (`bench materials --refine-normals`): a two-material
+/// Spot, the normals refined first with a reflectance table per material, then the materials
+/// found and fitted. The count and the labels are right, the refinement fitted two tables and
+/// lowered the normals' error, and every found material is scored against its truth beside the
+/// baselines (fitted to the unrefined pixels).
+#[test]
+fn small_materials_study_refines_the_normals_with_a_table_per_material() {
+    use brdf_rig::reconstruct::refine::RefineSettings;
+    use brdf_rig::reconstruct::segment::SegmentSettings;
+    let results = run_small_materials(
+        &["green-latex", "pink-fabric"],
+        (128, 96, 8),
+        SegmentSettings::default(),
+        Some(RefineSettings::default()),
+    );
     assert_eq!(results.len(), 1);
     let r = &results[0];
     let n = r.normals.expect("the refinement ran against the truth");
@@ -202,45 +219,9 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
 /// on part of it eased the held-out highlights' miss by 19 % and the object was split in two.
 #[test]
 fn a_shiny_one_material_object_is_not_split_at_the_grids_size() {
-    use brdf_rig::eval::materials::{MaterialsSpec, run};
     use brdf_rig::reconstruct::segment::SegmentSettings;
-    let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
-    let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
     let count = |segment: SegmentSettings| {
-        let spec = MaterialsSpec {
-            objects: vec![vec!["blue-acrylic".to_string()]],
-            meshes: vec![("spot".to_string(), spot.clone())],
-            mesh_names: vec!["spot".to_string()],
-            views: 11,
-            width: 320,
-            height: 240,
-            basis: BasisSettings {
-                stride: GridStride {
-                    theta_h: 1,
-                    theta_d: 4,
-                    phi_d: 6,
-                },
-                basis_components: 40,
-                exclude: Vec::new(),
-            },
-            core: small_core(),
-            segment,
-            seeds: 1,
-            rigs: vec![Rig::Spread],
-            bin_step: 5,
-            refine: None,
-        };
-        let scratch = tempfile::tempdir().unwrap();
-        let cache = std::env::temp_dir().join("brdf-rig-test-basis");
-        let r = run(
-            &spec,
-            &materials,
-            &cache,
-            scratch.path(),
-            &mut |_| {},
-            &mut |_| {},
-        )
-        .unwrap();
+        let r = run_small_materials(&["blue-acrylic"], (320, 240, 11), segment, None);
         (r[0].count, r[0].reason.clone())
     };
     let before = count(SegmentSettings {

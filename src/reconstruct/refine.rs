@@ -1673,25 +1673,13 @@ mod tests {
         px: &[RefinePixel],
         settings: &RefineSettings,
     ) -> Refinement {
-        let nb = mesh.vertex_neighbours();
-        refine_normals(
-            &MeshNormals {
-                faces: mesh.faces(),
-                positions: mesh.positions(),
-                normals: start,
-                neighbours: &nb,
-                starts: &[],
-                labels: &[],
-            },
-            px,
-            settings,
-            &mut |_| {},
-        )
+        run_labelled(mesh, start, px, &[], settings)
     }
 
-    /// [`run`] with one material per vertex (`labels`).
+    /// [`run`] with one material per vertex (`labels`; empty: one material).
     fn run_labelled(
         mesh: &Mesh,
+        start: &[Vector3<f64>],
         px: &[RefinePixel],
         labels: &[u32],
         settings: &RefineSettings,
@@ -1701,7 +1689,7 @@ mod tests {
             &MeshNormals {
                 faces: mesh.faces(),
                 positions: mesh.positions(),
-                normals: mesh.vertex_normals(),
+                normals: start,
                 neighbours: &nb,
                 starts: &[],
                 labels,
@@ -1775,8 +1763,20 @@ mod tests {
         let seen = seen_vertices(mesh.faces(), &px, truth.len());
         let e = |n: &[Vector3<f64>]| normal_error_deg(n, &truth, &seen).expect("seen").0;
         let before = e(mesh.vertex_normals());
-        let one = run_labelled(&mesh, &px, &[], &RefineSettings::default());
-        let two = run_labelled(&mesh, &px, &labels, &RefineSettings::default());
+        let one = run_labelled(
+            &mesh,
+            mesh.vertex_normals(),
+            &px,
+            &[],
+            &RefineSettings::default(),
+        );
+        let two = run_labelled(
+            &mesh,
+            mesh.vertex_normals(),
+            &px,
+            &labels,
+            &RefineSettings::default(),
+        );
         eprintln!(
             "median error {before:.2} -> {:.2} (one table, accepted {}), {:.2} (a table per material, accepted {})",
             e(&one.normals),
