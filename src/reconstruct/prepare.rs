@@ -878,10 +878,10 @@ pub fn segmentation_for(
 
 /// The materials of the mesh's vertices as the normal refinement needs them (one reflectance
 /// table each): the segmentation of [`segmentation_for`] on the observations of the unrefined
-/// normals (its features do not depend on the normals' error). `None` when the job is one
-/// material (nothing was run: the segmentation is not run behind a user's back, since it
-/// splits some one-material objects at 320x240, docs/materials.md); empty when one material is
-/// found. The materials reported are found again after the refinement.
+/// normals (its features do not depend on the normals' error). `None` when the job asked for
+/// one material and has no label masks (nothing was run; running it there too is measured and
+/// left as a next step in docs/materials.md, "Not done"); empty when one material is found.
+/// The materials reported are found again after the refinement.
 pub fn material_labels(
     mesh: &Mesh,
     observed: &Observed,
