@@ -211,12 +211,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         a.rigs.join(","),
         a.one_light_deg
     );
-    if a.refine_normals {
-        command += " --refine-normals";
-        if a.refine_unknowns != super::reconstruct::RefineUnknownsArg::Depth {
-            command += &format!(" --refine-unknowns {}", a.refine_unknowns.name());
-        }
-    }
+    command += &a.refine_unknowns.command_args(a.refine_normals);
     if a.exact_reference {
         command += " --exact-reference";
     }
@@ -234,10 +229,9 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         seeds: a.seeds,
         rigs,
         no_ablation: a.no_ablation,
-        refine_normals: a.refine_normals,
+        refine: a.refine_unknowns.settings(a.refine_normals),
         sfm_noise_rel: a.sfm_noise,
         sfm_iterations: a.sfm_smoothing,
-        refine_depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
         exact_reference: a.exact_reference,
         out: a.out.clone(),
         command,

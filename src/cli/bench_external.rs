@@ -88,12 +88,7 @@ pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
 
 pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let mut settings = Settings {
-        refine: a
-            .refine_normals
-            .then(|| brdf_rig::reconstruct::refine::RefineSettings {
-                depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
-                ..Default::default()
-            }),
+        refine: a.refine_unknowns.settings(a.refine_normals),
         ..Settings::default()
     };
     settings.core.choose = a.choose;
@@ -118,11 +113,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(","),
         a.bin_step,
-        match (a.refine_normals, a.refine_unknowns) {
-            (false, _) => String::new(),
-            (true, super::reconstruct::RefineUnknownsArg::Depth) => " --refine-normals".into(),
-            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
-        },
+        a.refine_unknowns.command_args(a.refine_normals),
         match a.choose {
             brdf_rig::reconstruct::core::TrialChoice::Similarity => "",
             brdf_rig::reconstruct::core::TrialChoice::PixelError => " --choose pixel-error",

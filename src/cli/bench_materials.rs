@@ -76,11 +76,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         } else {
             ""
         },
-        match (a.refine_normals, a.refine_unknowns) {
-            (false, _) => String::new(),
-            (true, super::reconstruct::RefineUnknownsArg::Depth) => " --refine-normals".into(),
-            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
-        },
+        a.refine_unknowns.command_args(a.refine_normals),
         a.out.display()
     );
     let options = MaterialsBenchOptions {
@@ -91,12 +87,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         rigs,
         max_materials: a.max_materials,
         keep_boundary_pixels: a.keep_boundary_pixels,
-        refine: a
-            .refine_normals
-            .then(|| brdf_rig::reconstruct::refine::RefineSettings {
-                depth: a.refine_unknowns == super::reconstruct::RefineUnknownsArg::Depth,
-                ..Default::default()
-            }),
+        refine: a.refine_unknowns.settings(a.refine_normals),
         out: a.out.clone(),
         command,
     };

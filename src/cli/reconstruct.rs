@@ -181,6 +181,24 @@ impl RefineUnknownsArg {
             Self::Normals => "normals",
         }
     }
+
+    /// The refinement a bench's `--refine-normals` (`refine`) with these unknowns asks for.
+    pub fn settings(self, refine: bool) -> Option<reconstruct::refine::RefineSettings> {
+        refine.then(|| reconstruct::refine::RefineSettings {
+            depth: self == Self::Depth,
+            ..Default::default()
+        })
+    }
+
+    /// The flags as typed, for a bench's quoted command (`--refine-unknowns` only when not
+    /// the default).
+    pub fn command_args(self, refine: bool) -> String {
+        match (refine, self) {
+            (false, _) => String::new(),
+            (true, Self::Depth) => " --refine-normals".into(),
+            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

@@ -103,12 +103,11 @@ pub struct AccuracyBenchOptions {
     pub rigs: Vec<Rig>,
     /// Only "all three assumptions" (no ablation).
     pub no_ablation: bool,
-    pub refine_normals: bool,
+    /// Refine the SfM-like mesh's normals from the images (`None`: off).
+    pub refine: Option<crate::reconstruct::refine::RefineSettings>,
     /// The SfM-like mesh (`geometry::sfm_like`): noise in mean edge lengths, Taubin iterations.
     pub sfm_noise_rel: f64,
     pub sfm_iterations: usize,
-    /// With `refine_normals`: displacements as the unknowns (`RefineSettings::depth`).
-    pub refine_depth: bool,
     pub exact_reference: bool,
     /// Folder of accuracy.md and accuracy.json.
     pub out: PathBuf,
@@ -222,12 +221,7 @@ pub fn run(
         bin_step: o.scene.bin_step,
         seeds: o.seeds.max(1),
         rigs: o.rigs.clone(),
-        refine: o
-            .refine_normals
-            .then(|| crate::reconstruct::refine::RefineSettings {
-                depth: o.refine_depth,
-                ..Default::default()
-            }),
+        refine: o.refine.clone(),
         exact_reference: o.exact_reference,
     };
     let command = &o.command;
