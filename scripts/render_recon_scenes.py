@@ -21,6 +21,8 @@ Usage (the full set, and the tiny scene committed under tests/fixtures/independe
     /work/venv-mitsuba/bin/python scripts/render_recon_scenes.py \\
         --out tests/fixtures/independent --scenes spot-3lights --materials lambert \\
         --meshes exact,realistic --views 6 --size 96x72 --half --truth subset --path-spp 0
+  Objects of two or three materials (slabs along +y; per-face and per-vertex labels, one truth
+  table per material; only these scenes are rendered): add `--split A+B[+C]` (repeatable).
 
 Conventions: COLMAP camera axes (x right, y down, z forward), `light_dir_camera` towards the
 light, irradiance E such that a white Lambertian of albedo a facing the light has radiance
@@ -31,11 +33,14 @@ integrator's images (light_path/, jobs job_*_path.toml) add interreflections.
 
 import argparse
 import glob
+import importlib
 import json
 import os
 import re
 import shlex
+import shutil
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -159,7 +164,13 @@ def sensor_to_world(view):
     return mi.ScalarTransform4f(m.tolist())
 
 
-def render(mesh_ply, material, camera, view, spp, integrator, seed):
+def render(parts, camera, view, spp, integrator, seed):
+    """One view. `parts`: [(PLY file, material name)], one Mitsuba shape each, each inside
+    `twosided` (one part: the whole object, the one-material scenes)."""
+    objects = {("object" if len(parts) == 1 else f"object_{k}"):
+               {"type": "ply", "filename": ply,
+                "bsdf": {"type": "twosided", "bsdf": MATERIALS[material]["bsdf"]}}
+               for k, (ply, material) in enumerate(parts)}
     scene = mi.load_dict({
         "type": "scene",
         "integrator": integrator,
@@ -170,8 +181,7 @@ def render(mesh_ply, material, camera, view, spp, integrator, seed):
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
             "sampler": {"type": "stratified", "sample_count": spp},
         },
-        "object": {"type": "ply", "filename": mesh_ply,
-                   "bsdf": {"type": "twosided", "bsdf": MATERIALS[material]["bsdf"]}},
+        **objects,
         "light": {"type": "directional", "direction": (-view["light_dir_world"]).tolist(),
                   "irradiance": rgb(*view["irradiance"])},
     })
@@ -197,19 +207,23 @@ def local_frame(n):
 
 
 def pixel_check(caster, normals, diag, camera, view, image, material, bsdf, rng,
-                pixels=24, sub=4):
+                pixels=24, sub=4, face_labels=None, label=None):
     """Predicts rendered pixels from the truth without Mitsuba's geometry: rays through a
     sub x sub grid in each pixel (numpy ray casting, independent/raycast.py), angle-weighted
     vertex normals interpolated at the hit, a shadow ray to the light; radiance =
     E f_r cos theta_i averaged over the pixel (what a box filter integrates). Lambert: f_r = albedo / pi analytically;
     others: f_r from the BSDF's eval. Only pixels whose every sub-sample hits, is lit and is
-    at most 80 degrees from the light and the camera are compared."""
+    at most 80 degrees from the light and the camera are compared; with `face_labels` (per face
+    of the exact mesh), only pixels whose every sub-sample hits a face of label `label` (an
+    object of several materials: `material` is that label's), and whose corners, edge
+    midpoints and centre hit that label as well."""
     lum = image.mean(axis=2)
     cand = np.argwhere(lum > 0)
     rng.shuffle(cand)
     offs = (np.arange(sub) + 0.5) / sub
     ox, oy = np.meshgrid(offs, offs)
     ox, oy = ox.reshape(-1), oy.reshape(-1)
+    edge_x, edge_y = (g.reshape(-1) for g in np.meshgrid([0.0, 0.5, 1.0], [0.0, 0.5, 1.0]))
     l_w = view["light_dir_world"]
     e = np.array(view["irradiance"])
     min_cos = np.cos(np.radians(80.0))
@@ -218,6 +232,17 @@ def pixel_check(caster, normals, diag, camera, view, image, material, bsdf, rng,
         if len(rows) >= pixels:
             break
         batch = cand[start:start + 48]
+        if face_labels is not None:
+            # the pixel's corners, edge midpoints and centre must hit the label too: the 4x4
+            # rays leave a margin of 1/8 pixel, where another material may lie
+            bx = (batch[:, 1:2] + edge_x[None]).reshape(-1)
+            by = (batch[:, 0:1] + edge_y[None]).reshape(-1)
+            _, fb, _, _ = caster.cast_from_camera(view["eye"], view["R"],
+                                                  camera.ray_camera(bx, by) @ view["R"])
+            fb = fb.reshape(len(batch), -1)
+            batch = batch[((fb >= 0) & (face_labels[np.maximum(fb, 0)] == label)).all(axis=1)]
+            if not len(batch):
+                continue
         px = (batch[:, 1:2] + ox[None]).reshape(-1)
         py = (batch[:, 0:1] + oy[None]).reshape(-1)
         d = camera.ray_camera(px, py) @ view["R"]  # camera -> world: R^T d
@@ -256,7 +281,7 @@ def pixel_check(caster, normals, diag, camera, view, image, material, bsdf, rng,
         per_px = sub * sub
         for k, (y, x) in enumerate(batch):
             sl = slice(k * per_px, (k + 1) * per_px)
-            if lit[sl].all():
+            if lit[sl].all() and (face_labels is None or (face_labels[fi[sl]] == label).all()):
                 pred = rad[sl].mean(axis=0)
                 rows.append((int(x), int(y), pred.tolist(), image[y, x].astype(float).tolist()))
             if len(rows) >= pixels:
@@ -301,7 +326,8 @@ def prepare_meshes(mesh_name, kinds, seed, sw):
     surface = sw.run("mesh: exact surface samples", M.ExactSurface, v, f, n)
     out = {"exact": dict(v=v, f=f, n=n, stats=M.error_stats(surface.normal_error_deg(v, f)),
                          params=dict(what="the source mesh as it is (unused vertices dropped); "
-                                          "its normals are the ones the renderer shaded with"))}
+                                          "its normals are the ones the renderer shaded with"),
+                         surface=surface)}
     for kind in kinds:
         if kind == "exact":
             continue
@@ -312,6 +338,26 @@ def prepare_meshes(mesh_name, kinds, seed, sw):
         out[kind] = dict(v=vd, f=fd, n=None, stats=M.error_stats(err), params=params)
         log(f"  {mesh_name} {kind}: {len(vd)} vertices, {len(fd)} faces, {out[kind]['stats']}")
     return out
+
+
+def split_faces(v, faces, n):
+    """An object of `n` materials: equal-height slabs along the world up axis (+y) of the mesh's
+    bounding box, planes at y_min + k (y_max - y_min) / n, k = 1..n-1. Each face's label is the
+    slab of its centroid (0: the lowest). Returns the labels and the planes' y."""
+    lo, hi = float(v[:, 1].min()), float(v[:, 1].max())
+    planes = [lo + k * (hi - lo) / n for k in range(1, n)]
+    centroid_y = v[faces][:, :, 1].mean(axis=1)
+    return np.searchsorted(np.array(planes), centroid_y, side="right").astype(np.int64), planes
+
+
+def face_areas(v, faces):
+    p0, p1, p2 = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
+    return 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+
+
+def write_labels(path, labels):
+    """One integer per line, no header."""
+    M.write_atomic(path, ("\n".join(str(int(x)) for x in labels) + "\n").encode("ascii"))
 
 
 def main():
@@ -344,6 +390,13 @@ def main():
                          "through scripts/independent/merl_bsdf.py as material merl-NAME; the "
                          "scene's index entry asks the reconstruction to leave NAME out of its "
                          "basis. Repeatable.")
+    ap.add_argument("--split", action="append", default=[], metavar="A+B[+C]",
+                    help="an object of two or three materials (names as --materials takes, "
+                         "merl-NAME included): equal-height slabs along +y of the exact mesh's "
+                         "bounding box, the lowest the first named; one scene "
+                         "SCENE-split-A+B per value and --scenes entry, with per-face and "
+                         "per-vertex labels and one truth table per material. With --split only "
+                         "these scenes are rendered. Repeatable.")
     args = ap.parse_args()
     for spec in args.merl_table:
         name, eq, path = spec.partition("=")
@@ -366,6 +419,13 @@ def main():
     for m in materials:
         if m not in MATERIALS:
             sys.exit(f"--materials: unknown {m!r} (known: {', '.join(MATERIALS)})")
+    splits = []
+    for spec in args.split:
+        names = spec.split("+")
+        if not 2 <= len(names) <= 3 or any(m not in MATERIALS for m in names):
+            sys.exit(f"--split {spec!r}: expected two or three materials A+B[+C] from "
+                     f"{', '.join(MATERIALS)}")
+        splits.append(names)
     for k in kinds:
         if k != "exact" and k not in M.DEGRADATIONS:
             sys.exit(f"--meshes: unknown {k!r} (known: exact, {', '.join(M.DEGRADATIONS)})")
@@ -383,7 +443,7 @@ def main():
 
     variant = setup_mitsuba(args.variant)
     if args.merl_table:
-        import independent.merl_bsdf  # noqa: F401  (registers the merl_table plugin)
+        importlib.import_module("independent.merl_bsdf")  # registers the merl_table plugin
     log(f"Mitsuba {mi.__version__}, variant {variant}"
         + (f" (libLLVM: {os.environ.get('DRJIT_LIBLLVM_PATH')})" if variant != "scalar_rgb" else ""))
     command = shlex.join(["scripts/render_recon_scenes.py"] + sys.argv[1:])
@@ -416,39 +476,82 @@ def main():
         views, placement = rig.ring(exact["v"], camera, args.views, args.elevation, rig_name)
         caster = Caster(exact["v"], exact["f"])
         diag = float(np.linalg.norm(exact["v"].max(axis=0) - exact["v"].min(axis=0)))
-        for material in materials:
+        units = ([(f"split-{'+'.join(s)}", s) for s in splits] if splits
+                 else [(m, [m]) for m in materials])
+        for unit_name, mats in units:
+            split = bool(splits)
+            material = "+".join(mats)
             t0 = time.time()
-            folder = os.path.join(args.out, f"{scene_name}-{material}")
-            log(f"{folder}: {len(views)} views {width}x{height}, {MATERIALS[material]['what']}")
+            folder = os.path.join(args.out, f"{scene_name}-{unit_name}")
+            what = (MATERIALS[material]["what"] if not split else
+                    "slabs along +y, lowest first: "
+                    + "; ".join(f"{m} ({MATERIALS[m]['what']})" for m in mats))
+            log(f"{folder}: {len(views)} views {width}x{height}, {what}")
             for sub in ("light", "sparse") + (("light_path",) if args.path_spp else ()):
                 os.makedirs(os.path.join(folder, sub), exist_ok=True)
             for kind in kinds:
                 mv = variants[kind]
                 M.write_ply(os.path.join(folder, f"mesh_{kind}.ply"), mv["v"], mv["f"], mv["n"])
             rig.write_colmap(os.path.join(folder, "sparse"), camera, views)
-            bsdf = mi.load_dict(MATERIALS[material]["bsdf"])
+            bsdfs = [mi.load_dict(MATERIALS[m]["bsdf"]) for m in mats]
             mesh_ply = os.path.join(folder, "mesh_exact.ply")
-            checks = []
+            parts_dir = None
+            if split:
+                face_labels, planes = split_faces(exact["v"], exact["f"], len(mats))
+                face_counts = np.bincount(face_labels, minlength=len(mats))
+                if (face_counts == 0).any():
+                    sys.exit(f"{folder}: a slab holds no face centroid ({face_counts.tolist()})")
+                area = face_areas(exact["v"], exact["f"])
+                area_shares = np.bincount(face_labels, weights=area,
+                                          minlength=len(mats)) / area.sum()
+                write_labels(os.path.join(folder, "labels_exact_faces.txt"), face_labels)
+                vertex_label_counts = {}
+                for kind in kinds:
+                    vl = face_labels[exact["surface"].nearest_face(variants[kind]["v"])]
+                    write_labels(os.path.join(folder, f"labels_{kind}.txt"), vl)
+                    vertex_label_counts[kind] = np.bincount(vl, minlength=len(mats)).tolist()
+                # one shape per label: the exact mesh's vertices and normals, that label's faces
+                parts_dir = tempfile.mkdtemp(prefix="split-parts-")
+                parts = []
+                for k, m in enumerate(mats):
+                    ply = os.path.join(parts_dir, f"part_{k}.ply")
+                    M.write_ply(ply, exact["v"], exact["f"][face_labels == k], exact["n"])
+                    parts.append((ply, m))
+                log(f"  split at y = {', '.join(f'{y:.6g}' for y in planes)}: faces "
+                    f"{face_counts.tolist()}, area shares "
+                    f"{', '.join(f'{a:.3f}' for a in area_shares)}")
+            else:
+                face_labels = None
+                parts = [(mesh_ply, material)]
+            checks = [[] for _ in mats]  # per material
             extra = []  # (path - direct) / direct on pixels the direct light reaches
             rng = np.random.default_rng(args.seed)
-            for view in views:
-                img = sw.run("render direct", render, mesh_ply, material, camera, view, args.spp,
-                             direct, args.seed + view["index"])
-                write_exr(os.path.join(folder, "light", view["name"]), img, args.half)
-                if args.path_spp:
-                    imgp = sw.run("render path", render, mesh_ply, material, camera, view,
-                                  args.path_spp, path, args.seed + view["index"])
-                    write_exr(os.path.join(folder, "light_path", view["name"]), imgp, args.half)
-                    lit = img.mean(axis=2) > 1e-3 * img.mean(axis=2).max()
-                    extra.append((imgp[lit].mean(axis=1) - img[lit].mean(axis=1))
-                                 / img[lit].mean(axis=1))
-                if view["index"] < args.check_views:
-                    checks.append(sw.run("pixel check", pixel_check, caster, exact["n"], diag,
-                                         camera, view, img, material, bsdf, rng,
-                                         args.check_pixels))
-                    c = checks[-1]
-                    log(f"  {view['name']}: pixel check on {c['pixels']} pixels: median "
-                        f"|rel err| {c.get('median_abs_rel_error')}, max {c.get('max_abs_rel_error')}")
+            try:
+                for view in views:
+                    img = sw.run("render direct", render, parts, camera, view, args.spp,
+                                 direct, args.seed + view["index"])
+                    write_exr(os.path.join(folder, "light", view["name"]), img, args.half)
+                    if args.path_spp:
+                        imgp = sw.run("render path", render, parts, camera, view,
+                                      args.path_spp, path, args.seed + view["index"])
+                        write_exr(os.path.join(folder, "light_path", view["name"]), imgp,
+                                  args.half)
+                        lit = img.mean(axis=2) > 1e-3 * img.mean(axis=2).max()
+                        extra.append((imgp[lit].mean(axis=1) - img[lit].mean(axis=1))
+                                     / img[lit].mean(axis=1))
+                    if view["index"] < args.check_views:
+                        for k, m in enumerate(mats):
+                            checks[k].append(sw.run(
+                                "pixel check", pixel_check, caster, exact["n"], diag, camera,
+                                view, img, m, bsdfs[k], rng, args.check_pixels,
+                                **(dict(face_labels=face_labels, label=k) if split else {})))
+                            c = checks[k][-1]
+                            log(f"  {view['name']}: {m + ': ' if split else ''}pixel check on "
+                                f"{c['pixels']} pixels: median |rel err| "
+                                f"{c.get('median_abs_rel_error')}, max {c.get('max_abs_rel_error')}")
+            finally:
+                if parts_dir:
+                    shutil.rmtree(parts_dir)
             jobs = {}
             for kind in kinds:
                 for dir_name, suffix in (("light", ""),) + ((("light_path", "_path"),)
@@ -463,22 +566,94 @@ def main():
                     jobs[f"{kind}{suffix}"] = name
             # every bin above the horizon for the full table, else only the subset's
             need = above if "full" in truth_kinds else np.isin(np.arange(merl.BINS), subset)
-            f = sw.run("truth: evaluate BSDF", eval_brdf, bsdf, wi[need], wo[need])
-            full = np.zeros((merl.BINS, 3))
-            full[need] = f
-            if "full" in truth_kinds:
-                sw.run("truth: write table", merl.write_table,
-                       os.path.join(folder, "truth.binary"), full, above)
-            if "subset" in truth_kinds:
-                merl.write_subset(os.path.join(folder, "truth_subset.bin"), subset, wi, wo, full,
-                                  args.subset_step)
-            if material == "lambert":
-                alb = np.array(MATERIALS["lambert"]["bsdf"]["reflectance"]["value"])
-                lambert_dev = float(np.abs(f * np.pi / alb[None] - 1.0).max())
-                log(f"  Lambertian table: max |f pi / albedo - 1| = {lambert_dev:.2e}")
-            swapped = eval_brdf(bsdf, wo[subset], wi[subset])
-            denom = np.maximum(np.abs(full[subset]), 1e-6)
-            recip = np.abs(swapped - full[subset]) / denom
+            tag = [f"_{k}" if split else "" for k in range(len(mats))]
+            lambert_dev = [None] * len(mats)
+            recip = []
+            for k, (m, bsdf) in enumerate(zip(mats, bsdfs)):
+                f = sw.run("truth: evaluate BSDF", eval_brdf, bsdf, wi[need], wo[need])
+                full = np.zeros((merl.BINS, 3))
+                full[need] = f
+                if "full" in truth_kinds:
+                    sw.run("truth: write table", merl.write_table,
+                           os.path.join(folder, f"truth{tag[k]}.binary"), full, above)
+                if "subset" in truth_kinds:
+                    merl.write_subset(os.path.join(folder, f"truth_subset{tag[k]}.bin"), subset,
+                                      wi, wo, full, args.subset_step)
+                if m == "lambert":
+                    alb = np.array(MATERIALS["lambert"]["bsdf"]["reflectance"]["value"])
+                    lambert_dev[k] = float(np.abs(f * np.pi / alb[None] - 1.0).max())
+                    log(f"  Lambertian table: max |f pi / albedo - 1| = {lambert_dev[k]:.2e}")
+                swapped = eval_brdf(bsdf, wo[subset], wi[subset])
+                denom = np.maximum(np.abs(full[subset]), 1e-6)
+                recip.append(np.abs(swapped - full[subset]) / denom)
+
+            def material_record(m):
+                return dict(name=m, in_merl_set=MATERIALS[m].get("in_merl_set", False),
+                            description=MATERIALS[m]["what"],
+                            **({"basis_exclude": MATERIALS[m]["basis_exclude"]}
+                               if MATERIALS[m].get("basis_exclude") else {}),
+                            mitsuba_bsdf=MATERIALS[m]["bsdf"],
+                            rendered_as="twosided wrapper around mitsuba_bsdf")
+
+            truth_how = ("Mitsuba's bsdf.eval at every MERL bin centre (phi_h = 0; directions "
+                         "from the Rusinkiewicz angles in scripts/independent/merl.py), divided "
+                         "by the light's cosine; no data (-1) below the horizon")
+            truth_units = "f_r in 1/sr, linear RGB, no MERL scale applied in the subset"
+            pixel_what = ("rendered pixels against E f_r cos theta_i averaged over 4x4 sub-pixel "
+                          "rays cast in numpy (scripts/independent/raycast.py); lit, unclipped "
+                          "pixels only")
+            if not split:
+                material_json = material_record(material)
+                truth_json = dict(
+                    table="truth.binary" if "full" in truth_kinds else None,
+                    subset=(dict(file="truth_subset.bin", step=args.subset_step,
+                                 count=int(len(subset))) if "subset" in truth_kinds else None),
+                    bins_above_horizon=int(above.sum()),
+                    how=truth_how,
+                    reciprocity_max_rel=float(f"{recip[0].max():.3g}"),
+                    reciprocity_median_rel=float(f"{np.median(recip[0]):.3g}"),
+                    units=truth_units,
+                )
+                lambert_json = (float(f"{lambert_dev[0]:.3g}") if material == "lambert" else None)
+                pixel_json = checks[0]
+            else:
+                tables = ([f"truth{t}.binary" for t in tag] if "full" in truth_kinds else None)
+                material_json = dict(
+                    name=material,
+                    description=what,
+                    parts=[dict(label=k, **material_record(m),
+                                truth_table=tables[k] if tables else None,
+                                truth_subset=(f"truth_subset{tag[k]}.bin"
+                                              if "subset" in truth_kinds else None))
+                           for k, m in enumerate(mats)],
+                    rendered_as="one Mitsuba ply shape per label (the exact mesh's vertices and "
+                                "vertex normals, the faces of that label), each a twosided "
+                                "wrapper around its part's mitsuba_bsdf")
+                truth_json = dict(
+                    tables=tables,
+                    subsets=(dict(files=[f"truth_subset{t}.bin" for t in tag],
+                                  step=args.subset_step, count=int(len(subset)))
+                             if "subset" in truth_kinds else None),
+                    per_label="truth_K.binary and truth_subset_K.bin are the material of label K "
+                              "(split.materials[K])",
+                    bins_above_horizon=int(above.sum()),
+                    how=truth_how,
+                    reciprocity_max_rel=[float(f"{r.max():.3g}") for r in recip],
+                    reciprocity_median_rel=[float(f"{np.median(r):.3g}") for r in recip],
+                    units=truth_units,
+                )
+                lambert_json = [float(f"{d:.3g}") if d is not None else None
+                                for d in lambert_dev]
+                pixel_json = []
+                for k, m in enumerate(mats):
+                    rel = [c["median_abs_rel_error"] for c in checks[k] if c["pixels"]]
+                    worst = [c["max_abs_rel_error"] for c in checks[k] if c["pixels"]]
+                    pixel_json.append(dict(
+                        label=k, material=m,
+                        pixels=int(sum(c["pixels"] for c in checks[k])),
+                        median_abs_rel_error_per_view=rel,
+                        max_abs_rel_error=max(worst) if worst else None,
+                        views=checks[k]))
             truth = dict(
                 format="brdf-rig independent scene, version 1 (docs/independent-scenes.md)",
                 command=command,
@@ -502,26 +677,25 @@ def main():
                                         "angle-weighted vertex normal and the exact surface's "
                                         "interpolated normal at the nearest of ~1e6 samples of "
                                         "the exact surface",
-                material=dict(name=material,
-                              in_merl_set=MATERIALS[material].get("in_merl_set", False),
-                              description=MATERIALS[material]["what"],
-                              **({"basis_exclude": MATERIALS[material]["basis_exclude"]}
-                                 if MATERIALS[material].get("basis_exclude") else {}),
-                              mitsuba_bsdf=MATERIALS[material]["bsdf"],
-                              rendered_as="twosided wrapper around mitsuba_bsdf"),
-                truth=dict(
-                    table="truth.binary" if "full" in truth_kinds else None,
-                    subset=(dict(file="truth_subset.bin", step=args.subset_step,
-                                 count=int(len(subset))) if "subset" in truth_kinds else None),
-                    bins_above_horizon=int(above.sum()),
-                    how="Mitsuba's bsdf.eval at every MERL bin centre (phi_h = 0; directions "
-                        "from the Rusinkiewicz angles in scripts/independent/merl.py), divided "
-                        "by the light's cosine; no data (-1) below the horizon",
-                    reciprocity_max_rel=float(f"{recip.max():.3g}"),
-                    reciprocity_median_rel=float(f"{np.median(recip):.3g}"),
-                    units="f_r in 1/sr, linear RGB, no MERL scale applied "
-                                            "in the subset",
-                ),
+                material=material_json,
+                **({"split": dict(
+                    axis=[0, 1, 0],
+                    planes_y=[float(y) for y in planes],
+                    materials=mats,
+                    face_counts=face_counts.tolist(),
+                    area_shares=[float(f"{a:.6g}") for a in area_shares],
+                    rule="equal-height slabs along the world up axis (+y) of the exact mesh's "
+                         "bounding box, planes at y_min + k (y_max - y_min) / n, k = 1..n-1; a "
+                         "face's label is the slab of its centroid, 0 the lowest slab, label K "
+                         "is materials[K]",
+                    face_labels="labels_exact_faces.txt",
+                    vertex_labels={kind: f"labels_{kind}.txt" for kind in kinds},
+                    vertex_label_rule="per vertex of mesh_<variant>.ply, in vertex order: the "
+                                      "label of the exact face whose surface sample (of the "
+                                      "~1e6 of the normal error) is nearest to the vertex",
+                    vertex_label_counts=vertex_label_counts,
+                    label_files="one integer per line, no header")} if split else {}),
+                truth=truth_json,
                 rig=dict(name=rig_name, lights=[
                     dict(index=i, dir_camera=rig.light_dir_camera(L["angle_deg"], L["azimuth_deg"]).tolist(),
                          angle_from_view_deg=L["angle_deg"], image_azimuth_deg=L["azimuth_deg"],
@@ -541,31 +715,42 @@ def main():
                 jobs=jobs,
                 checks=dict(
                     merl_bin_centres_map_back=True,
-                    lambert_table_max_deviation=(float(f"{lambert_dev:.3g}")
-                                                 if material == "lambert" else None),
+                    lambert_table_max_deviation=lambert_json,
                     interreflection=(dict(
                         what="(path - direct) / direct over the pixels the direct light reaches, "
                              "all views",
                         median=float(f"{np.median(np.concatenate(extra)):.3g}"),
                         p95=float(f"{np.percentile(np.concatenate(extra), 95):.3g}"))
                         if extra else None),
-                    pixel_prediction=checks,
-                    pixel_prediction_what="rendered pixels against E f_r cos theta_i "
-                                          "averaged over 4x4 sub-pixel rays cast in numpy "
-                                          "(scripts/independent/raycast.py); lit, unclipped "
-                                          "pixels only",
+                    pixel_prediction=pixel_json,
+                    pixel_prediction_what=(pixel_what if not split else
+                                           pixel_what + "; per material, on pixels whose every "
+                                           "sub-pixel ray hits a face of its label"),
                 ),
                 seconds=dict(**sw_all.times, **sw.times, total_this_scene=round(time.time() - t0, 1)),
             )
             M.write_atomic(os.path.join(folder, "truth.json"),
                            (json.dumps(truth, indent=1) + "\n").encode("utf-8"))
-            index[os.path.basename(folder)] = dict(
-                mesh=mesh_name, rig=rig_name, material=material, jobs=jobs, command=command,
-                **({"basis_exclude": MATERIALS[material]["basis_exclude"]}
-                   if MATERIALS[material].get("basis_exclude") else {}),
-                median_normal_error_deg={k: truth["mesh_variants"][k]["median_normal_error_deg"]
-                                         for k in kinds},
-                truth_table=truth["truth"]["table"])
+            exclude = []
+            for m in mats:
+                exclude += [x for x in MATERIALS[m].get("basis_exclude", []) if x not in exclude]
+            if not split:
+                entry = dict(
+                    mesh=mesh_name, rig=rig_name, material=material, jobs=jobs, command=command,
+                    **({"basis_exclude": exclude} if exclude else {}),
+                    median_normal_error_deg={k: truth["mesh_variants"][k]["median_normal_error_deg"]
+                                             for k in kinds},
+                    truth_table=truth["truth"]["table"])
+            else:
+                entry = dict(
+                    mesh=mesh_name, rig=rig_name, material=material, materials=mats, jobs=jobs,
+                    command=command,
+                    **({"basis_exclude": exclude} if exclude else {}),
+                    median_normal_error_deg={k: truth["mesh_variants"][k]["median_normal_error_deg"]
+                                             for k in kinds},
+                    truth_tables=truth["truth"]["tables"],
+                    labels={kind: f"labels_{kind}.txt" for kind in kinds})
+            index[os.path.basename(folder)] = entry
             M.write_atomic(index_path,
                            (json.dumps(dict(scenes=index), indent=1)
                             + "\n").encode("utf-8"))

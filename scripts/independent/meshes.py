@@ -231,7 +231,14 @@ class ExactSurface:
         nn = np.einsum("bk,fkd->fbd", bary, normals[faces]).reshape(-1, 3)
         nn /= np.maximum(np.linalg.norm(nn, axis=1, keepdims=True), 1e-300)
         self.normals = nn
+        self.samples_per_face = len(bary)  # sample s lies on face s // samples_per_face
         self.tree = cKDTree(p)
+
+    def nearest_face(self, points):
+        """Per point (n, 3), the exact face whose sample is nearest (a vertex of the exact mesh
+        is a sample of each face around it: the k-d tree returns one of them)."""
+        _, idx = self.tree.query(points)
+        return idx // self.samples_per_face
 
     def normal_error_deg(self, v, faces):
         """Per-vertex angle (degrees) between the mesh's vertex normal and the exact surface's
