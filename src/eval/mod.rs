@@ -488,6 +488,11 @@ pub fn run_core(
         basis,
         settings: nielsen,
     };
+    // every trial is scored below, so every trial's fit is kept
+    let core = &CoreSettings {
+        keep_trial_fits: true,
+        ..core.clone()
+    };
     let t = Instant::now();
     let out = reconstruct_observations(observations, &prior, core, &mut |_| {})?;
     let seconds = t.elapsed().as_secs_f64();

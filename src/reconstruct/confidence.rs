@@ -45,6 +45,42 @@ fn probe() -> &'static SphereProbe {
     })
 }
 
+/// A candidate with its values at the confidence probe's bins computed once (in parallel):
+/// the trials' fits are evaluated on demand, and the trial agreement renders each of them
+/// twice (the ladder's check of the basis's trials, then the confidence). The same values as
+/// the candidate's own.
+pub struct AtProbe<'a> {
+    candidate: &'a dyn Candidate,
+    values: Vec<[f64; 3]>,
+}
+
+impl<'a> AtProbe<'a> {
+    pub fn new(candidate: &'a dyn Candidate) -> Self {
+        use rayon::prelude::*;
+        let values = probe()
+            .bins()
+            .par_iter()
+            .map(|&b| candidate.eval_bin(b))
+            .collect();
+        Self { candidate, values }
+    }
+}
+
+impl Candidate for AtProbe<'_> {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.candidate.eval_bin(bin)
+    }
+
+    fn values_at_bins(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        let at = probe().bins();
+        if std::ptr::eq(bins.as_ptr(), at.as_ptr()) && bins.len() == at.len() {
+            self.values.clone()
+        } else {
+            self.candidate.values_at_bins(bins)
+        }
+    }
+}
+
 /// The median, over `others`, of the relative difference between their rendered sphere and
 /// that of `reference` (values at the probe's bins, `probe().bins()`), in the confidence's small
 /// probe under the standard environment. `None` without others.

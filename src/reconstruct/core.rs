@@ -6,7 +6,8 @@
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
 use super::confidence::{
-    Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement, unseen_render_share,
+    AtProbe, Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement,
+    unseen_render_share,
 };
 use super::hedge::{Hedge, HedgeSettings, blend};
 use super::ladder::{
@@ -87,6 +88,12 @@ pub struct CoreSettings {
     /// Keep the final fit of every family, not only the chosen one (studies compare them with
     /// the truth; costs one more analytic peak fit).
     pub keep_alternatives: bool,
+    /// Keep every trial's fit as a table in the output (`Trial::candidate`; studies score each
+    /// against the truth). Off, the trials' fits are only evaluated where the trials and the
+    /// confidence read them, and only the reported one is tabulated (a table of 364 000 basis
+    /// rows per trial saved). Off in reports written before it existed.
+    #[serde(default)]
+    pub keep_trial_fits: bool,
 }
 
 impl Default for CoreSettings {
@@ -105,6 +112,7 @@ impl Default for CoreSettings {
             hedge: HedgeSettings::default(),
             peak_average: 0.5,
             keep_alternatives: false,
+            keep_trial_fits: false,
         }
     }
 }
@@ -165,6 +173,8 @@ pub struct CoreOutput {
     pub ladder: Option<Ladder>,
     /// With `keep_alternatives`: every other family's final fit (as fitted, not made plausible).
     pub alternatives: Vec<(Family, Box<dyn Candidate>)>,
+    /// The trials; with `keep_trial_fits`, each with its fit (but the reported one, moved into
+    /// `brdf`, unless the trials were averaged).
     pub trials: Vec<Trial>,
     pub chosen_trial: usize,
     pub components: ComponentChoice,
@@ -278,7 +288,7 @@ pub fn reconstruct_observations(
         "{} trials ({} samples, k = {k}, eta = {eta})",
         settings.trials.trials, settings.trials.samples
     ));
-    let mut trials = run_trials(
+    let (mut trials, fits) = run_trials(
         prior,
         &reliable,
         observations,
@@ -289,11 +299,11 @@ pub fn reconstruct_observations(
     );
     let chosen = match settings.choose {
         TrialChoice::Similarity | TrialChoice::Mean => best_trial(&trials),
-        TrialChoice::PixelError => trials
+        TrialChoice::PixelError => fits
             .iter()
             .enumerate()
-            .filter_map(|(i, t)| {
-                let c = t.candidate.as_deref()?;
+            .filter_map(|(i, f)| {
+                let c = f.as_ref()?.candidate.as_ref();
                 let e = super::components::held_out_error(c, observations);
                 e.is_finite().then_some((i, e))
             })
@@ -301,6 +311,10 @@ pub fn reconstruct_observations(
             .map(|(i, _)| i),
     }
     .ok_or(CoreError::AllTrialsFailed)?;
+    let at_probe: Vec<Option<AtProbe>> = fits
+        .iter()
+        .map(|f| f.as_ref().map(|f| AtProbe::new(f.candidate.as_ref())))
+        .collect();
     // A basis whose trials disagree cannot be trusted beyond the pixels, whatever the held-out
     // images say (`LadderSettings::max_trial_disagreement`).
     let (mut family, mut reason) = (family, reason);
@@ -308,13 +322,13 @@ pub fn reconstruct_observations(
     if matches!(settings.model, ModelSelection::Auto)
         && matches!(family, Family::Basis | Family::Hybrid)
         && let Some(l) = ladder.as_mut()
-        && let Some(reference) = trials[chosen].candidate.as_deref()
+        && let Some(reference) = at_probe[chosen].as_ref()
     {
-        let others: Vec<&dyn Candidate> = trials
+        let others: Vec<&dyn Candidate> = at_probe
             .iter()
             .enumerate()
             .filter(|(i, _)| *i != chosen)
-            .filter_map(|(_, t)| t.candidate.as_deref())
+            .filter_map(|(_, f)| f.as_ref().map(|f| f as &dyn Candidate))
             .collect();
         if let Some(d) = render_disagreement(&CandidateValues(reference), &others)
             && d > settings.ladder.max_trial_disagreement
@@ -365,19 +379,29 @@ pub fn reconstruct_observations(
             reason = l.reason.clone();
         }
     }
+    // The trials' fits were evaluated on demand; what is kept is tabulated (the same values).
     let basis_fit: Box<dyn Candidate> = match settings.choose {
         TrialChoice::Mean => {
-            let fits: Vec<&dyn Candidate> = trials
+            let tables: Vec<Box<dyn Candidate>> = fits
                 .iter()
-                .filter_map(|t| t.candidate.as_deref())
+                .flatten()
+                .filter_map(|f| f.tabulate(prior))
                 .collect();
-            Box::new(TableCandidate(mean_table(&fits)))
+            let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
+            Box::new(TableCandidate(mean_table(&tables)))
         }
-        _ => trials[chosen]
-            .candidate
-            .take()
+        _ => fits[chosen]
+            .as_ref()
+            .and_then(|f| f.tabulate(prior))
             .ok_or(CoreError::AllTrialsFailed)?,
     };
+    // The confidence's trial agreement: every trial but the one reported (all with the mean).
+    let others: Vec<&dyn Candidate> = at_probe
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| settings.choose == TrialChoice::Mean || *i != chosen)
+        .filter_map(|(_, f)| f.as_ref().map(|f| f as &dyn Candidate))
+        .collect();
     timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
 
     // The reported model, and the analytic prior for regions no pixel saw.
@@ -511,10 +535,6 @@ pub fn reconstruct_observations(
 
     let t = Instant::now();
     progress("confidence (trial agreement, coverage)");
-    let others: Vec<&dyn Candidate> = trials
-        .iter()
-        .filter_map(|tr| tr.candidate.as_deref())
-        .collect();
     let held_out = ladder.as_ref().and_then(|l| l.chosen().error).or_else(|| {
         components
             .curve
@@ -539,6 +559,14 @@ pub fn reconstruct_observations(
         &settings.confidence,
     );
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
+    drop(others);
+    if settings.keep_trial_fits {
+        for (i, (trial, fit)) in trials.iter_mut().zip(&fits).enumerate() {
+            if settings.choose == TrialChoice::Mean || i != chosen {
+                trial.candidate = fit.as_ref().and_then(|f| f.tabulate(prior));
+            }
+        }
+    }
     let model = ModelReport {
         family,
         k: matches!(family, Family::Basis | Family::Hybrid).then_some(k),
@@ -799,6 +827,7 @@ mod tests {
         let mut settings = CoreSettings {
             choose,
             fixed_k: Some(3),
+            keep_trial_fits: true,
             ..CoreSettings::default()
         };
         settings.trials.trials = 6;
@@ -835,5 +864,39 @@ mod tests {
             .map(|t| t.similarity)
             .fold(f64::MIN, f64::max);
         assert_eq!(out.trials[out.chosen_trial].similarity, best);
+    }
+
+    #[test]
+    fn keeping_the_trials_fits_changes_nothing_but_what_the_output_holds() {
+        for choose in [TrialChoice::Similarity, TrialChoice::Mean] {
+            let (kept, obs) = run(choose);
+            let mut settings = CoreSettings {
+                choose,
+                fixed_k: Some(3),
+                ..CoreSettings::default()
+            };
+            settings.trials.trials = 6;
+            settings.trials.samples = 6;
+            let lean =
+                reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+                    .expect("reconstructs");
+            assert_eq!(lean.chosen_trial, kept.chosen_trial, "{choose:?}");
+            assert_eq!(lean.confidence, kept.confidence, "{choose:?}");
+            for index in (0..crate::brdf::coords::MERL_BINS).step_by(101) {
+                assert_eq!(
+                    lean.table.get(index),
+                    kept.table.get(index),
+                    "{choose:?} {index}"
+                );
+            }
+            assert!(lean.trials.iter().all(|t| t.candidate.is_none()));
+            let with_fits = kept.trials.iter().filter(|t| t.candidate.is_some()).count();
+            // the mean reports every trial; otherwise the reported one's fit is `brdf`
+            let expected = if choose == TrialChoice::Mean { 6 } else { 5 };
+            assert_eq!(with_fits, expected, "{choose:?}");
+            for (a, b) in lean.trials.iter().zip(&kept.trials) {
+                assert_eq!(a.similarity, b.similarity);
+            }
+        }
     }
 }

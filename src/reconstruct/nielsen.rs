@@ -159,7 +159,8 @@ impl NielsenPrior<'_> {
     }
 }
 
-/// A fit evaluated row by row on demand (validation reads a few hundred bins of it).
+/// A fit evaluated row by row on demand (validation reads a few hundred bins of it; the trials
+/// read it at their pixels' rows and the confidence probe's bins).
 struct Lazy<'a> {
     basis: &'a Basis,
     coefficients: [Vec<f64>; 3],

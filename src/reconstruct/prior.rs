@@ -25,6 +25,12 @@ pub trait Candidate: Send + Sync {
     fn to_merl_table(&self) -> MerlTable {
         MerlTable::from_fn(|b| Some(self.eval_bin(b.index())))
     }
+
+    /// The values at many bins (what [`CandidateValues`] reads): `eval_bin` at each, unless a
+    /// candidate knows a cheaper way to the same values.
+    fn values_at_bins(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        bins.iter().map(|&b| self.eval_bin(b)).collect()
+    }
 }
 
 /// A candidate seen as values at MERL bins (what metrics and renders read).
@@ -32,7 +38,7 @@ pub struct CandidateValues<'a>(pub &'a dyn Candidate);
 
 impl crate::brdf::BinValues for CandidateValues<'_> {
     fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
-        bins.iter().map(|&b| self.0.eval_bin(b)).collect()
+        self.0.values_at_bins(bins)
     }
 }
 

@@ -314,17 +314,94 @@ pub fn samples_of(pixels: &[Observation]) -> Vec<Sample> {
         .collect()
 }
 
+/// A trial's fit as the trials use it: evaluated on demand (the prior need not tabulate it; a
+/// Nielsen fit holds its coefficients, not 364 000 synthesised rows), with what it was fitted
+/// to, so that the chosen trial, and others when asked, can be fitted again as a table
+/// ([`TrialFit::tabulate`], the same values bit for bit: the same samples, k and eta).
+pub struct TrialFit<'a> {
+    pub candidate: Box<dyn Candidate + 'a>,
+    samples: Vec<Sample>,
+    k: usize,
+    eta: f64,
+}
+
+impl TrialFit<'_> {
+    /// The fit again, tabulated by the prior (what `Prior::fit` gives; owned).
+    pub fn tabulate(&self, prior: &dyn Prior) -> Option<Box<dyn Candidate>> {
+        prior.fit(&self.samples, self.k, self.eta).ok()
+    }
+}
+
+/// The observations' bins, each basis row once: a fit of the prior has one value per row
+/// (`Prior::row_of`), so a trial's fit is evaluated once per distinct row instead of once per
+/// pixel (at the paper's scale there are more pixels than rows). A bin without a row is its
+/// own entry.
+struct DistinctRows {
+    /// A bin of each distinct row (or row-less bin), in first-seen order.
+    bins: Vec<usize>,
+    /// Per observation, its entry in `bins`.
+    of: Vec<usize>,
+}
+
+impl DistinctRows {
+    fn new(prior: &dyn Prior, observations: &[Observation]) -> Self {
+        let mut index: HashMap<(bool, usize), usize> = HashMap::new();
+        let mut bins = Vec::new();
+        let of = observations
+            .iter()
+            .map(|o| {
+                let key = prior.row_of(o.bin).map_or((false, o.bin), |r| (true, r));
+                *index.entry(key).or_insert_with(|| {
+                    bins.push(o.bin);
+                    bins.len() - 1
+                })
+            })
+            .collect();
+        Self { bins, of }
+    }
+}
+
+/// [`cosine_similarity`] of a fit of the prior, evaluated once per distinct row; the same sums
+/// in the same order, so the same value.
+#[allow(clippy::needless_range_loop)] // three parallel RGB arrays
+fn similarity_by_rows(
+    candidate: &dyn Candidate,
+    observations: &[Observation],
+    rows: &DistinctRows,
+) -> f64 {
+    let values: Vec<[f64; 3]> = rows.bins.iter().map(|&b| candidate.eval_bin(b)).collect();
+    let (mut dot, mut nc, mut nr) = (0.0, 0.0, 0.0);
+    for (o, &i) in observations.iter().zip(&rows.of) {
+        let f = values[i];
+        for c in 0..3 {
+            let captured = o.radiance[c];
+            let rendered = f[c] * o.irradiance[c] * o.cos_theta_i;
+            if rendered.is_finite() {
+                dot += captured * rendered;
+                nr += rendered * rendered;
+            }
+            nc += captured * captured;
+        }
+    }
+    if nc <= 0.0 || nr <= 0.0 {
+        return 0.0;
+    }
+    dot / (nc.sqrt() * nr.sqrt())
+}
+
 /// Runs the trials; `observations` are every observed pixel (for eq. 3). Returns the trials in
-/// index order; the best is the one with the highest similarity.
-pub fn run_trials(
-    prior: &dyn Prior,
+/// index order (their `candidate` empty) and, beside each, its fit (`None` where the fit
+/// failed); the best is the one with the highest similarity.
+pub fn run_trials<'a>(
+    prior: &'a dyn Prior,
     reliable: &Reliable,
     observations: &[Observation],
     reliable_settings: &ReliableSettings,
     settings: &TrialSettings,
     k: usize,
     eta: f64,
-) -> Vec<Trial> {
+) -> (Vec<Trial>, Vec<Option<TrialFit<'a>>>) {
+    let rows = DistinctRows::new(prior, observations);
     (0..settings.trials.max(1))
         .into_par_iter()
         .map(|index| {
@@ -348,29 +425,38 @@ pub fn run_trials(
                 seed,
                 settings.basis_fit,
             );
-            let candidate = prior.fit(&fit.samples, k, eta * fit.eta_scale).ok();
+            let eta = eta * fit.eta_scale;
+            let candidate = prior.fit_lazy(&fit.samples, k, eta).ok();
             let similarity = candidate
                 .as_deref()
-                .map(|c| cosine_similarity(c, observations))
+                .map(|c| similarity_by_rows(c, observations, &rows))
                 .unwrap_or(f64::NEG_INFINITY);
-            Trial {
+            let trial = Trial {
                 index,
                 similarity,
                 rejected_by_monotonicity: fit.rejected_by_monotonicity,
                 fitted_samples: fit.samples.len(),
                 samples: fit.pixels,
+                candidate: None,
+            };
+            let fit = candidate.map(|candidate| TrialFit {
                 candidate,
-            }
+                samples: fit.samples,
+                k,
+                eta,
+            });
+            (trial, fit)
         })
-        .collect()
+        .unzip()
 }
 
-/// Index of the trial with the highest similarity (ties: the first).
+/// Index of the trial with the highest similarity (ties: the first; a trial whose fit failed
+/// has similarity minus infinity and is never chosen).
 pub fn best_trial(trials: &[Trial]) -> Option<usize> {
     trials
         .iter()
         .enumerate()
-        .filter(|(_, t)| t.candidate.is_some() && t.similarity.is_finite())
+        .filter(|(_, t)| t.similarity.is_finite())
         .max_by(|a, b| {
             a.1.similarity
                 .total_cmp(&b.1.similarity)
@@ -383,6 +469,7 @@ pub fn best_trial(trials: &[Trial]) -> Option<usize> {
 mod tests {
     use super::super::prior::synthetic::{CosinePrior, Linear, phi};
     use super::*;
+    use crate::brdf::ridge::RidgeError;
     use crate::reconstruct::reliable::select_reliable;
 
     fn pixels(truth: impl Fn(usize) -> f64, count: usize) -> Vec<Observation> {
@@ -487,6 +574,52 @@ mod tests {
     }
 
     #[test]
+    fn the_similarity_over_distinct_rows_is_the_similarity_over_pixels() {
+        // A prior whose rows hold five bins each, and a fit with one value per row.
+        struct Coarse;
+        impl Prior for Coarse {
+            fn max_components(&self) -> usize {
+                1
+            }
+            fn row_of(&self, bin: usize) -> Option<usize> {
+                (!bin.is_multiple_of(3)).then_some(bin / 5)
+            }
+            fn select(&self, _: &[usize], c: &[usize], _: usize, _: usize, _: u64) -> Vec<usize> {
+                c.to_vec()
+            }
+            fn fit(
+                &self,
+                _: &[Sample],
+                _: usize,
+                _: f64,
+            ) -> Result<Box<dyn Candidate>, RidgeError> {
+                Err(RidgeError::Empty)
+            }
+        }
+        struct PerRow;
+        impl Candidate for PerRow {
+            fn eval_bin(&self, bin: usize) -> [f64; 3] {
+                let r = if bin.is_multiple_of(3) { bin } else { bin / 5 };
+                [
+                    0.1 + (r % 17) as f64 * 0.03,
+                    0.2,
+                    0.05 + (r % 5) as f64 * 0.1,
+                ]
+            }
+        }
+        let obs = pixels(|bin| 0.5 + (bin % 11) as f64 * 0.1, 500);
+        let rows = DistinctRows::new(&Coarse, &obs);
+        assert!(
+            rows.bins.len() < obs.len(),
+            "rows are shared: {}",
+            rows.bins.len()
+        );
+        let by_rows = similarity_by_rows(&PerRow, &obs, &rows);
+        assert_eq!(by_rows, cosine_similarity(&PerRow, &obs));
+        assert!(by_rows > 0.5 && by_rows < 1.0, "{by_rows}");
+    }
+
+    #[test]
     fn trials_keep_the_most_similar_candidate() {
         let truth = |bin: usize| 1.0 + 0.8 * phi(1, bin) + 0.2 * phi(2, bin);
         let mut obs = pixels(truth, 400);
@@ -506,7 +639,7 @@ mod tests {
             seed: 5,
             basis_fit: BasisFit::Samples,
         };
-        let trials = run_trials(
+        let (trials, fits) = run_trials(
             &CosinePrior { k: 3 },
             &reliable,
             &obs,
@@ -516,13 +649,24 @@ mod tests {
             1.0,
         );
         assert_eq!(trials.len(), 6);
+        assert!(fits.iter().all(Option::is_some), "every trial fitted");
         let best = best_trial(&trials).unwrap();
+        // the chosen fit, tabulated, is the fit the trial scored
+        let table = fits[best]
+            .as_ref()
+            .unwrap()
+            .tabulate(&CosinePrior { k: 3 })
+            .unwrap();
+        assert_eq!(
+            cosine_similarity(table.as_ref(), &obs),
+            trials[best].similarity
+        );
         for t in &trials {
             assert!(t.similarity <= trials[best].similarity);
             assert_eq!(t.samples.len(), 12);
         }
         // Deterministic for a seed.
-        let again = run_trials(
+        let (again, _) = run_trials(
             &CosinePrior { k: 3 },
             &reliable,
             &obs,
