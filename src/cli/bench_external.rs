@@ -1,6 +1,8 @@
 //! `brdf-rig bench external`: the reconstruction on scenes rendered by an independent renderer
 //! (`scripts/render_recon_scenes.py`), against least-squares Lambert and Lambert + GGX fits to
-//! the same pixels; writes external.md and external.json under `--out`. Thin over
+//! the same pixels (a scene of several materials, from the script's `--split`: with
+//! `--materials auto`, the count, the labels' agreement and each material's ratio); writes
+//! external.md and external.json under `--out`. Thin over
 //! `eval::bench::external`: parses the arguments into its options and prints.
 
 use std::path::PathBuf;

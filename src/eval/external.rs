@@ -5,6 +5,12 @@
 //! it), the Lambert and Lambert + GGX baselines are fitted to the same observed pixels, and all
 //! three are scored against the scene's truth table with the errors of `Truth`.
 //!
+//! A scene of several materials (`--split` of the script: `materials`, `truth_tables` and
+//! per-vertex truth `labels` in its entry) is reconstructed with `--materials auto`: the count
+//! found, the share of the visible surface whose found material is the true one, and each
+//! found material's table against the truth most of its pixels have, beside Lambert and
+//! Lambert + GGX fitted to the same pixels (as `bench materials` scores its simulated objects).
+//!
 //! The scene folders are read, never written. An I/O edge.
 
 use super::{Errors, EvalError, Truth};
@@ -36,11 +42,27 @@ pub struct SceneEntry {
     pub jobs: BTreeMap<String, String>,
     #[serde(default)]
     pub median_normal_error_deg: BTreeMap<String, f64>,
-    pub truth_table: String,
+    /// The truth of a one-material scene (absent for a scene of several materials).
+    #[serde(default)]
+    pub truth_table: Option<String>,
+    /// A scene of several materials: their names, in label order.
+    #[serde(default)]
+    pub materials: Vec<String>,
+    /// Per material (label order): its truth table (`null` when the script wrote none).
+    #[serde(default, deserialize_with = "null_as_empty")]
+    pub truth_tables: Vec<String>,
+    /// Mesh variant (exact, realistic, ...) -> per-vertex truth labels of that variant's mesh,
+    /// one integer per line.
+    #[serde(default)]
+    pub labels: BTreeMap<String, String>,
     /// Materials the basis must leave out for this scene (a truth of the measured kind, a
     /// tabulated neural MERL fit, must not be in the basis that reconstructs it).
     #[serde(default)]
     pub basis_exclude: Vec<String>,
+}
+
+fn null_as_empty<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
+    Ok(Option::<Vec<String>>::deserialize(d)?.unwrap_or_default())
 }
 
 /// Reads `DIR/index.json`.
@@ -74,19 +96,194 @@ pub struct ExternalResult {
     pub confidence: Option<Level>,
     pub lambert: Option<Errors>,
     pub lambert_ggx: Option<Errors>,
+    /// A scene of several materials: what was found (`ours`, `lambert`, `lambert_ggx` are then
+    /// unset; each found material has its own).
+    pub split: Option<SplitResult>,
     pub seconds: f64,
+}
+
+/// What `--materials auto` found on a scene of several materials, against its truth.
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitResult {
+    pub truth_count: usize,
+    pub count: usize,
+    /// Share of the visible surface area (faces some pixel sees) whose found material is the
+    /// true one, under the best renaming.
+    pub agreement: f64,
+    pub materials: Vec<FoundMaterial>,
+}
+
+/// One found material, scored against the true material most of its pixels have.
+#[derive(Clone, Debug, Serialize)]
+pub struct FoundMaterial {
+    pub found: String,
+    pub truth: String,
+    pub pixels: usize,
+    /// Share of its pixels whose true material is `truth`.
+    pub purity: f64,
+    pub model: ModelReport,
+    pub confidence: Level,
+    pub ours: Errors,
+    pub lambert: Option<Errors>,
+    pub lambert_ggx: Option<Errors>,
+}
+
+impl FoundMaterial {
+    /// The better baseline's environment error / ours (above 1: ours is better).
+    pub fn ratio(&self) -> Option<f64> {
+        ratio_of(self.ours.environment, self.lambert, self.lambert_ggx)
+    }
+}
+
+fn ratio_of(ours: f64, lambert: Option<Errors>, lambert_ggx: Option<Errors>) -> Option<f64> {
+    let base = [lambert, lambert_ggx]
+        .iter()
+        .flatten()
+        .map(|e| e.environment)
+        .fold(f64::INFINITY, f64::min);
+    (base.is_finite() && ours > 0.0).then_some(base / ours)
+}
+
+/// Reads a label file: one non-negative integer per line, `expected` lines.
+pub fn read_labels(path: &Path, expected: usize) -> Result<Vec<u32>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let labels: Vec<u32> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            l.trim().parse::<u32>().map_err(|e| {
+                format!(
+                    "{} line {}: {:?} is not a label ({e})",
+                    path.display(),
+                    i + 1,
+                    l.trim()
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    if labels.len() != expected {
+        return Err(format!(
+            "{}: {} labels for {expected} vertices",
+            path.display(),
+            labels.len()
+        ));
+    }
+    Ok(labels)
+}
+
+/// Scores a reconstruction of a scene of several materials: `truth_vertex` labels the vertices
+/// of the mesh the reconstruction was given, `truths` are the materials' truths in label order.
+pub fn score_split(
+    output: &crate::reconstruct::Output,
+    truth_vertex: &[u32],
+    truths: &[(String, Truth)],
+) -> Result<SplitResult, String> {
+    use crate::geometry::labels::{FaceLabels, area_agreement};
+    use crate::reconstruct::observation::NO_FACE;
+    use crate::reconstruct::segment::interior_groups;
+    let m = output
+        .materials
+        .as_ref()
+        .ok_or("the reconstruction did not look for materials")?;
+    let mesh = &m.mesh;
+    if truth_vertex.len() != mesh.positions().len() {
+        return Err(format!(
+            "{} truth labels for a mesh of {} vertices",
+            truth_vertex.len(),
+            mesh.positions().len()
+        ));
+    }
+    let observations = &output.observed.observations;
+    let truth_faces = FaceLabels::from_vertex_labels(mesh, truth_vertex);
+    let found_faces = FaceLabels::from_vertex_labels(mesh, &m.segmentation.vertex_labels);
+    let mut visible = vec![false; mesh.faces().len()];
+    for o in observations {
+        if let Some(v) = visible.get_mut(o.face as usize) {
+            *v = true;
+        }
+    }
+    let agreement = area_agreement(mesh, &truth_faces, &found_faces, Some(&visible));
+    let count = m.segmentation.count;
+    // each found material's pixels: those its fit had (one material: every pixel)
+    let groups: Vec<Vec<crate::reconstruct::observation::Observation>> = if m.results.is_empty() {
+        vec![observations.clone()]
+    } else {
+        interior_groups(
+            mesh,
+            &m.segmentation.vertex_labels,
+            count,
+            observations,
+            m.settings.fit_interior_only,
+        )
+        .0
+    };
+    let found: Vec<(String, &MerlTable, ModelReport, Level)> = if m.results.is_empty() {
+        vec![(
+            "one".to_string(),
+            &output.table,
+            output.core.model.clone(),
+            output.core.confidence.level,
+        )]
+    } else {
+        m.results
+            .iter()
+            .map(|r| {
+                (
+                    r.name.clone(),
+                    &r.table,
+                    r.model.clone(),
+                    r.confidence.level,
+                )
+            })
+            .collect()
+    };
+    let mut materials = Vec::new();
+    for ((name, table, model, confidence), own) in found.into_iter().zip(groups) {
+        let mut votes = vec![0usize; truths.len()];
+        for o in &own {
+            if o.face != NO_FACE
+                && let Some(&l) = truth_faces.labels.get(o.face as usize)
+                && let Some(v) = votes.get_mut(l as usize)
+            {
+                *v += 1;
+            }
+        }
+        let (t, &n) = votes
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, n)| **n)
+            .ok_or("no truth materials")?;
+        let (lambert, lambert_ggx) = fit_baselines(&own);
+        let truth = &truths[t].1;
+        materials.push(FoundMaterial {
+            found: name,
+            truth: truths[t].0.clone(),
+            pixels: own.len(),
+            purity: n as f64 / own.len().max(1) as f64,
+            model,
+            confidence,
+            ours: truth.errors_of(table),
+            lambert: lambert.map(|b| truth.errors_of(&BrdfValues(&b))),
+            lambert_ggx: lambert_ggx.map(|b| truth.errors_of(&BrdfValues(&b))),
+        });
+    }
+    Ok(SplitResult {
+        truth_count: truths.len(),
+        count,
+        agreement,
+        materials,
+    })
 }
 
 impl ExternalResult {
     /// The better baseline's environment error / ours (above 1: ours is better).
     pub fn ratio(&self) -> Option<f64> {
-        let ours = self.ours.as_ref().ok()?.environment;
-        let base = [self.lambert, self.lambert_ggx]
-            .iter()
-            .flatten()
-            .map(|e| e.environment)
-            .fold(f64::INFINITY, f64::min);
-        (base.is_finite() && ours > 0.0).then_some(base / ours)
+        ratio_of(
+            self.ours.as_ref().ok()?.environment,
+            self.lambert,
+            self.lambert_ggx,
+        )
     }
 }
 
@@ -112,17 +309,47 @@ pub fn run(
     let mut out = Vec::new();
     for (name, entry) in &index.scenes {
         let scene_dir = dir.join(name);
+        let read_truth = |file: &str| {
+            let path = scene_dir.join(file);
+            MerlTable::read(&path)
+                .map(|t| Truth::new(&t, bin_step))
+                .map_err(|e| EvalError::Scene {
+                    dir: path,
+                    source: std::io::Error::other(e),
+                })
+        };
+        let split = !entry.materials.is_empty() || !entry.truth_tables.is_empty();
+        let missing = |what: &str| EvalError::Scene {
+            dir: dir.join("index.json"),
+            source: std::io::Error::other(format!("scene {name}: {what}")),
+        };
+        // what the index names is checked first; the files are read once the basis is there
+        let truth_file = match (&entry.truth_table, split) {
+            (Some(file), false) => Some(file),
+            (_, true) if entry.truth_tables.len() != entry.materials.len() => {
+                return Err(missing(&format!(
+                    "{} materials but {} `truth_tables` (rendered without `--truth full`?)",
+                    entry.materials.len(),
+                    entry.truth_tables.len()
+                )));
+            }
+            (_, true) => None,
+            (None, false) => {
+                return Err(missing("neither `truth_table` nor `truth_tables`"));
+            }
+        };
         let basis = basis_for(&entry.basis_exclude).map_err(|source| EvalError::SceneBasis {
             scene: name.clone(),
             exclude: entry.basis_exclude.clone(),
             source,
         })?;
-        let truth_path = scene_dir.join(&entry.truth_table);
-        let table = MerlTable::read(&truth_path).map_err(|e| EvalError::Scene {
-            dir: truth_path.clone(),
-            source: std::io::Error::other(e),
-        })?;
-        let truth = Truth::new(&table, bin_step);
+        let truth = truth_file.map(|f| read_truth(f)).transpose()?;
+        let truths: Vec<(String, Truth)> = entry
+            .truth_tables
+            .iter()
+            .zip(&entry.materials)
+            .map(|(file, material)| read_truth(file).map(|t| (material.clone(), t)))
+            .collect::<Result<_, _>>()?;
         let seeds = if seeds.is_empty() {
             vec![settings.core.trials.seed]
         } else {
@@ -134,6 +361,10 @@ pub fn run(
             };
             let mut settings = settings.clone();
             settings.core.trials.seed = seed;
+            if split && settings.materials.is_none() {
+                // a user who knows the object has several materials asks for them
+                settings.materials = Some(Default::default());
+            }
             let settings = &settings;
             progress(&format!("{name}: {job_name}, seed {seed}"));
             let t = Instant::now();
@@ -154,6 +385,7 @@ pub fn run(
                 confidence: None,
                 lambert: None,
                 lambert_ggx: None,
+                split: None,
                 seconds: 0.0,
             };
             match Job::from_file(&job_path)
@@ -163,12 +395,34 @@ pub fn run(
                         .map_err(|e| e.to_string())
                 }) {
                 Ok(o) => {
-                    r.ours = Ok(truth.errors_of(&o.table));
                     r.model = Some(o.core.model.clone());
                     r.confidence = Some(o.core.confidence.level);
-                    let (l, g) = fit_baselines(&o.observed.observations);
-                    r.lambert = l.map(|b| truth.errors_of(&BrdfValues(&b)));
-                    r.lambert_ggx = g.map(|b| truth.errors_of(&BrdfValues(&b)));
+                    match &truth {
+                        Some(truth) => {
+                            r.ours = Ok(truth.errors_of(&o.table));
+                            let (l, g) = fit_baselines(&o.observed.observations);
+                            r.lambert = l.map(|b| truth.errors_of(&BrdfValues(&b)));
+                            r.lambert_ggx = g.map(|b| truth.errors_of(&BrdfValues(&b)));
+                        }
+                        None => {
+                            let variant = job_name.trim_end_matches("_path");
+                            let scored = match (entry.labels.get(variant), &o.materials) {
+                                (None, _) => Err(format!("no truth labels for the {variant} mesh")),
+                                (_, None) => Err("no materials were looked for".to_string()),
+                                (Some(file), Some(m)) => {
+                                    read_labels(&scene_dir.join(file), m.mesh.positions().len())
+                                        .and_then(|labels| score_split(&o, &labels, &truths))
+                                }
+                            };
+                            match scored {
+                                Ok(s) => {
+                                    r.ours = Err("several materials: see `split`".to_string());
+                                    r.split = Some(s);
+                                }
+                                Err(e) => r.ours = Err(e),
+                            }
+                        }
+                    }
                 }
                 Err(e) => r.ours = Err(e),
             }
@@ -228,8 +482,9 @@ pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> Str
         );
     }
     s += &per_scene(results);
+    s += &split_section(results);
     s += "\n## Per job\n\n| scene | mesh given | seed | median normal error deg | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours E_sa | ours log | confidence | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-    for r in results {
+    for r in results.iter().filter(|r| r.split.is_none()) {
         let ours = r.ours.as_ref().ok();
         s += &format!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |\n",
@@ -259,6 +514,77 @@ pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> Str
     s
 }
 
+/// The scenes of several materials: counts, agreement and each found material's ratio.
+fn split_section(results: &[ExternalResult]) -> String {
+    let split: Vec<(&ExternalResult, &SplitResult)> = results
+        .iter()
+        .filter_map(|r| r.split.as_ref().map(|s| (r, s)))
+        .collect();
+    if split.is_empty() {
+        return String::new();
+    }
+    let ratios: Vec<f64> = split
+        .iter()
+        .flat_map(|(_, s)| s.materials.iter().filter_map(FoundMaterial::ratio))
+        .collect();
+    let mut s = "\n## Objects of several materials (`--materials auto`)\n\n".to_string();
+    s += "Agreement: share of the visible surface area whose found material is the true one \
+          (best renaming). Each found material is scored against the true material most of its \
+          pixels have, beside Lambert and Lambert + GGX fitted to the same pixels; ratio = the \
+          better baseline's environment error / ours.\n\n";
+    s += &format!(
+        "| | value |\n|---|---|\n| runs | {} |\n| count right | {} of {} |\n| agreement >= 0.9 | {} of {} (min {}) |\n| found materials: ratio gm | {} over {} (min {}; worse by > 10 %: {}) |\n\n",
+        split.len(),
+        split
+            .iter()
+            .filter(|(_, x)| x.count == x.truth_count)
+            .count(),
+        split.len(),
+        split.iter().filter(|(_, x)| x.agreement >= 0.9).count(),
+        split.len(),
+        f3(split
+            .iter()
+            .map(|(_, x)| x.agreement)
+            .fold(f64::INFINITY, f64::min)),
+        f3(geometric_mean(&ratios)),
+        ratios.len(),
+        f3(ratios.iter().copied().fold(f64::INFINITY, f64::min)),
+        ratios.iter().filter(|&&x| x < 1.0 / 1.1).count(),
+    );
+    s += "| scene | mesh given | seed | count (truth) | agreement | found: truth (purity), model, ours / Lambert / L+GGX env, ratio | seconds |\n|---|---|---|---|---|---|---|\n";
+    for (r, x) in split {
+        let found: Vec<String> = x
+            .materials
+            .iter()
+            .map(|m| {
+                format!(
+                    "{}: {} ({:.2}), {}, {} / {} / {}, {}",
+                    m.found,
+                    m.truth,
+                    m.purity,
+                    m.model.family,
+                    f3(m.ours.environment),
+                    m.lambert.map_or("-".to_string(), |e| f3(e.environment)),
+                    m.lambert_ggx.map_or("-".to_string(), |e| f3(e.environment)),
+                    m.ratio().map_or("-".to_string(), |v| format!("{v:.2}")),
+                )
+            })
+            .collect();
+        s += &format!(
+            "| {} | {} | {} | {} ({}) | {} | {} | {:.1} |\n",
+            r.scene,
+            r.job,
+            r.seed,
+            x.count,
+            x.truth_count,
+            f3(x.agreement),
+            found.join("<br>"),
+            r.seconds
+        );
+    }
+    s
+}
+
 fn geometric_mean(xs: &[f64]) -> f64 {
     (xs.iter().map(|x| x.ln()).sum::<f64>() / xs.len().max(1) as f64).exp()
 }
@@ -266,6 +592,12 @@ fn geometric_mean(xs: &[f64]) -> f64 {
 /// Per scene and job, over its seeds: the environment errors' means and the ratio's geometric
 /// mean and minimum (empty with one seed per job).
 fn per_scene(results: &[ExternalResult]) -> String {
+    let results: Vec<ExternalResult> = results
+        .iter()
+        .filter(|r| r.split.is_none())
+        .cloned()
+        .collect();
+    let results = results.as_slice();
     let mut keys: Vec<(&str, &str)> = results
         .iter()
         .map(|r| (r.scene.as_str(), r.job.as_str()))
@@ -345,6 +677,40 @@ mod tests {
         let index = read_index(dir.path()).unwrap();
         assert!(index.scenes["old"].basis_exclude.is_empty());
         assert_eq!(index.scenes["merl"].basis_exclude, vec!["green-latex"]);
+        assert_eq!(
+            index.scenes["old"].truth_table.as_deref(),
+            Some("truth.binary")
+        );
+        assert!(index.scenes["old"].truth_tables.is_empty());
+        // a scene of several materials: truths and labels per material, no `truth_table`
+        std::fs::write(
+            dir.path().join("index.json"),
+            r#"{"scenes": {"split": {"mesh": "spot", "rig": "3lights", "material": "a+b",
+                "materials": ["a", "b"], "jobs": {"realistic": "j.toml"},
+                "truth_tables": null, "truth_table": null,
+                "labels": {"realistic": "labels_realistic.txt"}}}}"#,
+        )
+        .unwrap();
+        let index = read_index(dir.path()).unwrap();
+        let split = &index.scenes["split"];
+        assert!(
+            split.truth_tables.is_empty(),
+            "written without full truth tables"
+        );
+        std::fs::write(
+            dir.path().join("index.json"),
+            r#"{"scenes": {"split": {"mesh": "spot", "rig": "3lights", "material": "a+b",
+                "materials": ["a", "b"], "jobs": {"realistic": "j.toml"},
+                "truth_tables": ["truth_0.binary", "truth_1.binary"],
+                "labels": {"realistic": "labels_realistic.txt"}}}}"#,
+        )
+        .unwrap();
+        let index = read_index(dir.path()).unwrap();
+        let split = &index.scenes["split"];
+        assert_eq!(split.truth_table, None);
+        assert_eq!(split.materials, vec!["a", "b"]);
+        assert_eq!(split.truth_tables.len(), 2);
+        assert_eq!(split.labels["realistic"], "labels_realistic.txt");
         // A broken index names its file.
         std::fs::write(dir.path().join("index.json"), "{\"scenes\": 3}").unwrap();
         let e = read_index(dir.path()).unwrap_err().to_string();
@@ -383,5 +749,56 @@ mod tests {
         let chain = format!("{e}: {}", std::error::Error::source(&e).unwrap());
         assert!(chain.contains("bunny-x"), "{chain}");
         assert!(chain.contains("no-such-material"), "{chain}");
+    }
+
+    #[test]
+    fn label_files_are_read_one_per_line_and_bad_ones_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("labels_realistic.txt");
+        std::fs::write(&path, "0\n1\n 1 \n0\n").unwrap();
+        assert_eq!(read_labels(&path, 4).unwrap(), vec![0, 1, 1, 0]);
+        let e = read_labels(&path, 5).unwrap_err();
+        assert!(
+            e.contains("labels_realistic.txt") && e.contains("4 labels for 5"),
+            "{e}"
+        );
+        std::fs::write(&path, "0\nx\n").unwrap();
+        let e = read_labels(&path, 2).unwrap_err();
+        assert!(e.contains("line 2") && e.contains("\"x\""), "{e}");
+        std::fs::write(&path, "0\n-1\n").unwrap();
+        assert!(read_labels(&path, 2).unwrap_err().contains("line 2"));
+        let e = read_labels(&dir.path().join("missing.txt"), 1).unwrap_err();
+        assert!(e.contains("missing.txt"), "{e}");
+    }
+
+    #[test]
+    fn a_scene_without_any_truth_is_an_error_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("index.json"),
+            r#"{"scenes": {"bare": {"mesh": "spot", "rig": "3lights", "material": "m",
+                "jobs": {"realistic": "j.toml"}}}}"#,
+        )
+        .unwrap();
+        let e = run(
+            dir.path(),
+            &["realistic".to_string()],
+            &[1],
+            &Settings::default(),
+            &mut |_: &[String]| -> Result<std::rc::Rc<Basis>, _> {
+                Err(crate::brdf::basis_cache::BasisCacheError::Build(
+                    crate::brdf::basis::BasisError::UnknownExcluded("not asked".into()),
+                ))
+            },
+            5,
+            &mut |_| {},
+            &mut |_| {},
+        )
+        .unwrap_err();
+        let chain = format!("{e}: {}", std::error::Error::source(&e).unwrap());
+        assert!(
+            chain.contains("bare") && chain.contains("truth_tables"),
+            "{chain}"
+        );
     }
 }

@@ -40,6 +40,28 @@ pub struct ExternalBench {
 
 /// One run's summary line.
 pub fn run_summary(r: &ExternalResult) -> String {
+    if let Some(x) = &r.split {
+        let ratios: Vec<String> = x
+            .materials
+            .iter()
+            .map(|m| {
+                format!(
+                    "{} {}",
+                    m.truth,
+                    m.ratio().map_or("-".to_string(), |v| format!("{v:.2}"))
+                )
+            })
+            .collect();
+        return format!(
+            "  {} {}: {} materials found ({} true), agreement {:.3}, ratios {}",
+            r.scene,
+            r.job,
+            x.count,
+            x.truth_count,
+            x.agreement,
+            ratios.join(", ")
+        );
+    }
     format!(
         "  {} {}: ours env {}, ratio {}",
         r.scene,
