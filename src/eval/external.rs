@@ -455,36 +455,47 @@ pub fn markdown(results: &[ExternalResult], command: &str, machine: &str) -> Str
           the materials a scene names in `basis_exclude` (its own, for a `merl-NAME` scene). Errors as in \
           docs/error-metrics.md; env = the rendered environment error (the headline).\n\n";
     s += &format!("Command: `{command}`\n\nMachine: {machine}\n\n");
-    s += "## Ours against the better of Lambert and Lambert + GGX, per mesh\n\n";
-    s += "| mesh given | jobs | ours better | ours worse by > 10 % | ratio geometric mean | min | max |\n|---|---|---|---|---|---|---|\n";
-    let mut kinds: Vec<&str> = results.iter().map(|r| r.job.as_str()).collect();
-    kinds.dedup();
-    kinds.sort_unstable();
-    kinds.dedup();
-    for kind in kinds {
-        let ratios: Vec<f64> = results
-            .iter()
-            .filter(|r| r.job == kind)
-            .filter_map(ExternalResult::ratio)
-            .collect();
-        if ratios.is_empty() {
-            continue;
+    let one_material: Vec<ExternalResult> = results
+        .iter()
+        .filter(|r| r.split.is_none())
+        .cloned()
+        .collect();
+    if !one_material.is_empty() {
+        let results = one_material.as_slice();
+        s += "## Ours against the better of Lambert and Lambert + GGX, per mesh\n\n";
+        s += "| mesh given | jobs | ours better | ours worse by > 10 % | ratio geometric mean | min | max |\n|---|---|---|---|---|---|---|\n";
+        let mut kinds: Vec<&str> = results.iter().map(|r| r.job.as_str()).collect();
+        kinds.dedup();
+        kinds.sort_unstable();
+        kinds.dedup();
+        for kind in kinds {
+            let ratios: Vec<f64> = results
+                .iter()
+                .filter(|r| r.job == kind)
+                .filter_map(ExternalResult::ratio)
+                .collect();
+            if ratios.is_empty() {
+                continue;
+            }
+            let gm = (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
+            s += &format!(
+                "| {kind} | {} | {} | {} | {} | {} | {} |\n",
+                ratios.len(),
+                ratios.iter().filter(|&&x| x > 1.0).count(),
+                ratios.iter().filter(|&&x| x < 1.0 / 1.1).count(),
+                f3(gm),
+                f3(ratios.iter().copied().fold(f64::INFINITY, f64::min)),
+                f3(ratios.iter().copied().fold(0.0, f64::max)),
+            );
         }
-        let gm = (ratios.iter().map(|x| x.ln()).sum::<f64>() / ratios.len() as f64).exp();
-        s += &format!(
-            "| {kind} | {} | {} | {} | {} | {} | {} |\n",
-            ratios.len(),
-            ratios.iter().filter(|&&x| x > 1.0).count(),
-            ratios.iter().filter(|&&x| x < 1.0 / 1.1).count(),
-            f3(gm),
-            f3(ratios.iter().copied().fold(f64::INFINITY, f64::min)),
-            f3(ratios.iter().copied().fold(0.0, f64::max)),
-        );
     }
     s += &per_scene(results);
     s += &split_section(results);
+    if one_material.is_empty() {
+        return s;
+    }
     s += "\n## Per job\n\n| scene | mesh given | seed | median normal error deg | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours E_sa | ours log | confidence | seconds |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-    for r in results.iter().filter(|r| r.split.is_none()) {
+    for r in &one_material {
         let ours = r.ours.as_ref().ok();
         s += &format!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} |\n",
