@@ -236,7 +236,8 @@ pub fn two_material_scene_sized(
 /// `reconstruct --materials auto --refine-normals` does) and each gets its own reflectance
 /// table; the normals come closer to the truth than with one
 /// table for both, which leaves each material's difference from their mean for the normals to
-/// absorb and which the held-out images accept.
+/// absorb and which the held-out images accept. Without `--materials auto` the pipeline finds
+/// them for the refinement too, and warns.
 #[test]
 fn normal_refinement_fits_a_reflectance_table_to_each_material() {
     use brdf_rig::reconstruct::prepare::{
@@ -283,6 +284,23 @@ fn normal_refinement_fits_a_reflectance_table_to_each_material() {
     assert!(two.report.accepted);
     assert!(two.median_after_deg < 0.8 * two.median_before_deg);
     assert!(two.median_after_deg < 0.9 * one_after);
+    // without --materials auto the pipeline finds them for the refinement all the same (the
+    // result stays one BRDF), and says so
+    let asked_one = Settings {
+        refine: Some(refine.clone()),
+        ..Settings::default()
+    };
+    let p = brdf_rig::reconstruct::prepare::prepare(&job, &asked_one, &mut |_| {}).unwrap();
+    let r = p.refinement.expect("the refinement ran");
+    assert_eq!(r.materials, 2, "{}", r.reason);
+    assert!(
+        p.scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("2 materials") && w.contains("--materials auto")),
+        "{:?}",
+        p.scene.warnings
+    );
 }
 
 /// `brdf-rig reconstruct --materials auto` on a two-material Spot (SfM-like mesh, small images,

@@ -394,8 +394,7 @@ pub fn refine_case(
         &prepared.observed,
         materials,
         &mut |_| {},
-    )
-    .unwrap_or_default();
+    );
     let seen = refine_prepared(
         &mut prepared,
         Some(pixels.clone()),

@@ -559,7 +559,6 @@ pub fn reconstruct_observations(
         &settings.confidence,
     );
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
-    drop(others);
     if settings.keep_trial_fits {
         for (i, (trial, fit)) in trials.iter_mut().zip(&fits).enumerate() {
             if settings.choose == TrialChoice::Mean || i != chosen {

@@ -837,16 +837,18 @@ pub fn prepare(
             settings.materials,
             progress,
         );
-        if let Some(labels) = &labels {
-            prepared.timings.push((
-                format!(
-                    "materials for the refinement ({})",
-                    labels.iter().max().map_or(1, |m| m + 1)
-                ),
-                t.elapsed().as_secs_f64(),
+        let found = labels.iter().max().map_or(1, |m| m + 1);
+        prepared.timings.push((
+            format!("materials for the refinement ({found})"),
+            t.elapsed().as_secs_f64(),
+        ));
+        if found > 1 && settings.materials.is_none() && prepared.observed.label_votes.is_empty() {
+            prepared.scene.warnings.push(format!(
+                "the images look like {found} materials: the normal refinement fitted a \
+                 reflectance table to each, but the result is one BRDF for the whole object \
+                 (--materials auto fits one per material)"
             ));
         }
-        let labels = labels.unwrap_or_default();
         let _seen = refine_prepared(
             &mut prepared,
             pixels,
@@ -878,18 +880,20 @@ pub fn segmentation_for(
 
 /// The materials of the mesh's vertices as the normal refinement needs them (one reflectance
 /// table each): the segmentation of [`segmentation_for`] on the observations of the unrefined
-/// normals (its features do not depend on the normals' error). `None` when the job asked for
-/// one material and has no label masks (nothing was run; running it there too is measured and
-/// left as a next step in docs/materials.md, "Not done"); empty when one material is found.
-/// The materials reported are found again after the refinement.
+/// normals (its features do not depend on the normals' error); when the job asked for one
+/// material and has no label masks, the default segmentation all the same: with one table for
+/// an object of several materials the refinement bends the normals to absorb their difference
+/// (docs/materials.md, "With `--refine-normals`"), and a one-material object is found to be one
+/// (the count's rule, docs/materials.md "How many"). Empty when one material is found. The
+/// materials reported are found again after the refinement (or not at all, when one was asked).
 pub fn material_labels(
     mesh: &Mesh,
     observed: &Observed,
     materials: Option<SegmentSettings>,
     progress: &mut dyn FnMut(&str),
-) -> Option<Vec<u32>> {
+) -> Vec<u32> {
     let fixed = observed.label_votes.fixed(mesh.positions().len());
-    let seg = segmentation_for(materials, fixed.is_some())?;
+    let seg = segmentation_for(materials, fixed.is_some()).unwrap_or_default();
     progress("normal refinement: finding the materials first (a reflectance table each)");
     let found = segment_with_labels(
         mesh,
@@ -897,11 +901,11 @@ pub fn material_labels(
         &seg,
         fixed.as_ref().map_or(&[][..], |f| &f.vertex[..]),
     );
-    Some(if found.count > 1 {
+    if found.count > 1 {
         found.vertex_labels
     } else {
         Vec::new()
-    })
+    }
 }
 
 /// Refines the normals of a prepared scene from its images; when the refinement is accepted,
