@@ -205,11 +205,16 @@ pub struct Trial {
 }
 
 /// Eq. 3: cosine similarity between captured and rendered RGB over the observed pixels.
-#[allow(clippy::needless_range_loop)] // three parallel RGB arrays
 pub fn cosine_similarity(candidate: &dyn Candidate, observations: &[Observation]) -> f64 {
+    similarity_of(observations, |i| candidate.eval_bin(observations[i].bin))
+}
+
+/// Eq. 3 with the candidate's value at observation `i` given by `value`.
+#[allow(clippy::needless_range_loop)] // three parallel RGB arrays
+fn similarity_of(observations: &[Observation], value: impl Fn(usize) -> [f64; 3]) -> f64 {
     let (mut dot, mut nc, mut nr) = (0.0, 0.0, 0.0);
-    for o in observations {
-        let f = candidate.eval_bin(o.bin);
+    for (i, o) in observations.iter().enumerate() {
+        let f = value(i);
         for c in 0..3 {
             let captured = o.radiance[c];
             let rendered = f[c] * o.irradiance[c] * o.cos_theta_i;
@@ -363,30 +368,13 @@ impl DistinctRows {
 
 /// [`cosine_similarity`] of a fit of the prior, evaluated once per distinct row; the same sums
 /// in the same order, so the same value.
-#[allow(clippy::needless_range_loop)] // three parallel RGB arrays
 fn similarity_by_rows(
     candidate: &dyn Candidate,
     observations: &[Observation],
     rows: &DistinctRows,
 ) -> f64 {
     let values: Vec<[f64; 3]> = rows.bins.iter().map(|&b| candidate.eval_bin(b)).collect();
-    let (mut dot, mut nc, mut nr) = (0.0, 0.0, 0.0);
-    for (o, &i) in observations.iter().zip(&rows.of) {
-        let f = values[i];
-        for c in 0..3 {
-            let captured = o.radiance[c];
-            let rendered = f[c] * o.irradiance[c] * o.cos_theta_i;
-            if rendered.is_finite() {
-                dot += captured * rendered;
-                nr += rendered * rendered;
-            }
-            nc += captured * captured;
-        }
-    }
-    if nc <= 0.0 || nr <= 0.0 {
-        return 0.0;
-    }
-    dot / (nc.sqrt() * nr.sqrt())
+    similarity_of(observations, |i| values[rows.of[i]])
 }
 
 /// Runs the trials; `observations` are every observed pixel (for eq. 3). Returns the trials in
