@@ -365,6 +365,32 @@ mod tests {
     use crate::brdf::coords::HalfDiff;
     use nalgebra::{Point3, Vector3};
 
+    #[test]
+    fn a_candidate_at_the_probe_gives_its_own_values_there_and_elsewhere() {
+        struct Varied;
+        impl Candidate for Varied {
+            fn eval_bin(&self, bin: usize) -> [f64; 3] {
+                [
+                    bin as f64 * 1e-6,
+                    (bin % 97) as f64,
+                    1.0 / (1 + bin % 13) as f64,
+                ]
+            }
+        }
+        let at = AtProbe::new(&Varied);
+        let bins = probe().bins();
+        assert_eq!(
+            CandidateValues(&at).values_at(bins),
+            CandidateValues(&Varied).values_at(bins)
+        );
+        // another slice with the same bins is evaluated, not read from the cache
+        let copy = bins.to_vec();
+        assert_eq!(at.values_at_bins(&copy), Varied.values_at_bins(&copy));
+        let other = [0, 5, 1_000_000];
+        assert_eq!(at.values_at_bins(&other), Varied.values_at_bins(&other));
+        assert_eq!(at.eval_bin(77), Varied.eval_bin(77));
+    }
+
     struct Const(f64);
     impl Candidate for Const {
         fn eval_bin(&self, _bin: usize) -> [f64; 3] {
