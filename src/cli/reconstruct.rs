@@ -123,8 +123,10 @@ pub struct Args {
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub peak_average: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
-    /// stereo across views, checked on held-out images; docs/normal-refinement.md). Writes
-    /// mesh_refined.ply when the refinement is accepted.
+    /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
+    /// object's materials are found first, whatever `--materials` says, and each gets its own
+    /// reflectance table in the refinement (a warning says when several are found with
+    /// `--materials one`). Writes mesh_refined.ply when the refinement is accepted.
     #[arg(long)]
     pub refine_normals: bool,
     /// What the refinement moves: `depth` (one displacement per vertex along its normal, the
