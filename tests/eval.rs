@@ -140,15 +140,7 @@ fn run_small_materials(
         views,
         width,
         height,
-        basis: BasisSettings {
-            stride: GridStride {
-                theta_h: 1,
-                theta_d: 4,
-                phi_d: 6,
-            },
-            basis_components: 40,
-            exclude: Vec::new(),
-        },
+        basis: crate::util::small_basis(Vec::new()),
         core: small_core(),
         segment,
         seeds: 1,

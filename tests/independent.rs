@@ -322,22 +322,13 @@ fn materials_auto_finds_one_material_on_the_independent_scene() {
 /// script's per-vertex truth on most of the surface the images see.
 #[test]
 fn materials_auto_finds_the_two_materials_of_an_independent_object() {
-    use brdf_rig::brdf::basis::{BasisSettings, GridStride};
     let scene = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/fixtures/independent/spot-3lights-split-lambert+cloth");
     let dir = tempfile::tempdir().unwrap();
     let mut settings = Settings {
         nbrdf_dir: reduced_nbrdf_dir(dir.path()),
         basis_cache: Some(std::env::temp_dir().join("brdf-rig-test-basis")),
-        basis: BasisSettings {
-            stride: GridStride {
-                theta_h: 1,
-                theta_d: 4,
-                phi_d: 6,
-            },
-            basis_components: 40,
-            exclude: Vec::new(),
-        },
+        basis: util::small_basis(Vec::new()),
         materials: Some(Default::default()),
         ..Settings::default()
     };

@@ -4,7 +4,7 @@
 //! from which the target material is always left out. Also: job validation through the binary.
 
 use crate::util;
-use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
+use brdf_rig::brdf::basis::Basis;
 use brdf_rig::brdf::basis_cache;
 use brdf_rig::brdf::merl::MerlTable;
 use brdf_rig::brdf::nbrdf::{Nbrdf, load_dir};
@@ -56,15 +56,7 @@ pub fn materials() -> Vec<(String, Nbrdf)> {
 }
 
 pub fn reduced_basis(target: &str, materials: &[(String, Nbrdf)]) -> Basis {
-    let settings = BasisSettings {
-        stride: GridStride {
-            theta_h: 1,
-            theta_d: 4,
-            phi_d: 6,
-        },
-        basis_components: 40,
-        exclude: vec![target.to_string()],
-    };
+    let settings = crate::util::small_basis(vec![target.to_string()]);
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");
     basis_cache::load_or_build(&settings, materials, &cache)
         .unwrap()

@@ -1,4 +1,4 @@
-//! Shared test harness: paths to the shared data and the built binary.
+//! Shared test harness: paths to the shared data and the built binary, the tests' small basis.
 
 #![allow(dead_code)]
 
@@ -27,4 +27,18 @@ pub fn html_report(dir: &Path) -> String {
         .expect("brdf-rig runs");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::fs::read_to_string(dir.join("report.html")).expect("report.html written")
+}
+
+/// The tests' reduced basis: stride 1,4,6 and 40 components (its cache is shared by the tests,
+/// `brdf-rig-test-basis` in the temporary folder), leaving out `exclude`.
+pub fn small_basis(exclude: Vec<String>) -> brdf_rig::brdf::basis::BasisSettings {
+    brdf_rig::brdf::basis::BasisSettings {
+        stride: brdf_rig::brdf::basis::GridStride {
+            theta_h: 1,
+            theta_d: 4,
+            phi_d: 6,
+        },
+        basis_components: 40,
+        exclude,
+    }
 }
