@@ -13,7 +13,9 @@
 //!
 //! The scene folders are read, never written. An I/O edge.
 
+use super::materials::{MaterialScore, score_found};
 use super::{Errors, EvalError, Truth};
+use crate::brdf::BinValues;
 use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
 use crate::eval::BrdfValues;
@@ -110,38 +112,9 @@ pub struct SplitResult {
     /// Share of the visible surface area (faces some pixel sees) whose found material is the
     /// true one, under the best renaming.
     pub agreement: f64,
-    pub materials: Vec<FoundMaterial>,
-}
-
-/// One found material, scored against the true material most of its pixels have.
-#[derive(Clone, Debug, Serialize)]
-pub struct FoundMaterial {
-    pub found: String,
-    pub truth: String,
-    pub pixels: usize,
-    /// Share of its pixels whose true material is `truth`.
-    pub purity: f64,
-    pub model: ModelReport,
-    pub confidence: Level,
-    pub ours: Errors,
-    pub lambert: Option<Errors>,
-    pub lambert_ggx: Option<Errors>,
-}
-
-impl FoundMaterial {
-    /// The better baseline's environment error / ours (above 1: ours is better).
-    pub fn ratio(&self) -> Option<f64> {
-        ratio_of(self.ours.environment, self.lambert, self.lambert_ggx)
-    }
-}
-
-fn ratio_of(ours: f64, lambert: Option<Errors>, lambert_ggx: Option<Errors>) -> Option<f64> {
-    let base = [lambert, lambert_ggx]
-        .iter()
-        .flatten()
-        .map(|e| e.environment)
-        .fold(f64::INFINITY, f64::min);
-    (base.is_finite() && ours > 0.0).then_some(base / ours)
+    /// Each found material against the true material most of its pixels have (as `bench
+    /// materials` scores its objects).
+    pub materials: Vec<MaterialScore>,
 }
 
 /// Reads a label file: one non-negative integer per line, `expected` lines.
@@ -173,19 +146,27 @@ pub fn read_labels(path: &Path, expected: usize) -> Result<Vec<u32>, String> {
 }
 
 /// Scores a reconstruction of a scene of several materials: `truth_vertex` labels the vertices
-/// of the mesh the reconstruction was given, `truths` are the materials' truths in label order.
+/// of the mesh the reconstruction was given, `names` and `truths` are the materials in label
+/// order.
 pub fn score_split(
     output: &crate::reconstruct::Output,
     truth_vertex: &[u32],
-    truths: &[(String, Truth)],
+    names: &[String],
+    truths: &[Truth],
 ) -> Result<SplitResult, String> {
     use crate::geometry::labels::{FaceLabels, area_agreement};
-    use crate::reconstruct::observation::NO_FACE;
     use crate::reconstruct::segment::interior_groups;
     let m = output
         .materials
         .as_ref()
         .ok_or("the reconstruction did not look for materials")?;
+    if truths.is_empty() || names.len() != truths.len() {
+        return Err(format!(
+            "{} material names for {} truths",
+            names.len(),
+            truths.len()
+        ));
+    }
     let mesh = &m.mesh;
     if truth_vertex.len() != mesh.positions().len() {
         return Err(format!(
@@ -218,12 +199,12 @@ pub fn score_split(
         )
         .0
     };
-    let found: Vec<(String, &MerlTable, ModelReport, Level)> = if m.results.is_empty() {
+    let found: Vec<(String, &dyn BinValues, String, String)> = if m.results.is_empty() {
         vec![(
             "one".to_string(),
             &output.table,
-            output.core.model.clone(),
-            output.core.confidence.level,
+            output.core.model.family.to_string(),
+            output.core.confidence.level.to_string(),
         )]
     } else {
         m.results
@@ -231,43 +212,18 @@ pub fn score_split(
             .map(|r| {
                 (
                     r.name.clone(),
-                    &r.table,
-                    r.model.clone(),
-                    r.confidence.level,
+                    &r.table as &dyn BinValues,
+                    r.model.family.to_string(),
+                    r.confidence.level.to_string(),
                 )
             })
             .collect()
     };
-    let mut materials = Vec::new();
-    for ((name, table, model, confidence), own) in found.into_iter().zip(groups) {
-        let mut votes = vec![0usize; truths.len()];
-        for o in &own {
-            if o.face != NO_FACE
-                && let Some(&l) = truth_faces.labels.get(o.face as usize)
-                && let Some(v) = votes.get_mut(l as usize)
-            {
-                *v += 1;
-            }
-        }
-        let (t, &n) = votes
-            .iter()
-            .enumerate()
-            .max_by_key(|(_, n)| **n)
-            .ok_or("no truth materials")?;
-        let (lambert, lambert_ggx) = fit_baselines(&own);
-        let truth = &truths[t].1;
-        materials.push(FoundMaterial {
-            found: name,
-            truth: truths[t].0.clone(),
-            pixels: own.len(),
-            purity: n as f64 / own.len().max(1) as f64,
-            model,
-            confidence,
-            ours: truth.errors_of(table),
-            lambert: lambert.map(|b| truth.errors_of(&BrdfValues(&b))),
-            lambert_ggx: lambert_ggx.map(|b| truth.errors_of(&BrdfValues(&b))),
-        });
-    }
+    let materials = found
+        .into_iter()
+        .zip(&groups)
+        .map(|(f, own)| score_found(f, own, own, &truth_faces.labels, names, truths))
+        .collect();
     Ok(SplitResult {
         truth_count: truths.len(),
         count,
@@ -279,11 +235,13 @@ pub fn score_split(
 impl ExternalResult {
     /// The better baseline's environment error / ours (above 1: ours is better).
     pub fn ratio(&self) -> Option<f64> {
-        ratio_of(
-            self.ours.as_ref().ok()?.environment,
-            self.lambert,
-            self.lambert_ggx,
-        )
+        let ours = self.ours.as_ref().ok()?.environment;
+        let base = [self.lambert, self.lambert_ggx]
+            .iter()
+            .flatten()
+            .map(|e| e.environment)
+            .fold(f64::INFINITY, f64::min);
+        (base.is_finite() && ours > 0.0).then_some(base / ours)
     }
 }
 
@@ -344,11 +302,10 @@ pub fn run(
             source,
         })?;
         let truth = truth_file.map(|f| read_truth(f)).transpose()?;
-        let truths: Vec<(String, Truth)> = entry
+        let truths: Vec<Truth> = entry
             .truth_tables
             .iter()
-            .zip(&entry.materials)
-            .map(|(file, material)| read_truth(file).map(|t| (material.clone(), t)))
+            .map(|file| read_truth(file))
             .collect::<Result<_, _>>()?;
         let seeds = if seeds.is_empty() {
             vec![settings.core.trials.seed]
@@ -411,7 +368,9 @@ pub fn run(
                                 (_, None) => Err("no materials were looked for".to_string()),
                                 (Some(file), Some(m)) => {
                                     read_labels(&scene_dir.join(file), m.mesh.positions().len())
-                                        .and_then(|labels| score_split(&o, &labels, &truths))
+                                        .and_then(|labels| {
+                                            score_split(&o, &labels, &entry.materials, &truths)
+                                        })
                                 }
                             };
                             match scored {
@@ -536,7 +495,7 @@ fn split_section(results: &[ExternalResult]) -> String {
     }
     let ratios: Vec<f64> = split
         .iter()
-        .flat_map(|(_, s)| s.materials.iter().filter_map(FoundMaterial::ratio))
+        .flat_map(|(_, s)| s.materials.iter().filter_map(MaterialScore::ratio))
         .collect();
     let mut s = "\n## Objects of several materials (`--materials auto`)\n\n".to_string();
     s += "Agreement: share of the visible surface area whose found material is the true one \
@@ -573,10 +532,10 @@ fn split_section(results: &[ExternalResult]) -> String {
                     m.found,
                     m.truth,
                     m.purity,
-                    m.model.family,
-                    f3(m.ours.environment),
-                    m.lambert.map_or("-".to_string(), |e| f3(e.environment)),
-                    m.lambert_ggx.map_or("-".to_string(), |e| f3(e.environment)),
+                    m.model,
+                    f3(m.ours),
+                    m.lambert.map_or("-".to_string(), f3),
+                    m.lambert_ggx.map_or("-".to_string(), f3),
                     m.ratio().map_or("-".to_string(), |v| format!("{v:.2}")),
                 )
             })

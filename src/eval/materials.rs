@@ -118,6 +118,53 @@ pub struct NormalsChange {
     pub tables: usize,
 }
 
+/// Scores one found material (name, table as written, model, confidence) against the true
+/// material most of its pixels `own` have (`truth_faces`: the true label of each face; `names`
+/// and `truths` in label order), beside Lambert and Lambert + GGX fitted to `baseline_pixels`
+/// (its own pixels, or the same faces' unrefined ones). Shared by `bench materials` and
+/// `bench external`.
+pub fn score_found(
+    found: (String, &dyn BinValues, String, String),
+    own: &[Observation],
+    baseline_pixels: &[Observation],
+    truth_faces: &[u32],
+    names: &[String],
+    truths: &[Truth],
+) -> MaterialScore {
+    let (name, table, model, confidence) = found;
+    let mut votes = vec![0usize; truths.len().min(names.len())];
+    for o in own {
+        if o.face != NO_FACE
+            && let Some(&l) = truth_faces.get(o.face as usize)
+            && let Some(v) = votes.get_mut(l as usize)
+        {
+            *v += 1;
+        }
+    }
+    let (t, &n) = votes
+        .iter()
+        .enumerate()
+        .max_by_key(|(_, n)| **n)
+        .unwrap_or((0, &0));
+    let (lambert, lambert_ggx) = match truths.get(t) {
+        Some(truth) => baseline_errors(truth, baseline_pixels),
+        None => (None, None),
+    };
+    MaterialScore {
+        truth: names.get(t).cloned().unwrap_or_default(),
+        found: name,
+        pixels: own.len(),
+        purity: n as f64 / own.len().max(1) as f64,
+        model,
+        confidence,
+        ours: truths
+            .get(t)
+            .map_or(f64::NAN, |tr| tr.errors_of(table).environment),
+        lambert: lambert.map(|e| e.environment),
+        lambert_ggx: lambert_ggx.map(|e| e.environment),
+    }
+}
+
 /// Faces of `mesh` seen by any view of the scene.
 fn visible_faces(mesh: &Mesh, spec: &crate::sim::job_scene::SceneSpec) -> Vec<bool> {
     let mut seen = vec![false; mesh.faces().len()];
@@ -288,32 +335,14 @@ pub fn run(
                             Some(_) if cores.is_empty() => unrefined.clone(),
                             Some(g) => Some(g.get_mut(i).map(std::mem::take).unwrap_or_default()),
                         };
-                        let mut votes = vec![0usize; names.len()];
-                        for o in &own {
-                            if o.face != NO_FACE
-                                && let Some(&l) = truth_labels.labels.get(o.face as usize)
-                            {
-                                votes[l as usize] += 1;
-                            }
-                        }
-                        let (t, &n) = votes
-                            .iter()
-                            .enumerate()
-                            .max_by_key(|(_, n)| **n)
-                            .unwrap_or((0, &0));
-                        let (lambert, lambert_ggx) =
-                            baseline_errors(&truths[t], base_own.as_deref().unwrap_or(&own));
-                        scores.push(MaterialScore {
-                            truth: names[t].clone(),
-                            found: name,
-                            pixels: own.len(),
-                            purity: n as f64 / own.len().max(1) as f64,
-                            model,
-                            confidence,
-                            ours: truths[t].errors_of(table).environment,
-                            lambert: lambert.map(|e| e.environment),
-                            lambert_ggx: lambert_ggx.map(|e| e.environment),
-                        });
+                        scores.push(score_found(
+                            (name, table, model, confidence),
+                            &own,
+                            base_own.as_deref().unwrap_or(&own),
+                            &truth_labels.labels,
+                            names,
+                            &truths,
+                        ));
                     }
                     let r = ObjectResult {
                         mesh: mesh_name.clone(),
