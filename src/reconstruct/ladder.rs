@@ -568,9 +568,11 @@ struct FoldScore {
 
 /// `(sum (R - I)^2, sum I^2)` over the patches of `patch_px` pixels of each held-out image
 /// and the channels, `R` and `I` the rendered and observed pixel values summed over a patch.
+/// The patches are summed in the order of their keys, so the error is the same in every run
+/// (a hash map's order changes from process to process, and with it the last digits).
 fn patch_residual(c: &dyn Candidate, held: &[Observation], patch_px: usize) -> Option<(f64, f64)> {
-    let mut sums: std::collections::HashMap<u64, ([f64; 3], [f64; 3])> =
-        std::collections::HashMap::new();
+    let mut sums: std::collections::BTreeMap<u64, ([f64; 3], [f64; 3])> =
+        std::collections::BTreeMap::new();
     for o in held {
         let f = c.eval_bin(o.bin);
         let e = sums
