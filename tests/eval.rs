@@ -147,6 +147,7 @@ fn run_small_materials(
         rigs: vec![Rig::Spread],
         bin_step: 5,
         refine,
+        time_repeats: 1,
     };
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");

@@ -47,6 +47,11 @@ pub struct BenchMaterialsArgs {
     /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
+    /// Time each object's two reconstructions (its materials, one material) this many times,
+    /// in turn, and keep the least time of each: the time ratio of one run moves by 10-20 %
+    /// with what else the machine does.
+    #[arg(long, default_value_t = 1, value_parser = int_in(1usize, 20))]
+    pub time_repeats: usize,
     /// Output folder for materials.md and materials.json.
     #[arg(long, default_value = "docs/eval/materials")]
     pub out: PathBuf,
@@ -64,7 +69,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
@@ -77,6 +82,11 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
             ""
         },
         a.refine_unknowns.command_args(a.refine_normals),
+        if a.time_repeats > 1 {
+            format!(" --time-repeats {}", a.time_repeats)
+        } else {
+            String::new()
+        },
         a.out.display()
     );
     let options = MaterialsBenchOptions {
@@ -88,6 +98,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         max_materials: a.max_materials,
         keep_boundary_pixels: a.keep_boundary_pixels,
         refine: a.refine_unknowns.settings(a.refine_normals),
+        time_repeats: a.time_repeats,
         out: a.out.clone(),
         command,
     };

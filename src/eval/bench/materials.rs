@@ -27,6 +27,9 @@ pub struct MaterialsBenchOptions {
     pub keep_boundary_pixels: bool,
     /// Refine the normals from the images first (`reconstruct --refine-normals`).
     pub refine: Option<crate::reconstruct::refine::RefineSettings>,
+    /// Times each object's reconstructions this many times, keeping the least
+    /// (`MaterialsSpec::time_repeats`).
+    pub time_repeats: usize,
     /// Folder of materials.md and materials.json.
     pub out: PathBuf,
     /// The command as typed, quoted by the page.
@@ -74,6 +77,7 @@ pub fn run(
         rigs: o.rigs.clone(),
         bin_step: o.scene.bin_step,
         refine: o.refine.clone(),
+        time_repeats: o.time_repeats.max(1),
     };
     let machine = crate::eval::host::machine();
     create_dir(&o.out)?;
