@@ -468,6 +468,57 @@ impl Basis {
             .collect()
     }
 
+    /// Several fits' values at many rows: `synthesize_row` of each fit at each row, bit for
+    /// bit, with each row of the basis read once for all the fits and the fits' sums run side
+    /// by side (each still in the order of `synthesize_row`'s, so the processor can do several
+    /// at once). Every fit must have the same number of coefficients in every channel; `None`
+    /// otherwise. Returns, per fit, its values in the order of `rows`.
+    pub fn synthesize_rows_many(
+        &self,
+        fits: &[&[Vec<f64>; 3]],
+        rows: &[usize],
+    ) -> Option<Vec<Vec<[f64; 3]>>> {
+        let n = fits.first().map_or(0, |f| f[0].len());
+        if fits.iter().any(|f| f.iter().any(|x| x.len() != n)) {
+            return None;
+        }
+        let n = n.min(self.k);
+        let cols = 3 * fits.len();
+        // x[j * cols + 3 t + c]: coefficient j of fit t, channel c
+        let mut x = vec![0.0; n * cols];
+        for (t, f) in fits.iter().enumerate() {
+            for (c, xc) in f.iter().enumerate() {
+                for (j, v) in xc.iter().take(n).enumerate() {
+                    x[j * cols + 3 * t + c] = *v;
+                }
+            }
+        }
+        let per_row: Vec<Vec<f64>> = rows
+            .par_iter()
+            .with_min_len(256)
+            .map(|&row| {
+                let mut m = vec![-0.0; cols];
+                for (j, q) in self.q_row(row, n).iter().enumerate() {
+                    let q = f64::from(*q);
+                    for (acc, xj) in m.iter_mut().zip(&x[j * cols..(j + 1) * cols]) {
+                        *acc += q * xj;
+                    }
+                }
+                m.into_iter().map(|v| self.unmap(row, v)).collect()
+            })
+            .collect();
+        Some(
+            (0..fits.len())
+                .map(|t| {
+                    per_row
+                        .iter()
+                        .map(|m| [m[3 * t], m[3 * t + 1], m[3 * t + 2]])
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
     /// f_r at one row from per-channel coefficients (what [`Self::synthesize`] gives there).
     pub fn synthesize_row(&self, coeffs: &[Vec<f64>; 3], row: usize) -> [f64; 3] {
         let [x0, x1, x2] = coeffs;
@@ -587,6 +638,41 @@ mod tests {
                 assert!(grid.neighbours(n).contains(&r));
             }
         }
+    }
+
+    #[test]
+    fn several_fits_synthesized_together_are_each_fit_alone_bit_for_bit() {
+        let t = toys();
+        let basis = Basis::build(&coarse(), &refs(&t)).expect("build");
+        let fit = |seed: f64| -> [Vec<f64>; 3] {
+            std::array::from_fn(|c| {
+                (0..7)
+                    .map(|j| ((seed + j as f64 * 1.7 + c as f64 * 0.3).sin()) * 0.8)
+                    .collect()
+            })
+        };
+        let fits: Vec<[Vec<f64>; 3]> = (0..4).map(|i| fit(i as f64)).collect();
+        let refs: Vec<&[Vec<f64>; 3]> = fits.iter().collect();
+        let rows: Vec<usize> = (0..basis.n_rows()).rev().step_by(3).collect();
+        let together = basis
+            .synthesize_rows_many(&refs, &rows)
+            .expect("same lengths");
+        assert_eq!(together.len(), fits.len());
+        for (f, values) in fits.iter().zip(&together) {
+            assert_eq!(values.len(), rows.len());
+            for (&row, v) in rows.iter().zip(values) {
+                let alone = basis.synthesize_row(f, row);
+                assert_eq!(v.map(f64::to_bits), alone.map(f64::to_bits), "row {row}");
+            }
+        }
+        // Fits of different lengths are not batched (the caller evaluates each alone).
+        let mut short = fit(9.0);
+        short[1].pop();
+        assert!(
+            basis
+                .synthesize_rows_many(&[&fits[0], &short], &rows)
+                .is_none()
+        );
     }
 
     #[test]

@@ -76,19 +76,92 @@ impl MerlTable {
 
     /// Tabulates `f(bin)` at every bin (in parallel); `None` stores "no data".
     pub fn from_fn(f: impl Fn(MerlBin) -> Option<[f64; 3]> + Sync) -> Self {
-        let rgb: Vec<Option<[f64; 3]>> = (0..MERL_BINS)
-            .into_par_iter()
-            .map(|i| MerlBin::from_index(i).and_then(&f))
-            .collect();
-        let mut data = vec![-1.0; 3 * MERL_BINS];
-        for (i, v) in rgb.iter().enumerate() {
-            if let Some(v) = v {
-                for c in 0..3 {
-                    data[c * MERL_BINS + i] = v[c] / MERL_SCALES[c];
-                }
-            }
+        let mut table = Self::zeros();
+        table.update(|i, _| MerlBin::from_index(i).and_then(&f));
+        table
+    }
+
+    /// A table of zeros (f_r = 0 in every bin): the cheapest start for [`Self::update`], which
+    /// writes every bin (zeroed memory is handed out by the system as it is first written,
+    /// where [`Self::empty`] writes 35 MB first).
+    pub fn zeros() -> Self {
+        Self {
+            data: vec![0.0; 3 * MERL_BINS],
         }
-        Self { data }
+    }
+
+    /// Replaces every bin's value by `f(index, its value)`, in parallel and in place: what
+    /// [`Self::get`] then [`Self::set`] would do bin by bin (`None`, in and out, is "no data"),
+    /// without a second table or a serial copy (a table is 35 MB; a reconstruction makes
+    /// several per material).
+    pub fn update(&mut self, f: impl Fn(usize, Option<[f64; 3]>) -> Option<[f64; 3]> + Sync) {
+        self.update_counting(|i, v| (f(i, v), [0; 0]));
+    }
+
+    /// [`Self::update`] where `f` also returns counts, summed over the bins (integers: the
+    /// same sums whatever order the threads take; no counter shared between them).
+    pub fn update_counting<const N: usize>(
+        &mut self,
+        f: impl Fn(usize, Option<[f64; 3]>) -> (Option<[f64; 3]>, [usize; N]) + Sync,
+    ) -> [usize; N] {
+        let (r, gb) = self.data.split_at_mut(MERL_BINS);
+        let (g, b) = gb.split_at_mut(MERL_BINS);
+        r.par_iter_mut()
+            .zip(g.par_iter_mut())
+            .zip(b.par_iter_mut())
+            .enumerate()
+            .with_min_len(1024)
+            .map(|(index, ((r, g), b))| {
+                let v = [
+                    *r * MERL_SCALES[0],
+                    *g * MERL_SCALES[1],
+                    *b * MERL_SCALES[2],
+                ];
+                let current = v.iter().all(|x| *x >= 0.0).then_some(v);
+                let (new, counts) = f(index, current);
+                match new {
+                    Some(v) => {
+                        *r = v[0] / MERL_SCALES[0];
+                        *g = v[1] / MERL_SCALES[1];
+                        *b = v[2] / MERL_SCALES[2];
+                    }
+                    None => (*r, *g, *b) = (-1.0, -1.0, -1.0),
+                }
+                counts
+            })
+            .reduce(|| [0; N], |a, b| std::array::from_fn(|i| a[i] + b[i]))
+    }
+
+    /// Multiplies f_r by `factor(index)` at every bin with data whose factor is below 1, in
+    /// place and in parallel (`get`, scale, `set`); every other bin keeps its stored value.
+    /// Returns, per bin, whether it was scaled.
+    pub fn scale_down(&mut self, factor: impl Fn(usize) -> f64 + Sync) -> Vec<bool> {
+        let (r, gb) = self.data.split_at_mut(MERL_BINS);
+        let (g, b) = gb.split_at_mut(MERL_BINS);
+        r.par_iter_mut()
+            .zip(g.par_iter_mut())
+            .zip(b.par_iter_mut())
+            .enumerate()
+            .with_min_len(1024)
+            .map(|(index, ((r, g), b))| {
+                let v = [
+                    *r * MERL_SCALES[0],
+                    *g * MERL_SCALES[1],
+                    *b * MERL_SCALES[2],
+                ];
+                if !v.iter().all(|x| *x >= 0.0) {
+                    return false;
+                }
+                let f = factor(index);
+                if f >= 1.0 {
+                    return false;
+                }
+                *r = v[0] * f / MERL_SCALES[0];
+                *g = v[1] * f / MERL_SCALES[1];
+                *b = v[2] * f / MERL_SCALES[2];
+                true
+            })
+            .collect()
     }
 
     /// Tabulates any BRDF at the bin centres (phi_h = 0). Bins with a centre direction below the
@@ -239,6 +312,59 @@ mod tests {
             let s = (-hd.theta_h * hd.theta_h / 0.02).exp();
             let a = 0.2 + 0.1 * hd.theta_d.cos() + 0.05 * (2.0 * hd.phi_d).cos();
             [a / PI + s, 0.5 * a / PI + 2.0 * s, 0.1 / PI + 0.5 * s]
+        }
+    }
+
+    #[test]
+    fn updating_in_place_is_getting_then_setting_each_bin() {
+        let mut table = MerlTable::tabulate(&Analytic);
+        table.set(17, [-1.0, -1.0, -1.0]);
+        // bin by bin with get and set, into a fresh table
+        let f = |i: usize, v: Option<[f64; 3]>| match (i % 3, v) {
+            (0, _) => None,
+            (1, Some(v)) => Some(v.map(|x| x.sqrt() * 1.1)),
+            (_, v) => v.or(Some([0.5, 0.25, 0.125])),
+        };
+        let mut expected = MerlTable::empty();
+        for i in 0..MERL_BINS {
+            if let Some(v) = f(i, table.get(i)) {
+                expected.set(i, v);
+            }
+        }
+        table.update(f);
+        assert_eq!(table, expected);
+        let made = MerlTable::from_fn(|b| (b.theta_d < 40).then_some([b.theta_h as f64; 3]));
+        let mut by_hand = MerlTable::empty();
+        for i in 0..MERL_BINS {
+            if let Some(b) = MerlBin::from_index(i).filter(|b| b.theta_d < 40) {
+                by_hand.set(i, [b.theta_h as f64; 3]);
+            }
+        }
+        assert_eq!(made, by_hand);
+    }
+
+    #[test]
+    fn scaling_down_touches_only_bins_with_data_and_a_factor_below_one() {
+        let mut table = MerlTable::tabulate(&Analytic);
+        table.set(17, [-1.0, -1.0, -1.0]);
+        let before = table.clone();
+        let factor = |i: usize| if i % 2 == 1 { 0.5 } else { 1.5 };
+        let scaled = table.scale_down(factor);
+        assert_eq!(scaled.len(), MERL_BINS);
+        for i in (0..MERL_BINS).step_by(997).chain([17]) {
+            match before.get(i) {
+                Some(v) if i % 2 == 1 => {
+                    assert!(scaled[i]);
+                    let mut one = MerlTable::empty();
+                    one.set(i, v.map(|x| x * 0.5));
+                    assert_eq!(table.get(i), one.get(i));
+                }
+                _ => {
+                    assert!(!scaled[i]);
+                    // untouched: the stored value itself, not a trip through the scale
+                    assert_eq!(table.data[i].to_bits(), before.data[i].to_bits());
+                }
+            }
         }
     }
 

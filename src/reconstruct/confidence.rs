@@ -27,7 +27,7 @@
 //! computation: no files, no printing.
 
 use super::observe::Observation;
-use super::prior::{Candidate, CandidateValues};
+use super::prior::{Candidate, CandidateValues, Prior};
 use crate::brdf::BinValues;
 use crate::brdf::coords::{MerlBin, THETA_D_BINS, THETA_H_BINS};
 use crate::render::probe::{ProbeSettings, SphereProbe, compare};
@@ -56,13 +56,19 @@ pub struct AtProbe<'a> {
 
 impl<'a> AtProbe<'a> {
     pub fn new(candidate: &'a dyn Candidate) -> Self {
-        use rayon::prelude::*;
-        let values = probe()
-            .bins()
-            .par_iter()
-            .map(|&b| candidate.eval_bin(b))
-            .collect();
+        let values = candidate.values_at_bins(probe().bins());
         Self { candidate, values }
+    }
+
+    /// [`Self::new`] of each candidate, evaluated together by `prior` where it can
+    /// ([`Prior::values_of_fits`]: the trials' fits of a basis read each basis row once).
+    pub fn many(prior: &dyn Prior, candidates: &[&'a dyn Candidate]) -> Vec<Self> {
+        prior
+            .values_of_fits(candidates, probe().bins())
+            .into_iter()
+            .zip(candidates)
+            .map(|(values, &candidate)| Self { candidate, values })
+            .collect()
     }
 }
 

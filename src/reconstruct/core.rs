@@ -9,7 +9,7 @@ use super::confidence::{
     AtProbe, Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement,
     unseen_render_share,
 };
-use super::hedge::{Hedge, HedgeSettings, blend};
+use super::hedge::{Hedge, HedgeSettings, blend_into};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, NO_PEAK, WithPeak, climb,
     fit_peak, subset,
@@ -18,7 +18,7 @@ use super::observe::Observation;
 use super::plausible::{
     Plausibility, PlausibleSettings, albedo_curve, make_plausible, make_plausible_shaped,
 };
-use super::prior::{Candidate, CandidateValues, Prior};
+use super::prior::{Candidate, CandidateValues, Prior, Tabulated};
 use super::reliable::{ReliableSettings, select_reliable};
 use super::trials::{Trial, TrialSettings, best_trial, run_trials};
 use crate::brdf::analytic::LambertGgx;
@@ -311,9 +311,15 @@ pub fn reconstruct_observations(
             .map(|(i, _)| i),
     }
     .ok_or(CoreError::AllTrialsFailed)?;
+    let present: Vec<&dyn Candidate> = fits
+        .iter()
+        .flatten()
+        .map(|f| f.candidate.as_ref())
+        .collect();
+    let mut probed = AtProbe::many(prior, &present).into_iter();
     let at_probe: Vec<Option<AtProbe>> = fits
         .iter()
-        .map(|f| f.as_ref().map(|f| AtProbe::new(f.candidate.as_ref())))
+        .map(|f| f.as_ref().and_then(|_| probed.next()))
         .collect();
     // A basis whose trials disagree cannot be trusted beyond the pixels, whatever the held-out
     // images say (`LadderSettings::max_trial_disagreement`).
@@ -465,8 +471,9 @@ pub fn reconstruct_observations(
     if let Some(b) = basis_alternative {
         alternatives.push((Family::Basis, Box::new(b)));
     }
+    // Tabulated once: the plausibility step, the peak average's and the hedge's all read it.
     let prior_model = match (family, lambert_ggx) {
-        (Family::Basis | Family::Hybrid, Some(m)) => Some(AnalyticCandidate(m)),
+        (Family::Basis | Family::Hybrid, Some(m)) => Some(Tabulated::of(&AnalyticCandidate(m))),
         _ => None,
     };
     // Where the held-out images cannot tell whether a peak sits on the basis, both are kept:
@@ -501,7 +508,7 @@ pub fn reconstruct_observations(
         };
         let (peaked, _) = plausible_of(&with_peak);
         let w = settings.peak_average.clamp(0.0, 1.0);
-        table = blend(&table, &peaked, w);
+        blend_into(&mut table, &peaked, w);
         plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);
         plausibility.peak_average = Some(w);
         let said = format!(
@@ -523,7 +530,7 @@ pub fn reconstruct_observations(
         let analytic_weight = settings.hedge.analytic_weight(unseen_share);
         if analytic_weight > 0.0 {
             let (analytic, _) = make_plausible(p, None, &used, &settings.plausible);
-            table = blend(&table, &analytic, analytic_weight);
+            blend_into(&mut table, &analytic, analytic_weight);
             plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);
         }
         plausibility.hedge = Some(Hedge {

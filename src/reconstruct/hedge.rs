@@ -19,9 +19,7 @@
 //!
 //! Pure: no I/O. Must not refit anything: it only combines two finished tables.
 
-use crate::brdf::coords::MERL_BINS;
 use crate::brdf::merl::MerlTable;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Knobs of the hedge.
@@ -67,38 +65,35 @@ pub struct Hedge {
 /// `table^(1 - w) * analytic^w`, bin by bin and channel by channel. A bin missing from either
 /// table keeps the other's value; a zero in either gives zero (the geometric mean's own rule).
 pub fn blend(table: &MerlTable, analytic: &MerlTable, w: f64) -> MerlTable {
+    let mut out = table.clone();
+    blend_into(&mut out, analytic, w);
+    out
+}
+
+/// [`blend`] in place: `table` becomes the blend (the same values, without a third table).
+pub fn blend_into(table: &mut MerlTable, analytic: &MerlTable, w: f64) {
     let w = if w.is_finite() {
         w.clamp(0.0, 1.0)
     } else {
         0.0
     };
-    let values: Vec<Option<[f64; 3]>> = (0..MERL_BINS)
-        .into_par_iter()
-        .map(|index| match (table.get(index), analytic.get(index)) {
-            (Some(a), Some(b)) => Some([0, 1, 2].map(|c| {
-                let (x, y) = (a[c].max(0.0), b[c].max(0.0));
-                if x == 0.0 || y == 0.0 {
-                    0.0
-                } else {
-                    ((1.0 - w) * x.ln() + w * y.ln()).exp()
-                }
-            })),
-            (a, b) => a.or(b),
-        })
-        .collect();
-    let mut out = MerlTable::empty();
-    for (index, v) in values.into_iter().enumerate() {
-        if let Some(v) = v {
-            out.set(index, v);
-        }
-    }
-    out
+    table.update(|index, current| match (current, analytic.get(index)) {
+        (Some(a), Some(b)) => Some([0, 1, 2].map(|c| {
+            let (x, y) = (a[c].max(0.0), b[c].max(0.0));
+            if x == 0.0 || y == 0.0 {
+                0.0
+            } else {
+                ((1.0 - w) * x.ln() + w * y.ln()).exp()
+            }
+        })),
+        (a, b) => a.or(b),
+    });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::coords::MerlBin;
+    use crate::brdf::coords::{MERL_BINS, MerlBin};
     use crate::reconstruct::plausible::albedo_curve;
 
     fn constant(v: [f64; 3]) -> MerlTable {

@@ -57,6 +57,39 @@ impl Prior for NielsenPrior<'_> {
         self.basis.grid().row_of_bin(bin)
     }
 
+    /// This basis's own fits together ([`Basis::synthesize_rows_many`]: each basis row read
+    /// once for all of them); the same values as each fit's `values_at_bins`, bit for bit.
+    fn values_of_fits(&self, fits: &[&dyn Candidate], bins: &[usize]) -> Vec<Vec<[f64; 3]>> {
+        let own: Option<Vec<&[Vec<f64>; 3]>> = fits
+            .iter()
+            .map(|f| {
+                f.basis_fit()
+                    .filter(|(b, _)| std::ptr::eq(*b, self.basis))
+                    .map(|(_, c)| c)
+            })
+            .collect();
+        let rows: Vec<Option<usize>> = bins.iter().map(|&b| self.row_of(b)).collect();
+        let present: Vec<usize> = rows.iter().flatten().copied().collect();
+        let batch = own
+            .filter(|own| !own.is_empty())
+            .and_then(|own| self.basis.synthesize_rows_many(&own, &present));
+        let Some(batch) = batch else {
+            return fits.iter().map(|f| f.values_at_bins(bins)).collect();
+        };
+        batch
+            .into_iter()
+            .map(|values| {
+                let mut values = values.into_iter();
+                rows.iter()
+                    .map(|r| match r {
+                        Some(_) => values.next().unwrap_or([0.0; 3]),
+                        None => [0.0; 3],
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
     fn select(
         &self,
         chosen: &[usize],
@@ -171,5 +204,93 @@ impl Candidate for Lazy<'_> {
         self.basis.grid().row_of_bin(bin).map_or([0.0; 3], |row| {
             self.basis.synthesize_row(&self.coefficients, row)
         })
+    }
+
+    fn basis_fit(&self) -> Option<(&Basis, &[Vec<f64>; 3])> {
+        Some((self.basis, &self.coefficients))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::BinValues;
+    use crate::brdf::basis::{BasisSettings, GridStride};
+    use crate::brdf::coords::{MERL_BINS, MerlBin};
+    use crate::reconstruct::prior::Tabulated;
+
+    struct Lobe(f64);
+    impl BinValues for Lobe {
+        fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+            bins.iter()
+                .map(|&b| {
+                    let c = MerlBin::from_index(b).expect("bin").centre();
+                    let s = self.0 * (-(c.theta_h / 0.1).powi(2)).exp();
+                    [0.1 + s, 0.08 + s, 0.05 + s]
+                })
+                .collect()
+        }
+    }
+
+    #[test]
+    fn a_basis_evaluates_its_fits_together_as_each_alone() {
+        let lobes: Vec<(String, Lobe)> = (0..5)
+            .map(|i| (format!("m{i}"), Lobe(0.5 + i as f64)))
+            .collect();
+        let materials: Vec<(&str, &dyn BinValues)> = lobes
+            .iter()
+            .map(|(n, l)| (n.as_str(), l as &dyn BinValues))
+            .collect();
+        let settings = BasisSettings {
+            stride: GridStride {
+                theta_h: 3,
+                theta_d: 6,
+                phi_d: 12,
+            },
+            basis_components: 4,
+            exclude: vec![],
+        };
+        let basis = Basis::build(&settings, &materials).expect("basis");
+        let prior = NielsenPrior {
+            basis: &basis,
+            settings: NielsenSettings::default(),
+        };
+        let rows = basis.grid().bins();
+        let sample = |i: usize, v: f64| Sample {
+            bin: rows[i * 7 % rows.len()],
+            reflectance: [v, 0.8 * v, 0.6 * v],
+        };
+        let a: Vec<Sample> = (0..12).map(|i| sample(i, 0.2 + 0.1 * i as f64)).collect();
+        let b: Vec<Sample> = (0..12)
+            .map(|i| sample(i + 5, 1.0 / (1.0 + i as f64)))
+            .collect();
+        let fa = prior.fit_lazy(&a, 4, 1.0).expect("fit a");
+        let fb = prior.fit_lazy(&b, 3, 10.0).expect("fit b");
+        let fc = prior.fit_lazy(&b, 4, 0.0).expect("fit c");
+        // bins with a row, without one (below the horizon) and past the table
+        let mut bins: Vec<usize> = (0..MERL_BINS).step_by(1013).collect();
+        bins.push(MERL_BINS + 3);
+        assert!(bins.iter().any(|&b| basis.grid().row_of_bin(b).is_none()));
+        let check = |fits: &[&dyn Candidate]| {
+            let together = prior.values_of_fits(fits, &bins);
+            assert_eq!(together.len(), fits.len());
+            for (f, values) in fits.iter().zip(&together) {
+                let alone: Vec<[u64; 3]> = bins
+                    .iter()
+                    .map(|&b| f.eval_bin(b).map(f64::to_bits))
+                    .collect();
+                let got: Vec<[u64; 3]> = values.iter().map(|v| v.map(f64::to_bits)).collect();
+                assert_eq!(got, alone);
+            }
+        };
+        // the same k: evaluated together
+        check(&[fa.as_ref(), fc.as_ref()]);
+        // different k, or a candidate that is not this basis's fit: each alone, same values
+        check(&[fa.as_ref(), fb.as_ref()]);
+        let tabulated = Tabulated::of(fa.as_ref());
+        check(&[&tabulated, fc.as_ref()]);
+        for &bin in &bins {
+            assert_eq!(tabulated.eval_bin(bin), fa.eval_bin(bin));
+        }
     }
 }

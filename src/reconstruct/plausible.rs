@@ -256,64 +256,51 @@ pub fn make_plausible_shaped(
                 .collect()
         })
         .collect();
-    let values: Vec<Option<([f64; 3], bool, bool)>> = (0..MERL_BINS)
-        .into_par_iter()
-        .map(|index| {
-            let b = MerlBin::from_index(index)?;
-            if !b.is_above_horizon() {
-                return None;
+    // Counted as the bins are made: [above the horizon, invalid, mostly the prior's].
+    let mut table = MerlTable::zeros();
+    let [above, invalid_bins, from_prior] = table.update_counting(|index, _| {
+        let Some(b) = MerlBin::from_index(index).filter(MerlBin::is_above_horizon) else {
+            return (None, [0; 3]);
+        };
+        let w = weights[b.theta_h * THETA_D_BINS + b.theta_d];
+        let m = model.eval_bin(index);
+        let p = prior.map(|(p, _)| p.eval_bin(index));
+        let valid = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
+        let invalid = !valid(&m);
+        let m = if invalid {
+            match p {
+                Some(p) if valid(&p) => p,
+                _ => m.map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 }),
             }
-            let w = weights[b.theta_h * THETA_D_BINS + b.theta_d];
-            let m = model.eval_bin(index);
-            let p = prior.map(|(p, _)| p.eval_bin(index));
-            let valid = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
-            let mut invalid = false;
-            let m = if valid(&m) {
-                m
-            } else {
-                invalid = true;
-                match p {
-                    Some(p) if valid(&p) => p,
-                    _ => m.map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 }),
-                }
-            };
-            let r = settings.prior_ratio_limit.max(1.0);
-            // The model where it was seen, carried along theta_d as the prior changes.
-            let carried = match (shape, p) {
-                (Some(pr), Some(_)) if w < 1.0 => observed_d[b.theta_h]
-                    .iter()
-                    .min_by_key(|&&d| d.abs_diff(b.theta_d))
-                    .map(|&d| MerlBin { theta_d: d, ..b })
-                    .filter(|s| s.is_above_horizon())
-                    .and_then(|s| {
-                        let (ms, ps) = (model.eval_bin(s.index()), pr.eval_bin(s.index()));
-                        let pc = pr.eval_bin(index);
-                        let positive = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x > 0.0);
-                        (valid(&ms) && positive(&ps) && positive(&pc))
-                            .then(|| [0, 1, 2].map(|c| ms[c] * pc[c] / ps[c]))
-                    }),
-                _ => None,
-            };
-            let v = match p {
-                Some(p) if w < 1.0 && valid(&p) => [0, 1, 2].map(|c| {
-                    let g = carried.map_or(m[c], |t| t[c]).clamp(p[c] / r, p[c] * r);
-                    w * m[c] + (1.0 - w) * g
+        } else {
+            m
+        };
+        let r = settings.prior_ratio_limit.max(1.0);
+        // The model where it was seen, carried along theta_d as the prior changes.
+        let carried = match (shape, p) {
+            (Some(pr), Some(_)) if w < 1.0 => observed_d[b.theta_h]
+                .iter()
+                .min_by_key(|&&d| d.abs_diff(b.theta_d))
+                .map(|&d| MerlBin { theta_d: d, ..b })
+                .filter(|s| s.is_above_horizon())
+                .and_then(|s| {
+                    let (ms, ps) = (model.eval_bin(s.index()), pr.eval_bin(s.index()));
+                    let pc = pr.eval_bin(index);
+                    let positive = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x > 0.0);
+                    (valid(&ms) && positive(&ps) && positive(&pc))
+                        .then(|| [0, 1, 2].map(|c| ms[c] * pc[c] / ps[c]))
                 }),
-                _ => m,
-            };
-            Some((v, invalid, w < 0.5))
-        })
-        .collect();
-    let mut table = MerlTable::empty();
-    let (mut invalid_bins, mut from_prior, mut above) = (0, 0, 0);
-    for (index, v) in values.iter().enumerate() {
-        if let Some((rgb, invalid, mostly_prior)) = v {
-            table.set(index, *rgb);
-            above += 1;
-            invalid_bins += usize::from(*invalid);
-            from_prior += usize::from(*mostly_prior);
-        }
-    }
+            _ => None,
+        };
+        let v = match p {
+            Some(p) if w < 1.0 && valid(&p) => [0, 1, 2].map(|c| {
+                let g = carried.map_or(m[c], |t| t[c]).clamp(p[c] / r, p[c] * r);
+                w * m[c] + (1.0 - w) * g
+            }),
+            _ => m,
+        };
+        (Some(v), [1, usize::from(invalid), usize::from(w < 0.5)])
+    });
 
     let before = albedo_curve(&table);
     let (max_before, arg) =
@@ -337,18 +324,15 @@ pub fn make_plausible_shaped(
                 }
             })
             .collect();
-        for (index, was_scaled) in scaled.iter_mut().enumerate() {
-            let Some(b) = MerlBin::from_index(index) else {
-                continue;
-            };
-            let Some(v) = table.get(index) else { continue };
-            let (wi, wo) = b.centre_directions();
-            let f = s[theta_bin(wi.z.clamp(-1.0, 1.0).acos())]
-                .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())]);
-            if f < 1.0 {
-                table.set(index, v.map(|x| x * f));
-                *was_scaled = true;
-            }
+        let now = table.scale_down(|index| {
+            MerlBin::from_index(index).map_or(1.0, |b| {
+                let (wi, wo) = b.centre_directions();
+                s[theta_bin(wi.z.clamp(-1.0, 1.0).acos())]
+                    .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())])
+            })
+        });
+        for (was, now) in scaled.iter_mut().zip(now) {
+            *was |= now;
         }
         curve = albedo_curve(&table);
     }

@@ -6,8 +6,11 @@
 //!
 //! Convention: a bin is a flat MERL index (`brdf::coords`), reflectance is f_r in 1/sr, RGB.
 
+use crate::brdf::basis::Basis;
+use crate::brdf::coords::MERL_BINS;
 use crate::brdf::merl::MerlTable;
 use crate::brdf::ridge::RidgeError;
+use rayon::prelude::*;
 
 /// One reflectance sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,10 +29,43 @@ pub trait Candidate: Send + Sync {
         MerlTable::from_fn(|b| Some(self.eval_bin(b.index())))
     }
 
-    /// The values at many bins (what [`CandidateValues`] reads): `eval_bin` at each, unless a
-    /// candidate knows a cheaper way to the same values.
+    /// The values at many bins (what [`CandidateValues`] reads): `eval_bin` at each (in
+    /// parallel), unless a candidate knows a cheaper way to the same values.
+    /// A fit of a basis: the basis and its per-channel coefficients (what
+    /// [`Prior::values_of_fits`] can evaluate for several fits at once); `None` for any other
+    /// candidate.
+    fn basis_fit(&self) -> Option<(&Basis, &[Vec<f64>; 3])> {
+        None
+    }
+
     fn values_at_bins(&self, bins: &[usize]) -> Vec<[f64; 3]> {
-        bins.iter().map(|&b| self.eval_bin(b)).collect()
+        bins.par_iter()
+            .with_min_len(4096)
+            .map(|&b| self.eval_bin(b))
+            .collect()
+    }
+}
+
+/// A candidate's values at every MERL bin, evaluated once: bit for bit its `eval_bin`, for a
+/// model that several table-making steps read in turn (the analytic prior the plausibility
+/// steps shrink towards is read by three of them per material).
+pub struct Tabulated(Vec<[f64; 3]>);
+
+impl Tabulated {
+    /// `c.eval_bin` at every bin, in parallel.
+    pub fn of(c: &dyn Candidate) -> Self {
+        Self(
+            (0..MERL_BINS)
+                .into_par_iter()
+                .map(|i| c.eval_bin(i))
+                .collect(),
+        )
+    }
+}
+
+impl Candidate for Tabulated {
+    fn eval_bin(&self, bin: usize) -> [f64; 3] {
+        self.0.get(bin).copied().unwrap_or([0.0; 3])
     }
 }
 
@@ -68,6 +104,12 @@ pub trait Prior: Send + Sync {
     /// weight `eta` (a prior without regularisation may ignore it).
     fn fit(&self, samples: &[Sample], k: usize, eta: f64)
     -> Result<Box<dyn Candidate>, RidgeError>;
+
+    /// Several candidates' values at the same bins: each one's `values_at_bins`, unless the
+    /// prior knows a cheaper way to the same values (a basis evaluates its own fits together).
+    fn values_of_fits(&self, fits: &[&dyn Candidate], bins: &[usize]) -> Vec<Vec<[f64; 3]>> {
+        fits.iter().map(|f| f.values_at_bins(bins)).collect()
+    }
 
     /// The prior's typical material (a basis: its mean, every coefficient zero), if it has
     /// one.
