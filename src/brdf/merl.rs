@@ -104,27 +104,11 @@ impl MerlTable {
         &mut self,
         f: impl Fn(usize, Option<[f64; 3]>) -> (Option<[f64; 3]>, [usize; N]) + Sync,
     ) -> [usize; N] {
-        let (r, gb) = self.data.split_at_mut(MERL_BINS);
-        let (g, b) = gb.split_at_mut(MERL_BINS);
-        r.par_iter_mut()
-            .zip(g.par_iter_mut())
-            .zip(b.par_iter_mut())
-            .enumerate()
-            .with_min_len(1024)
-            .map(|(index, ((r, g), b))| {
-                let v = [
-                    *r * MERL_SCALES[0],
-                    *g * MERL_SCALES[1],
-                    *b * MERL_SCALES[2],
-                ];
-                let current = v.iter().all(|x| *x >= 0.0).then_some(v);
-                let (new, counts) = f(index, current);
+        self.par_bins_mut()
+            .map(|(index, [r, g, b])| {
+                let (new, counts) = f(index, stored_value([*r, *g, *b]));
                 match new {
-                    Some(v) => {
-                        *r = v[0] / MERL_SCALES[0];
-                        *g = v[1] / MERL_SCALES[1];
-                        *b = v[2] / MERL_SCALES[2];
-                    }
+                    Some(v) => store([r, g, b], v),
                     None => (*r, *g, *b) = (-1.0, -1.0, -1.0),
                 }
                 counts
@@ -136,6 +120,23 @@ impl MerlTable {
     /// place and in parallel (`get`, scale, `set`); every other bin keeps its stored value.
     /// Returns, per bin, whether it was scaled.
     pub fn scale_down(&mut self, factor: impl Fn(usize) -> f64 + Sync) -> Vec<bool> {
+        self.par_bins_mut()
+            .map(|(index, [r, g, b])| {
+                let Some(v) = stored_value([*r, *g, *b]) else {
+                    return false;
+                };
+                let f = factor(index);
+                if f >= 1.0 {
+                    return false;
+                }
+                store([r, g, b], v.map(|x| x * f));
+                true
+            })
+            .collect()
+    }
+
+    /// Every bin's index and its three stored channels, mutable, in parallel.
+    fn par_bins_mut(&mut self) -> impl IndexedParallelIterator<Item = (usize, [&mut f64; 3])> {
         let (r, gb) = self.data.split_at_mut(MERL_BINS);
         let (g, b) = gb.split_at_mut(MERL_BINS);
         r.par_iter_mut()
@@ -143,25 +144,7 @@ impl MerlTable {
             .zip(b.par_iter_mut())
             .enumerate()
             .with_min_len(1024)
-            .map(|(index, ((r, g), b))| {
-                let v = [
-                    *r * MERL_SCALES[0],
-                    *g * MERL_SCALES[1],
-                    *b * MERL_SCALES[2],
-                ];
-                if !v.iter().all(|x| *x >= 0.0) {
-                    return false;
-                }
-                let f = factor(index);
-                if f >= 1.0 {
-                    return false;
-                }
-                *r = v[0] * f / MERL_SCALES[0];
-                *g = v[1] * f / MERL_SCALES[1];
-                *b = v[2] * f / MERL_SCALES[2];
-                true
-            })
-            .collect()
+            .map(|(index, ((r, g), b))| (index, [r, g, b]))
     }
 
     /// Tabulates any BRDF at the bin centres (phi_h = 0). Bins with a centre direction below the
@@ -295,6 +278,19 @@ impl super::BinValues for MerlTable {
         bins.iter()
             .map(|&b| self.get(b).unwrap_or([0.0; 3]))
             .collect()
+    }
+}
+
+/// f_r from a bin's stored channels ([`MerlTable::get`]'s rule: `None` when any is negative).
+fn stored_value(stored: [f64; 3]) -> Option<[f64; 3]> {
+    let v = std::array::from_fn(|c| stored[c] * MERL_SCALES[c]);
+    v.iter().all(|x: &f64| *x >= 0.0).then_some(v)
+}
+
+/// Stores f_r into a bin's channels ([`MerlTable::set`]'s rule).
+fn store(stored: [&mut f64; 3], v: [f64; 3]) {
+    for (c, s) in stored.into_iter().enumerate() {
+        *s = v[c] / MERL_SCALES[c];
     }
 }
 

@@ -269,23 +269,8 @@ pub fn run(
                     let mut core = spec.core.clone();
                     core.trials.seed += seed;
                     progress(&format!("{object} on {mesh_name}: materials"));
-                    let t = Instant::now();
-                    let (m, cores) = reconstruct_materials(
-                        &seg_mesh,
-                        &obs,
-                        None,
-                        &prior,
-                        &core,
-                        &spec.segment,
-                        &mut |_| {},
-                    )?;
-                    let mut seconds = t.elapsed().as_secs_f64();
-                    let t = Instant::now();
-                    let one = reconstruct_observations(&obs, &prior, &core, &mut |_| {})?;
-                    let mut seconds_one = t.elapsed().as_secs_f64();
-                    for _ in 1..spec.time_repeats.max(1) {
-                        let t = Instant::now();
-                        drop(reconstruct_materials(
+                    let several = || {
+                        reconstruct_materials(
                             &seg_mesh,
                             &obs,
                             None,
@@ -293,10 +278,21 @@ pub fn run(
                             &core,
                             &spec.segment,
                             &mut |_| {},
-                        )?);
+                        )
+                    };
+                    let single = || reconstruct_observations(&obs, &prior, &core, &mut |_| {});
+                    let t = Instant::now();
+                    let (m, cores) = several()?;
+                    let mut seconds = t.elapsed().as_secs_f64();
+                    let t = Instant::now();
+                    let one = single()?;
+                    let mut seconds_one = t.elapsed().as_secs_f64();
+                    for _ in 1..spec.time_repeats.max(1) {
+                        let t = Instant::now();
+                        drop(several()?);
                         seconds = seconds.min(t.elapsed().as_secs_f64());
                         let t = Instant::now();
-                        drop(reconstruct_observations(&obs, &prior, &core, &mut |_| {})?);
+                        drop(single()?);
                         seconds_one = seconds_one.min(t.elapsed().as_secs_f64());
                     }
                     let found =

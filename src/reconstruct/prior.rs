@@ -29,8 +29,6 @@ pub trait Candidate: Send + Sync {
         MerlTable::from_fn(|b| Some(self.eval_bin(b.index())))
     }
 
-    /// The values at many bins (what [`CandidateValues`] reads): `eval_bin` at each (in
-    /// parallel), unless a candidate knows a cheaper way to the same values.
     /// A fit of a basis: the basis and its per-channel coefficients (what
     /// [`Prior::values_of_fits`] can evaluate for several fits at once); `None` for any other
     /// candidate.
@@ -38,6 +36,8 @@ pub trait Candidate: Send + Sync {
         None
     }
 
+    /// The values at many bins (what [`CandidateValues`] reads): `eval_bin` at each (in
+    /// parallel), unless a candidate knows a cheaper way to the same values.
     fn values_at_bins(&self, bins: &[usize]) -> Vec<[f64; 3]> {
         bins.par_iter()
             .with_min_len(4096)
