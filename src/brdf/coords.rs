@@ -185,10 +185,32 @@ impl MerlBin {
     }
 
     /// Both centre directions strictly above the horizon: the bins a BRDF is defined on.
+    /// Looked up for a bin of the table (the test is made once per process for all 1.46
+    /// million: every pass over a table asks it of every bin).
     pub fn is_above_horizon(&self) -> bool {
+        if self.theta_h < THETA_H_BINS && self.theta_d < THETA_D_BINS && self.phi_d < PHI_D_BINS {
+            above_horizon()[self.index()]
+        } else {
+            self.centre_above_horizon()
+        }
+    }
+
+    fn centre_above_horizon(&self) -> bool {
         let (ci, co) = self.centre_cosines();
         ci > 0.0 && co > 0.0
     }
+}
+
+/// [`MerlBin::is_above_horizon`] of every bin, by index, computed once per process.
+fn above_horizon() -> &'static [bool] {
+    static ABOVE: OnceLock<Vec<bool>> = OnceLock::new();
+    ABOVE.get_or_init(|| {
+        use rayon::prelude::*;
+        (0..MERL_BINS)
+            .into_par_iter()
+            .map(|i| MerlBin::from_index(i).is_some_and(|b| b.centre_above_horizon()))
+            .collect()
+    })
 }
 
 /// Sines and cosines of the bin centres' angles, per axis (`MerlBin::centre`'s angles).
@@ -242,6 +264,26 @@ mod tests {
 
     fn close(a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
         (a - b).norm() < 1e-12
+    }
+
+    #[test]
+    fn the_looked_up_horizon_test_is_the_computed_one() {
+        let mut above = 0;
+        for index in (0..MERL_BINS).step_by(3) {
+            let b = MerlBin::from_index(index).unwrap();
+            let (wi, wo) = b.centre().to_directions();
+            assert_eq!(b.is_above_horizon(), wi.z > 0.0 && wo.z > 0.0, "{b:?}");
+            above += usize::from(b.is_above_horizon());
+        }
+        // both kinds occur, and a bin past the table is still answered
+        assert!(above > 0 && above < MERL_BINS.div_ceil(3));
+        let past = MerlBin {
+            theta_h: THETA_H_BINS + 2,
+            theta_d: 3,
+            phi_d: 5,
+        };
+        let (ci, co) = past.centre_cosines();
+        assert_eq!(past.is_above_horizon(), ci > 0.0 && co > 0.0);
     }
 
     #[test]
