@@ -13,9 +13,8 @@
 //!
 //! The scene folders are read, never written. An I/O edge.
 
-use super::materials::{MaterialScore, score_found};
+use super::materials::{MaterialScore, found_tables, score_found};
 use super::{Errors, EvalError, Truth};
-use crate::brdf::BinValues;
 use crate::brdf::basis::Basis;
 use crate::brdf::merl::MerlTable;
 use crate::eval::BrdfValues;
@@ -199,26 +198,7 @@ pub fn score_split(
         )
         .0
     };
-    let found: Vec<(String, &dyn BinValues, String, String)> = if m.results.is_empty() {
-        vec![(
-            "one".to_string(),
-            &output.table,
-            output.core.model.family.to_string(),
-            output.core.confidence.level.to_string(),
-        )]
-    } else {
-        m.results
-            .iter()
-            .map(|r| {
-                (
-                    r.name.clone(),
-                    &r.table as &dyn BinValues,
-                    r.model.family.to_string(),
-                    r.confidence.level.to_string(),
-                )
-            })
-            .collect()
-    };
+    let found = found_tables(&m.results, &output.table, &output.core);
     let materials = found
         .into_iter()
         .zip(&groups)

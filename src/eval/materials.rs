@@ -123,6 +123,34 @@ pub struct NormalsChange {
     pub tables: usize,
 }
 
+/// What [`score_found`] scores, per found material: name, table as written, model and
+/// confidence; one entry named `one` (`table`, `core`) when one material was found.
+pub fn found_tables<'a>(
+    results: &'a [crate::reconstruct::materials::MaterialResult],
+    table: &'a dyn BinValues,
+    core: &crate::reconstruct::core::CoreOutput,
+) -> Vec<(String, &'a dyn BinValues, String, String)> {
+    if results.is_empty() {
+        return vec![(
+            "one".to_string(),
+            table,
+            core.model.family.to_string(),
+            core.confidence.level.to_string(),
+        )];
+    }
+    results
+        .iter()
+        .map(|r| {
+            (
+                r.name.clone(),
+                &r.table as &dyn BinValues,
+                r.model.family.to_string(),
+                r.confidence.level.to_string(),
+            )
+        })
+        .collect()
+}
+
 /// Scores one found material (name, table as written, model, confidence) against the true
 /// material most of its pixels `own` have (`truth_faces`: the true label of each face; `names`
 /// and `truths` in label order), beside Lambert and Lambert + GGX fitted to `baseline_pixels`
@@ -301,27 +329,8 @@ pub fn run(
                     let agreement = area_agreement(mesh, &truth_labels, &found, Some(&visible));
                     // each found material against the true material most of its pixels have
                     let mut scores = Vec::new();
-                    let tables: Vec<(String, &dyn BinValues, String, String)> = if cores.is_empty()
-                    {
-                        vec![(
-                            "one".to_string(),
-                            &one.table as &dyn BinValues,
-                            one.model.family.to_string(),
-                            one.confidence.level.to_string(),
-                        )]
-                    } else {
-                        m.results
-                            .iter()
-                            .map(|r| {
-                                (
-                                    r.name.clone(),
-                                    &r.table as &dyn BinValues,
-                                    r.model.family.to_string(),
-                                    r.confidence.level.to_string(),
-                                )
-                            })
-                            .collect()
-                    };
+                    // (results and cores are both empty when one material was found)
+                    let tables = found_tables(&m.results, &one.table, &one);
                     // the pixels each material's fit had (the baselines get the same)
                     let (mut groups, _) = interior_groups(
                         &seg_mesh,
