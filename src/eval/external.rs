@@ -503,23 +503,7 @@ fn split_section(results: &[ExternalResult]) -> String {
     );
     s += "| scene | mesh given | seed | count (truth) | agreement | found: truth (purity), model, ours / Lambert / L+GGX env, ratio | seconds |\n|---|---|---|---|---|---|---|\n";
     for (r, x) in split {
-        let found: Vec<String> = x
-            .materials
-            .iter()
-            .map(|m| {
-                format!(
-                    "{}: {} ({:.2}), {}, {} / {} / {}, {}",
-                    m.found,
-                    m.truth,
-                    m.purity,
-                    m.model,
-                    f3(m.ours),
-                    m.lambert.map_or("-".to_string(), f3),
-                    m.lambert_ggx.map_or("-".to_string(), f3),
-                    m.ratio().map_or("-".to_string(), |v| format!("{v:.2}")),
-                )
-            })
-            .collect();
+        let found: Vec<String> = x.materials.iter().map(MaterialScore::cell).collect();
         s += &format!(
             "| {} | {} | {} | {} ({}) | {} | {} | {:.1} |\n",
             r.scene,

@@ -86,6 +86,21 @@ impl MaterialScore {
         };
         Some(base / self.ours)
     }
+
+    /// The page's cell: `found: truth (purity), model, ours / Lambert / L+GGX, ratio`.
+    pub fn cell(&self) -> String {
+        format!(
+            "{}: {} ({:.2}), {}, {} / {} / {}, {}",
+            self.found,
+            self.truth,
+            self.purity,
+            self.model,
+            f3(self.ours),
+            self.lambert.map_or("-".into(), f3),
+            self.lambert_ggx.map_or("-".into(), f3),
+            self.ratio().map_or("-".into(), |x| format!("{x:.2}"))
+        )
+    }
 }
 
 /// One object's result.
@@ -403,8 +418,13 @@ pub fn run(
     Ok(results)
 }
 
+/// Three decimals; "-" for a value that is not finite (no error to show).
 fn f3(x: f64) -> String {
-    format!("{x:.3}")
+    if x.is_finite() {
+        format!("{x:.3}")
+    } else {
+        "-".to_string()
+    }
 }
 
 /// The markdown page.
@@ -493,23 +513,7 @@ pub fn markdown(
     );
     s += "## Objects\n\n| mesh | materials | rig | seed | count | agreement | found: truth (purity), model, ours / Lambert / L+GGX, ratio | s: all (materials; one-material) |\n|---|---|---|---|---|---|---|---|\n";
     for r in results {
-        let per: Vec<String> = r
-            .scores
-            .iter()
-            .map(|m| {
-                format!(
-                    "{}: {} ({:.2}), {}, {} / {} / {}, {}",
-                    m.found,
-                    m.truth,
-                    m.purity,
-                    m.model,
-                    f3(m.ours),
-                    m.lambert.map_or("-".into(), f3),
-                    m.lambert_ggx.map_or("-".into(), f3),
-                    m.ratio().map_or("-".into(), |x| format!("{x:.2}"))
-                )
-            })
-            .collect();
+        let per: Vec<String> = r.scores.iter().map(MaterialScore::cell).collect();
         s += &format!(
             "| {} | {} | {} | {} | {} | {} | {} | {:.1} ({:.1}; {:.1}) |\n",
             r.mesh,
