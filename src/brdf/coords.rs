@@ -201,13 +201,13 @@ impl MerlBin {
     }
 }
 
-/// [`MerlBin::is_above_horizon`] of every bin, by index, computed once per process.
+/// [`MerlBin::is_above_horizon`] of every bin, by index, computed once per process, serially:
+/// a rayon worker running parallel work inside the initialiser could take, while it waits,
+/// another task that asks for the same lock, and wait for itself.
 fn above_horizon() -> &'static [bool] {
     static ABOVE: OnceLock<Vec<bool>> = OnceLock::new();
     ABOVE.get_or_init(|| {
-        use rayon::prelude::*;
         (0..MERL_BINS)
-            .into_par_iter()
             .map(|i| MerlBin::from_index(i).is_some_and(|b| b.centre_above_horizon()))
             .collect()
     })

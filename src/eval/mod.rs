@@ -135,7 +135,7 @@ impl Errors {
 /// depend on the BRDF).
 pub fn probe() -> &'static SphereProbe {
     static PROBE: OnceLock<SphereProbe> = OnceLock::new();
-    PROBE.get_or_init(|| SphereProbe::standard(ProbeSettings::default()))
+    PROBE.get_or_init(|| SphereProbe::standard_serial(ProbeSettings::default()))
 }
 
 /// The ground truth tabulated at the evaluation bins and rendered by the probe once, compared

@@ -38,7 +38,7 @@ use std::sync::OnceLock;
 fn probe() -> &'static SphereProbe {
     static PROBE: OnceLock<SphereProbe> = OnceLock::new();
     PROBE.get_or_init(|| {
-        SphereProbe::standard(ProbeSettings {
+        SphereProbe::standard_serial(ProbeSettings {
             size: 24,
             phi_h_steps: 16,
         })

@@ -195,12 +195,12 @@ fn albedo_sum(table: &MerlTable, pairs: &[(usize, f64)]) -> [f64; 3] {
 
 /// [`albedo_pairs`] at the centre of each of the 90 theta bins, computed once per process (the
 /// half vectors' MERL indices were most of an albedo curve's cost, and a reconstruction
-/// computes one or more curves per material).
+/// computes one or more curves per material). Made serially: no parallel work inside a
+/// `OnceLock`'s initialiser (see `SphereProbe::standard_serial`).
 fn albedo_quadrature() -> &'static [Vec<(usize, f64)>] {
     static QUADRATURE: OnceLock<Vec<Vec<(usize, f64)>>> = OnceLock::new();
     QUADRATURE.get_or_init(|| {
         (0..THETA_D_BINS)
-            .into_par_iter()
             .map(|i| albedo_pairs((i as f64 + 0.5) / THETA_D_BINS as f64 * FRAC_PI_2))
             .collect()
     })

@@ -102,7 +102,29 @@ impl SphereProbe {
         Self::new(settings, &standard_lights(), &Environment::standard())
     }
 
+    /// [`Self::standard`] made on the calling thread alone: what a process-wide `OnceLock`
+    /// must use. A rayon worker that runs parallel work inside the initialiser may, while it
+    /// waits for that work, take another task that asks for the same lock, and then waits for
+    /// itself (a deadlock seen in the tests).
+    pub fn standard_serial(settings: ProbeSettings) -> Self {
+        Self::build(
+            settings,
+            &standard_lights(),
+            &Environment::standard(),
+            false,
+        )
+    }
+
     pub fn new(settings: ProbeSettings, lights: &[DirectionalLight], env: &Environment) -> Self {
+        Self::build(settings, lights, env, true)
+    }
+
+    fn build(
+        settings: ProbeSettings,
+        lights: &[DirectionalLight],
+        env: &Environment,
+        parallel: bool,
+    ) -> Self {
         let size = settings.size.max(2);
         let pixels: Vec<(u32, u32)> = (0..size * size)
             .filter_map(|i| {
@@ -114,27 +136,29 @@ impl SphereProbe {
         let v = Vector3::z();
         // Per pixel: light samples and environment samples, with bins as MERL indices.
         type PixelSamples = (Vec<Option<(usize, [f64; 3])>>, Vec<(usize, [f64; 3])>);
-        let per_pixel: Vec<PixelSamples> = pixels
-            .par_iter()
-            .map(|&(x, y)| {
-                let (px, py) = pixel_position(size, x as usize, y as usize);
-                let n = Vector3::new(px, py, (1.0 - px * px - py * py).max(0.0).sqrt());
-                let frame = ShadingFrame::new(n);
-                let wo = frame.to_local(&v);
-                let lit = lights
-                    .iter()
-                    .map(|l| {
-                        let wi = frame.to_local(&l.to_light);
-                        (wi.z > 0.0 && wo.z > 0.0)
-                            .then(|| (merl_index(&wi, &wo), l.irradiance.map(|e| e * wi.z)))
-                    })
-                    .collect();
-                (
-                    lit,
-                    environment_samples(&frame, &wo, env, settings.phi_h_steps),
-                )
-            })
-            .collect();
+        let samples = |&(x, y): &(u32, u32)| -> PixelSamples {
+            let (px, py) = pixel_position(size, x as usize, y as usize);
+            let n = Vector3::new(px, py, (1.0 - px * px - py * py).max(0.0).sqrt());
+            let frame = ShadingFrame::new(n);
+            let wo = frame.to_local(&v);
+            let lit = lights
+                .iter()
+                .map(|l| {
+                    let wi = frame.to_local(&l.to_light);
+                    (wi.z > 0.0 && wo.z > 0.0)
+                        .then(|| (merl_index(&wi, &wo), l.irradiance.map(|e| e * wi.z)))
+                })
+                .collect();
+            (
+                lit,
+                environment_samples(&frame, &wo, env, settings.phi_h_steps),
+            )
+        };
+        let per_pixel: Vec<PixelSamples> = if parallel {
+            pixels.par_iter().map(samples).collect()
+        } else {
+            pixels.iter().map(samples).collect()
+        };
         let mut bins: Vec<usize> = per_pixel
             .iter()
             .flat_map(|(lit, envs)| {
