@@ -2,7 +2,8 @@
 //! shots and valid checksums: nothing lost, nothing taken twice. Kills come two ways: after a
 //! random delay (anywhere: start-up, homing, a move, a render, a write), and through the
 //! binary's `BRDF_RIG_TEST_KILL_AT=N:phase` hook at the exact seams of a shot (before the image
-//! is written, after the image but before its journal record, after the record).
+//! is written, after the image but before its journal record, after the record). Killed
+//! processes leave no simulated port folders behind: the next run sweeps them.
 
 use std::os::unix::process::ExitStatusExt;
 use std::time::Duration;
@@ -22,6 +23,9 @@ fn sigkill_at_random_points_then_resume_gives_exactly_the_planned_shots() {
     let tmp = tempfile::tempdir().unwrap();
     let profile = fast_profile(tmp.path());
     let plan_path = tiny_plan(tmp.path(), 9); // 9 + 3x3x2 + 12 = 39 shots
+    // the children's temporary directory, where their simulated rigs' port folders go
+    let ports = tmp.path().join("tmp");
+    std::fs::create_dir(&ports).unwrap();
     let planned: Vec<String> = load_plan(&plan_path)
         .unwrap()
         .shots()
@@ -49,6 +53,7 @@ fn sigkill_at_random_points_then_resume_gives_exactly_the_planned_shots() {
                 args.extend(["--plan", &plan_s, "--out", &out_s]);
             }
             let mut cmd = brdf_rig(&args);
+            cmd.env("TMPDIR", &ports);
             let use_hook = kills < 24 && rng.gen_bool(0.5);
             if use_hook {
                 let n = rng.gen_range(0..4);
@@ -107,6 +112,13 @@ fn sigkill_at_random_points_then_resume_gives_exactly_the_planned_shots() {
         }
     }
     eprintln!("{kills} SIGKILLs ({hook_kills} at shot seams) over {sessions} session(s)");
+    // each killed run's port folder was swept by a later run; the last run removed its own
+    let left: Vec<String> = std::fs::read_dir(&ports)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(brdf_rig::sim::port_dir::PREFIX))
+        .collect();
+    assert!(left.is_empty(), "port folders left behind: {left:?}");
     assert!(
         kills >= 20 && hook_kills >= 5,
         "{kills} kills, {hook_kills} at shot seams"

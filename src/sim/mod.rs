@@ -9,6 +9,7 @@ pub mod firmware;
 pub mod imaging;
 pub mod job_scene;
 pub mod motion;
+pub mod port_dir;
 pub mod runner;
 pub mod scene;
 pub mod truth;

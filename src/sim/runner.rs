@@ -215,7 +215,7 @@ impl SimRig {
         let (dir, port_path) = match &config.link_path {
             Some(p) => (None, p.clone()),
             None => {
-                let d = tempfile::Builder::new().prefix("brdf-sim-").tempdir()?;
+                let d = super::port_dir::create()?;
                 let p = d.path().join("tty");
                 (Some(d), p)
             }
