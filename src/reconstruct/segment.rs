@@ -247,17 +247,25 @@ struct Features {
     weight: Vec<f64>,
 }
 
+/// The features of the observations `keep` admits, each at its nearest corner (`corners`, in
+/// the order of `obs`): the pixels are read in their order, so a subset gives what the same
+/// pixels copied out would.
 fn features(
     mesh: &Mesh,
     nb: &[Vec<u32>],
     obs: &[Observation],
+    corners: &[Option<usize>],
+    keep: impl Fn(usize) -> bool,
     settings: &SegmentSettings,
 ) -> Features {
     let n = mesh.positions().len();
     let mut per_vertex: Vec<Vec<usize>> = vec![Vec::new(); n];
     for (i, o) in obs.iter().enumerate() {
+        if !keep(i) {
+            continue;
+        }
         let finite = o.reflectance.iter().all(|v| v.is_finite() && *v > 0.0);
-        if let (true, Some(v)) = (finite, nearest_corner(mesh, o)) {
+        if let (true, Some(v)) = (finite, corners[i]) {
             per_vertex[v].push(i);
         }
     }
@@ -734,27 +742,31 @@ pub fn segment_with_labels(
     images.sort_unstable();
     images.dedup();
     let folds = settings.folds.min(images.len());
-    let fold_of = |o: &Observation| images.binary_search(&o.image).unwrap_or(0) % folds.max(1);
+    // Per pixel, once: its fold, its nearest corner and whether it counts (away from the peak).
+    let fold: Vec<usize> = obs
+        .iter()
+        .map(|o| images.binary_search(&o.image).unwrap_or(0) % folds.max(1))
+        .collect();
+    let corners: Vec<Option<usize>> = obs.iter().map(|o| nearest_corner(mesh, o)).collect();
     // the count is judged away from the specular peak (see the module header)
     let min_h = settings.count_min_theta_h_deg.to_radians();
-    let off_peak = |o: &Observation| {
-        min_h <= 0.0
-            || crate::brdf::coords::MerlBin::from_index(o.bin)
-                .is_some_and(|b| b.centre().theta_h >= min_h)
-    };
+    let off_peak: Vec<bool> = obs
+        .iter()
+        .map(|o| {
+            min_h <= 0.0
+                || crate::brdf::coords::MerlBin::from_index(o.bin)
+                    .is_some_and(|b| b.centre().theta_h >= min_h)
+        })
+        .collect();
     // The features depend on the pixels, not on the count: once for every pixel and once per
     // fold's training pixels.
-    let all_features = features(mesh, &nb, obs, settings);
+    let all_features = features(mesh, &nb, obs, &corners, |_| true, settings);
     let fold_features: Vec<Features> = if folds < 2 {
         Vec::new()
     } else {
         (0..folds)
             .into_par_iter()
-            .map(|k| {
-                let train: Vec<Observation> =
-                    obs.iter().filter(|o| fold_of(o) != k).copied().collect();
-                features(mesh, &nb, &train, settings)
-            })
+            .map(|k| features(mesh, &nb, obs, &corners, |i| fold[i] != k, settings))
             .collect()
     };
     let mut scores = Vec::new();
@@ -782,23 +794,21 @@ pub fn segment_with_labels(
                 .par_iter()
                 .enumerate()
                 .map(|(k, train_features)| {
-                    let train: Vec<Observation> =
-                        obs.iter().filter(|o| fold_of(o) != k).copied().collect();
                     let (train_labels, train_found) =
                         label_vertices(train_features, &nb, asked, settings, fixed);
-                    let label = |o: &Observation| {
-                        nearest_corner(mesh, o).and_then(|v| train_labels.get(v).copied())
+                    // the fold's pixels away from the peak, with the training labels
+                    let labelled_where = |in_fold: bool| -> Vec<(u32, &Observation)> {
+                        obs.iter()
+                            .enumerate()
+                            .filter(|&(i, _)| (fold[i] == k) == in_fold && off_peak[i])
+                            .filter_map(|(i, o)| {
+                                let l = corners[i].and_then(|v| train_labels.get(v).copied())?;
+                                Some((l, o))
+                            })
+                            .collect()
                     };
-                    let labelled: Vec<(u32, &Observation)> = train
-                        .iter()
-                        .filter(|o| off_peak(o))
-                        .filter_map(|o| Some((label(o)?, o)))
-                        .collect();
-                    let held: Vec<(u32, &Observation)> = obs
-                        .iter()
-                        .filter(|o| fold_of(o) == k && off_peak(o))
-                        .filter_map(|o| Some((label(o)?, o)))
-                        .collect();
+                    let labelled = labelled_where(false);
+                    let held = labelled_where(true);
                     let fits = fit_per_material(&labelled, train_found, settings);
                     held_out_error(&fits, &held)
                 })
@@ -860,8 +870,8 @@ pub fn segment_with_labels(
     let mut observed_vertices = vec![0usize; count];
     let mut sums = vec![[0.0f64; 3]; count];
     let mut seen = vec![false; mesh.positions().len()];
-    for o in obs {
-        if let Some(v) = nearest_corner(mesh, o) {
+    for (o, corner) in obs.iter().zip(&corners) {
+        if let Some(v) = *corner {
             let l = vertex_labels[v] as usize;
             if !seen[v] {
                 seen[v] = true;

@@ -54,6 +54,19 @@ impl Candidate for Scaled {
     }
 }
 
+/// A usable pixel as the fit reads it.
+#[derive(Clone, Copy)]
+struct Px {
+    /// Material.
+    m: usize,
+    /// Cell of the shape.
+    c: usize,
+    /// [`weight`].
+    w: f64,
+    /// Reflectance.
+    r: [f64; 3],
+}
+
 fn weight(o: &Observation) -> f64 {
     let e = (o.irradiance[0] + o.irradiance[1] + o.irradiance[2]) / 3.0;
     (e * o.cos_theta_i).powi(2)
@@ -70,10 +83,19 @@ pub fn fit_shared_shape(
     labelled: &[(u32, &Observation)],
     count: usize,
 ) -> Option<Vec<Option<Box<dyn Candidate>>>> {
-    let px: Vec<(usize, usize, &Observation)> = labelled
+    // Each usable pixel once, compactly: its material, cell, weight and reflectance (the
+    // alternation reads them thirteen times; a whole observation is some 280 bytes).
+    let px: Vec<Px> = labelled
         .iter()
         .filter(|(m, o)| (*m as usize) < count && usable(o))
-        .filter_map(|(m, o)| Some((*m as usize, cell(o.bin)?, *o)))
+        .filter_map(|(m, o)| {
+            Some(Px {
+                m: *m as usize,
+                c: cell(o.bin)?,
+                w: weight(o),
+                r: o.reflectance,
+            })
+        })
         .collect();
     if px.is_empty() {
         return None;
@@ -83,9 +105,8 @@ pub fn fit_shared_shape(
     let mut scale = vec![[1.0f64; 3]; count];
     {
         let (mut num, mut den) = (vec![0.0f64; CELLS], vec![0.0f64; CELLS]);
-        for &(_, c, o) in &px {
-            let w = weight(o);
-            num[c] += w * o.reflectance.iter().sum::<f64>() / 3.0;
+        for &Px { c, w, r, .. } in &px {
+            num[c] += w * r.iter().sum::<f64>() / 3.0;
             den[c] += w;
         }
         for c in 0..CELLS {
@@ -93,16 +114,16 @@ pub fn fit_shared_shape(
         }
     }
     let mut seen = vec![false; CELLS];
-    for &(_, c, _) in &px {
-        seen[c] = true;
+    for p in &px {
+        seen[p.c] = true;
     }
     for _ in 0..ROUNDS {
         // scales, shape held
         let mut num = vec![[0.0f64; 3]; count];
         let mut den = vec![0.0f64; count];
-        for &(m, c, o) in &px {
-            let (w, g) = (weight(o), shape[c]);
-            for (n, r) in num[m].iter_mut().zip(o.reflectance) {
+        for &Px { m, c, w, r } in &px {
+            let g = shape[c];
+            for (n, r) in num[m].iter_mut().zip(r) {
                 *n += w * g * r;
             }
             den[m] += w * g * g;
@@ -114,9 +135,8 @@ pub fn fit_shared_shape(
         }
         // shape, scales held
         let (mut num, mut den) = (vec![0.0f64; CELLS], vec![0.0f64; CELLS]);
-        for &(m, c, o) in &px {
-            let w = weight(o);
-            for (s, r) in scale[m].iter().zip(o.reflectance) {
+        for &Px { m, c, w, r } in &px {
+            for (s, r) in scale[m].iter().zip(r) {
                 num[c] += w * s * r;
                 den[c] += w * s * s;
             }
@@ -130,8 +150,8 @@ pub fn fit_shared_shape(
     fill_unseen(&mut shape, &seen);
     let shape = Arc::new(shape);
     let mut has = vec![false; count];
-    for &(m, _, _) in &px {
-        has[m] = true;
+    for p in &px {
+        has[p.m] = true;
     }
     Some(
         (0..count)
