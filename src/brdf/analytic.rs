@@ -388,6 +388,50 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     #[test]
+    fn the_box_constrained_solve_is_the_least_sum_of_squares_on_the_box() {
+        // against a search of the box: no (kd, ks) in it does better than the solve
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for trial in 0..40 {
+            let n = rng.gen_range(3..40);
+            let lobe: Vec<f64> = (0..n).map(|_| rng.gen_range(0.0..5.0)).collect();
+            let w2: Vec<f64> = (0..n).map(|_| rng.gen_range(0.1..2.0)).collect();
+            // a lobe plus a diffuse level, either of which may lean negative (the box's edges)
+            let (a0, k0) = (rng.gen_range(-0.1..0.3), rng.gen_range(-0.5..1.5));
+            let r: Vec<f64> = lobe
+                .iter()
+                .map(|l| a0 + k0 * l + rng.gen_range(-0.05..0.05))
+                .collect();
+            let ssr = |kd: f64, ks: f64| -> f64 {
+                (0..n)
+                    .map(|i| w2[i] * (kd / PI + ks * lobe[i] - r[i]).powi(2))
+                    .sum()
+            };
+            for diffuse in [true, false] {
+                let (kd, ks, e) = solve_linear(&lobe, &r, &w2, diffuse);
+                assert!(
+                    (0.0..=MAX_WEIGHT).contains(&ks) && (0.0..=MAX_WEIGHT).contains(&kd),
+                    "{trial}: {kd} {ks}"
+                );
+                if !diffuse {
+                    assert_eq!(kd, 0.0);
+                }
+                assert!((e - ssr(kd, ks)).abs() <= 1e-9 * (1.0 + e), "{trial}: {e}");
+                let kd_max = if diffuse { MAX_WEIGHT } else { 0.0 };
+                for i in 0..=200 {
+                    for j in 0..=200 {
+                        let (kd_t, ks_t) =
+                            (kd_max * i as f64 / 200.0, MAX_WEIGHT * j as f64 / 200.0);
+                        assert!(
+                            e <= ssr(kd_t, ks_t) + 1e-9 * (1.0 + e),
+                            "{trial} {diffuse}: ({kd}, {ks}) {e} > ({kd_t}, {ks_t})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn the_lobe_is_the_textbook_ggx_lobe() {
         // D G F / (4 cos_i cos_o) written out from the half-difference angles, a second route
         // to what the precomputed geometry of a fit gives
