@@ -42,3 +42,10 @@ pub trait BinValues: Sync {
     /// f_r in 1/sr, RGB, at each flat MERL bin index (bins with no data give zero).
     fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]>;
 }
+
+/// A shared table (a result's table is held by its core, its material and the output).
+impl<T: BinValues + Send> BinValues for std::sync::Arc<T> {
+    fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+        (**self).values_at(bins)
+    }
+}

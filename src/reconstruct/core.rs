@@ -24,6 +24,7 @@ use super::trials::{Trial, TrialSettings, best_trial, run_trials};
 use crate::brdf::analytic::LambertGgx;
 use crate::brdf::merl::MerlTable;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Which models the reconstruction may report.
@@ -165,8 +166,9 @@ pub enum CoreError {
 pub struct CoreOutput {
     /// The chosen model as fitted (before the plausibility step).
     pub brdf: Box<dyn Candidate>,
-    /// The result as written: the model tabulated and made plausible.
-    pub table: MerlTable,
+    /// The result as written: the model tabulated and made plausible (shared: the result, its
+    /// material's entry and the report all hold it, and a table is 35 MB).
+    pub table: Arc<MerlTable>,
     pub plausibility: Plausibility,
     pub model: ModelReport,
     /// The ladder, when it ran (not with a fixed k).
@@ -582,7 +584,7 @@ pub fn reconstruct_observations(
     };
     Ok(CoreOutput {
         brdf,
-        table,
+        table: Arc::new(table),
         plausibility,
         model,
         ladder,

@@ -25,6 +25,7 @@ use crate::geometry::mesh::Mesh;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use std::sync::Arc;
 
 /// The per-material summary, in the result folder.
 pub const MATERIALS_FILE: &str = "materials.json";
@@ -67,8 +68,8 @@ pub struct MaterialResult {
     pub mask_label: Option<u32>,
     /// Vertices the masks fixed to it.
     pub mask_vertices: usize,
-    /// Its result as written (`materials/NAME.binary`).
-    pub table: MerlTable,
+    /// Its result as written (`materials/NAME.binary`; its core's, shared).
+    pub table: Arc<MerlTable>,
     pub model: ModelReport,
     pub confidence: Confidence,
 }
@@ -206,7 +207,7 @@ pub fn reconstruct_materials(
                 chromaticity: segmentation.chromaticity[i],
                 mask_label: mask_labels[i],
                 mask_vertices: segmentation.fixed_vertices[i],
-                table: core.table.clone(),
+                table: Arc::clone(&core.table),
                 model: core.model.clone(),
                 confidence: core.confidence.clone(),
             });

@@ -27,6 +27,7 @@ use crate::render::light::DirectionalLight;
 use crate::render::sphere::{Sphere, render_sphere};
 use nalgebra::{Point3, Vector3};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Said wherever a result made from the neural fits is reported.
 pub const PROVENANCE: &str = "basis built from neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations of the measurements, not measured MERL data";
@@ -131,8 +132,9 @@ pub(super) fn report_of(
 
 /// The result of a reconstruction, before anything is written.
 pub struct Output {
-    /// The result (`brdf.binary`); with several materials, the largest material's.
-    pub table: MerlTable,
+    /// The result (`brdf.binary`); with several materials, the largest material's (the core's
+    /// table, shared).
+    pub table: Arc<MerlTable>,
     /// What the segmentation found, when it ran (`Settings::materials`); the per-material
     /// results when it found more than one (`materials/`, `materials.json`,
     /// `material_map.ply`).

@@ -15,6 +15,7 @@ use super::prepare::{
 use crate::brdf::basis::Basis;
 use crate::brdf::basis_cache::CacheStatus;
 use crate::brdf::merl::MerlTable;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Reconstructs the BRDF of a job: loads and checks the job, then the basis (cache or build).
@@ -113,7 +114,7 @@ pub fn finish(
         };
         timings.extend(c.timings.iter().map(|(s, t)| (format!("{prefix}{s}"), *t)));
     }
-    let table = core.table.clone();
+    let table = Arc::clone(&core.table);
     let t = Instant::now();
     progress("photo against re-render, per light image");
     let comparisons = match materials.as_ref().filter(|m| !m.results.is_empty()) {
@@ -152,7 +153,7 @@ pub fn finish(
 /// Every light image beside its re-render, each pixel by its own material's table, with the
 /// material map (`compare::compare_image_materials`).
 fn comparisons_materials(scene: &Scene, observed: &Observed, m: &Materials) -> Vec<Comparison> {
-    let tables: Vec<&MerlTable> = m.results.iter().map(|r| &r.table).collect();
+    let tables: Vec<&MerlTable> = m.results.iter().map(|r| &*r.table).collect();
     comparisons_with(scene, observed, |index, thumb, obs| {
         compare_image_materials(index, thumb, obs, &tables, |o| {
             m.segmentation.label_of(&scene.mesh, o)
