@@ -166,8 +166,8 @@ pub enum CoreError {
 pub struct CoreOutput {
     /// The chosen model as fitted (before the plausibility step).
     pub brdf: Box<dyn Candidate>,
-    /// The result as written: the model tabulated and made plausible (shared: the result, its
-    /// material's entry and the report all hold it, and a table is 35 MB).
+    /// The result as written: the model tabulated and made plausible (shared: the output, its
+    /// material's entry and the core hold it, and a table is 35 MB).
     pub table: Arc<MerlTable>,
     pub plausibility: Plausibility,
     pub model: ModelReport,
