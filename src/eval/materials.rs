@@ -428,6 +428,62 @@ fn f3(x: f64) -> String {
 }
 
 /// The markdown page.
+/// One object's times, for the page's time row: materials found, seconds of the
+/// several-material fit (finding the materials included), of finding the materials, and of
+/// the one-material fit of the same pixels.
+struct Timing {
+    found: usize,
+    seconds: f64,
+    segment: f64,
+    one: f64,
+}
+
+/// The summary's time row: the ratio of each object's several-material time to its
+/// one-material time (geometric mean, max, how many within 2x), the summed seconds and their
+/// ratio, finding the materials' share, and the ratio by the number of materials found.
+fn time_row(t: &[Timing], repeats: usize) -> String {
+    let gm = |v: &[f64]| (v.iter().map(|x| x.ln()).sum::<f64>() / v.len().max(1) as f64).exp();
+    let ratio = |x: &Timing| x.seconds / x.one;
+    let times: Vec<f64> = t.iter().map(ratio).collect();
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let (seconds, one) = (
+        t.iter().map(|x| x.seconds).sum::<f64>(),
+        t.iter().map(|x| x.one).sum::<f64>(),
+    );
+    let mut counts: Vec<usize> = t.iter().map(|x| x.found).collect();
+    counts.sort_unstable();
+    counts.dedup();
+    let by_count: Vec<String> = counts
+        .iter()
+        .map(|&c| {
+            let v: Vec<f64> = t.iter().filter(|x| x.found == c).map(ratio).collect();
+            format!(
+                "{c}: gm {} (max {}) over {}",
+                f3(gm(&v)),
+                f3(max(&v)),
+                v.len()
+            )
+        })
+        .collect();
+    format!(
+        "| time / one-material time (several materials) | gm {}, max {}, within 2x {} of {}; summed {:.1} s / {:.1} s = {} (finding the materials: gm {} of the one-material time); by materials found, {}{} |\n\n",
+        f3(gm(&times)),
+        f3(max(&times)),
+        times.iter().filter(|&&r| r <= 2.0).count(),
+        times.len(),
+        seconds,
+        one,
+        f3(seconds / one),
+        f3(gm(&t.iter().map(|x| x.segment / x.one).collect::<Vec<_>>())),
+        by_count.join("; "),
+        if repeats > 1 {
+            format!("; each the least of {repeats} timings")
+        } else {
+            String::new()
+        }
+    )
+}
+
 pub fn markdown(
     spec: &MaterialsSpec,
     results: &[ObjectResult],
@@ -490,27 +546,16 @@ pub fn markdown(
             normals.iter().filter(|n| n.accepted).count()
         );
     }
-    let times: Vec<f64> = multi.iter().map(|r| r.seconds / r.seconds_one).collect();
-    let summed = |f: fn(&ObjectResult) -> f64| multi.iter().map(|r| f(r)).sum::<f64>();
-    s += &format!(
-        "| time / one-material time (several materials) | gm {}, max {}, within 2x {} of {}; summed {:.1} s / {:.1} s = {} (finding the materials: gm {} of the one-material time){} |\n\n",
-        f3(gm(&times)),
-        f3(times.iter().copied().fold(0.0, f64::max)),
-        times.iter().filter(|&&t| t <= 2.0).count(),
-        times.len(),
-        summed(|r| r.seconds),
-        summed(|r| r.seconds_one),
-        f3(summed(|r| r.seconds) / summed(|r| r.seconds_one)),
-        f3(gm(&multi
-            .iter()
-            .map(|r| r.segment_seconds / r.seconds_one)
-            .collect::<Vec<_>>())),
-        if spec.time_repeats > 1 {
-            format!("; each the least of {} timings", spec.time_repeats)
-        } else {
-            String::new()
-        }
-    );
+    let timings: Vec<Timing> = multi
+        .iter()
+        .map(|r| Timing {
+            found: r.count,
+            seconds: r.seconds,
+            segment: r.segment_seconds,
+            one: r.seconds_one,
+        })
+        .collect();
+    s += &time_row(&timings, spec.time_repeats);
     s += "## Objects\n\n| mesh | materials | rig | seed | count | agreement | found: truth (purity), model, ours / Lambert / L+GGX, ratio | s: all (materials; one-material) |\n|---|---|---|---|---|---|---|---|\n";
     for r in results {
         let per: Vec<String> = r.scores.iter().map(MaterialScore::cell).collect();
@@ -530,4 +575,30 @@ pub fn markdown(
     }
     let _ = spec;
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_time_row_gives_the_ratios_overall_summed_and_by_materials_found() {
+        let t = |found, seconds, one| Timing {
+            found,
+            seconds,
+            segment: 0.1 * one,
+            one,
+        };
+        // ratios 1.5 and 6 (two materials found), 3 (three)
+        let row = time_row(&[t(2, 3.0, 2.0), t(3, 3.0, 1.0), t(2, 6.0, 1.0)], 2);
+        assert!(row.starts_with("| time / one-material time (several materials) | gm 3.000,"));
+        assert!(row.contains("max 6.000, within 2x 1 of 3;"), "{row}");
+        assert!(row.contains("summed 12.0 s / 4.0 s = 3.000"), "{row}");
+        assert!(row.contains("finding the materials: gm 0.100 of"), "{row}");
+        assert!(
+            row.contains("by materials found, 2: gm 3.000 (max 6.000) over 2; 3: gm 3.000 (max 3.000) over 1; each the least of 2 timings |"),
+            "{row}"
+        );
+        assert!(!time_row(&[t(2, 3.0, 2.0)], 1).contains("least of"));
+    }
 }
