@@ -550,6 +550,26 @@ impl Basis {
     }
 }
 
+/// For tests: a basis of `k` components on a coarse grid (every 3rd theta_h, 6th theta_d,
+/// 12th phi_d bin) from named materials, built in a fraction of a second.
+#[cfg(test)]
+pub(crate) fn coarse_test_basis<T: BinValues>(materials: &[(String, T)], k: usize) -> Basis {
+    let refs: Vec<(&str, &dyn BinValues)> = materials
+        .iter()
+        .map(|(n, m)| (n.as_str(), m as &dyn BinValues))
+        .collect();
+    let settings = BasisSettings {
+        stride: GridStride {
+            theta_h: 3,
+            theta_d: 6,
+            phi_d: 12,
+        },
+        basis_components: k,
+        exclude: vec![],
+    };
+    Basis::build(&settings, &refs).expect("build a test basis")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -643,7 +663,7 @@ mod tests {
     #[test]
     fn several_fits_synthesized_together_are_each_fit_alone_bit_for_bit() {
         let t = toys();
-        let basis = Basis::build(&coarse(), &refs(&t)).expect("build");
+        let basis = coarse_test_basis(&t, 12);
         let fit = |seed: f64| -> [Vec<f64>; 3] {
             std::array::from_fn(|c| {
                 (0..7)
@@ -678,7 +698,7 @@ mod tests {
     #[test]
     fn map_and_unmap_are_inverse() {
         let t = toys();
-        let basis = Basis::build(&coarse(), &refs(&t)).expect("build");
+        let basis = coarse_test_basis(&t, 12);
         for row in (0..basis.n_rows()).step_by(101) {
             for rho in [0.0, 0.01, 0.3, 5.0, 400.0] {
                 let back = basis.unmap(row, basis.map(row, rho));
@@ -690,7 +710,7 @@ mod tests {
     #[test]
     fn basis_matches_a_direct_svd_and_reproduces_its_materials() {
         let t = toys();
-        let basis = Basis::build(&coarse(), &refs(&t)).expect("build");
+        let basis = coarse_test_basis(&t, 12);
         assert_eq!(basis.materials().len(), 6);
         // Second implementation: the singular values of M from nalgebra's SVD directly.
         let rows = basis.n_rows();

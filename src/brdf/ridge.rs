@@ -243,7 +243,6 @@ impl BinValues for Reconstruction {
 #[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
-    use crate::brdf::basis::{BasisSettings, GridStride};
     use crate::brdf::nbrdf::{self, Nbrdf};
 
     fn nets(names: &[&str]) -> Vec<(String, Nbrdf)> {
@@ -258,20 +257,7 @@ mod tests {
     }
 
     fn basis(nets: &[(String, Nbrdf)], k: usize) -> Basis {
-        let refs: Vec<(&str, &dyn BinValues)> = nets
-            .iter()
-            .map(|(n, m)| (n.as_str(), m as &dyn BinValues))
-            .collect();
-        let s = BasisSettings {
-            stride: GridStride {
-                theta_h: 3,
-                theta_d: 6,
-                phi_d: 12,
-            },
-            basis_components: k,
-            exclude: vec![],
-        };
-        Basis::build(&s, &refs).expect("build")
+        crate::brdf::basis::coarse_test_basis(nets, k)
     }
 
     #[test]

@@ -216,8 +216,6 @@ pub fn select_samples_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::BinValues;
-    use crate::brdf::basis::{BasisSettings, GridStride};
     use crate::brdf::nbrdf::{self, Nbrdf};
 
     fn small_basis() -> Basis {
@@ -239,20 +237,7 @@ mod tests {
                 (n.to_string(), net)
             })
             .collect();
-        let refs: Vec<(&str, &dyn BinValues)> = nets
-            .iter()
-            .map(|(n, m)| (n.as_str(), m as &dyn BinValues))
-            .collect();
-        let settings = BasisSettings {
-            stride: GridStride {
-                theta_h: 3,
-                theta_d: 6,
-                phi_d: 12,
-            },
-            basis_components: 12,
-            exclude: vec![],
-        };
-        Basis::build(&settings, &refs).expect("build")
+        crate::brdf::basis::coarse_test_basis(&nets, 12)
     }
 
     #[test]

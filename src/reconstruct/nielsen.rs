@@ -215,7 +215,6 @@ impl Candidate for Lazy<'_> {
 mod tests {
     use super::*;
     use crate::brdf::BinValues;
-    use crate::brdf::basis::{BasisSettings, GridStride};
     use crate::brdf::coords::{MERL_BINS, MerlBin};
     use crate::reconstruct::prior::Tabulated;
 
@@ -237,20 +236,7 @@ mod tests {
         let lobes: Vec<(String, Lobe)> = (0..5)
             .map(|i| (format!("m{i}"), Lobe(0.5 + i as f64)))
             .collect();
-        let materials: Vec<(&str, &dyn BinValues)> = lobes
-            .iter()
-            .map(|(n, l)| (n.as_str(), l as &dyn BinValues))
-            .collect();
-        let settings = BasisSettings {
-            stride: GridStride {
-                theta_h: 3,
-                theta_d: 6,
-                phi_d: 12,
-            },
-            basis_components: 4,
-            exclude: vec![],
-        };
-        let basis = Basis::build(&settings, &materials).expect("basis");
+        let basis = crate::brdf::basis::coarse_test_basis(&lobes, 4);
         let prior = NielsenPrior {
             basis: &basis,
             settings: NielsenSettings::default(),
