@@ -1,0 +1,168 @@
+//! Study (session 33): with exact values where the images see a material (theta_d below a
+//! limit) and nothing beyond, which extrapolation to the grazing theta_d renders nearer the
+//! truth: the basis (ridge, leave-one-out) or Lambert + GGX fitted to the same bins? Neural
+//! MERL fits as truth (approximations of MERL, not measured MERL data).
+//!
+//! `cargo run --release --example grazing_study -- THETA_D_MAX_DEG STRIDE_H STRIDE_D STRIDE_P [TARGET...]`
+//! (no targets: all materials). Prints, per target, the environment error of each model over
+//! the whole table and with the truth kept where observed (only the extrapolation judged).
+
+use brdf_rig::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
+use brdf_rig::brdf::basis::{BasisSettings, GridStride};
+use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
+use brdf_rig::brdf::coords::MerlBin;
+use brdf_rig::brdf::metrics::bin_solid_angle;
+use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
+use brdf_rig::brdf::ridge::{BasisSample, RidgeSettings, reconstruct};
+use brdf_rig::brdf::{BinValues, Brdf};
+use brdf_rig::render::probe::{ProbeSettings, SphereProbe, compare};
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    anyhow::ensure!(
+        args.len() >= 4,
+        "usage: THETA_D_MAX STRIDE_H STRIDE_D STRIDE_P [TARGET...]"
+    );
+    let d_max: f64 = args[0].parse()?;
+    let stride = GridStride {
+        theta_h: args[1].parse()?,
+        theta_d: args[2].parse()?,
+        phi_d: args[3].parse()?,
+    };
+    let materials = load_dir(&default_dir())?;
+    let targets: Vec<String> = if args.len() > 4 {
+        args[4..].to_vec()
+    } else {
+        materials.iter().map(|(n, _)| n.clone()).collect()
+    };
+    let probe = SphereProbe::standard(ProbeSettings::default());
+    let pbins = probe.bins().to_vec();
+    let seen = |bin: usize| {
+        MerlBin::from_index(bin).is_some_and(|b| {
+            let (wi, wo) = b.centre_directions();
+            let cos_d = wi.dot(&(wi + wo).normalize());
+            cos_d.clamp(-1.0, 1.0).acos().to_degrees() < d_max
+        })
+    };
+    // `BAND_DROP=LO,HI,TH`: also leave unseen the rows with theta_d in [LO, HI) and theta_h
+    // below TH degrees (which rows of the band decide the extrapolation).
+    let band: Option<(f64, f64, f64)> = std::env::var("BAND_DROP").ok().and_then(|v| {
+        let p: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
+        (p.len() == 3).then(|| (p[0], p[1], p[2]))
+    });
+    let seen = |bin: usize| {
+        seen(bin)
+            && !MerlBin::from_index(bin).is_some_and(|b| {
+                band.is_some_and(|(lo, hi, th)| {
+                    let (wi, wo) = b.centre_directions();
+                    let h = (wi + wo).normalize();
+                    let d = wi.dot(&h).clamp(-1.0, 1.0).acos().to_degrees();
+                    let t = h.z.clamp(-1.0, 1.0).acos().to_degrees();
+                    d >= lo && d < hi && t < th
+                })
+            })
+    };
+    let pseen: Vec<bool> = pbins.iter().map(|&b| seen(b)).collect();
+    println!(
+        "# theta_d < {d_max} deg seen; stride {stride:?}; env error (whole | extrapolation only)"
+    );
+    println!(
+        "target basis_eta1 basis_eta10 basis_eta40 lggx | basis_eta1 basis_eta10 basis_eta40 lggx"
+    );
+    for target in &targets {
+        let settings = BasisSettings {
+            stride,
+            basis_components: 64,
+            exclude: vec![target.clone()],
+        };
+        let (basis, _) = load_or_build(&settings, &materials, &default_cache_dir())?;
+        let net = &materials
+            .iter()
+            .find(|(n, _)| n == target)
+            .ok_or_else(|| anyhow::anyhow!("no material {target}"))?
+            .1;
+        let bins = basis.grid().bins().to_vec();
+        let truth = net.values_at(&bins);
+        let obs: Vec<BasisSample> = truth
+            .iter()
+            .enumerate()
+            .filter(|(r, _)| seen(bins[*r]))
+            .map(|(row, &rgb)| BasisSample { row, rgb })
+            .collect();
+        // Lambert + GGX to the same bins, each weighted as the pixels that would see it
+        // (solid angle of its block, cos theta_i for image space).
+        let samples: Vec<(ReflectanceSample, f64)> = obs
+            .iter()
+            .filter_map(|o| {
+                let b = MerlBin::from_index(bins[o.row])?;
+                let (wi, wo) = b.centre_directions();
+                Some((
+                    ReflectanceSample { wi, wo, rgb: o.rgb },
+                    bin_solid_angle(&b).sqrt(),
+                ))
+            })
+            .collect();
+        let rs: Vec<ReflectanceSample> = samples.iter().map(|s| s.0).collect();
+        let weights: std::collections::HashMap<[u64; 6], f64> = samples
+            .iter()
+            .map(|(s, w)| {
+                (
+                    [s.wi.x, s.wi.y, s.wi.z, s.wo.x, s.wo.y, s.wo.z].map(f64::to_bits),
+                    *w,
+                )
+            })
+            .collect();
+        let lggx = LambertGgx::fit_weighted(&rs, |s| {
+            pixel_weight(s)
+                * weights
+                    .get(&[s.wi.x, s.wi.y, s.wi.z, s.wo.x, s.wo.y, s.wo.z].map(f64::to_bits))
+                    .copied()
+                    .unwrap_or(0.0)
+        })?;
+        let t = net.values_at(&pbins);
+        let tr = probe.render_values(&t);
+        let mut whole = Vec::new();
+        let mut extra = Vec::new();
+        let mut score = |v: Vec<[f64; 3]>| {
+            whole.push(compare(&tr, &probe.render_values(&v)).environment);
+            let mixed: Vec<[f64; 3]> = v
+                .iter()
+                .zip(&t)
+                .zip(&pseen)
+                .map(|((m, t), &s)| if s { *t } else { *m })
+                .collect();
+            extra.push(compare(&tr, &probe.render_values(&mixed)).environment);
+        };
+        for eta in [1.0, 10.0, 40.0] {
+            let rec = reconstruct(&basis, &obs, &RidgeSettings { k: 64, eta })?;
+            score(rec.values_at(&pbins));
+        }
+        score(
+            pbins
+                .iter()
+                .map(|&b| {
+                    MerlBin::from_index(b).map_or([0.0; 3], |m| {
+                        let (wi, wo) = m.centre_directions();
+                        lggx.eval_local(&wi, &wo)
+                    })
+                })
+                .collect(),
+        );
+        println!(
+            "{target} {} | {}   (alpha {:.3} f0 {:.3})",
+            whole
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            extra
+                .iter()
+                .map(|e| format!("{e:.4}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            lggx.alpha,
+            lggx.f0
+        );
+    }
+    Ok(())
+}
