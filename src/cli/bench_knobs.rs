@@ -1,10 +1,12 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
-//! ridge weights, the hedge's strength and the peak average's weight. Their parsing, the
+//! ridge weights, the hedge's strength, the peak average's weight and the carry of pixels to
+//! their row's centre. Their parsing, the
 //! library's overrides they make (`reconstruct::overrides`), and the words that type them
 //! again for a page's "command" line.
 //! No I/O.
 
+use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
@@ -36,6 +38,10 @@ pub struct FitKnobs {
     /// tell from it, as `reconstruct --peak-average` (default: the library's 0.5; 0: never).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub peak_average: Option<f64>,
+    /// Whether the written basis fit sees pixels carried to their row's centre, as
+    /// `reconstruct --carry` (`off`, the default, or `difference`).
+    #[arg(long, value_parser = super::reconstruct::parse_carry)]
+    pub carry: Option<Carry>,
 }
 
 impl FitKnobs {
@@ -48,6 +54,7 @@ impl FitKnobs {
             etas: self.etas.clone(),
             hedge: self.hedge,
             peak_average: self.peak_average,
+            carry: self.carry,
         }
     }
 
@@ -73,6 +80,9 @@ impl FitKnobs {
         if let Some(w) = self.peak_average {
             s += &format!(" --peak-average {w}");
         }
+        if let Some(c) = self.carry {
+            s += &format!(" --carry {}", c.name());
+        }
         s
     }
 }
@@ -93,6 +103,7 @@ mod tests {
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.25),
             peak_average: Some(0.75),
+            carry: Some(Carry::Difference),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -101,9 +112,10 @@ mod tests {
         assert_eq!(o.etas, Some(vec![0.01, 1.0]));
         assert_eq!(o.hedge, Some(0.25));
         assert_eq!(o.peak_average, Some(0.75));
+        assert_eq!(o.carry, Some(Carry::Difference));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference"
         );
     }
 }

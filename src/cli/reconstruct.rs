@@ -3,6 +3,7 @@
 //! `reconstruct::Settings`, the library does the work, progress goes to stderr.
 
 use anyhow::Context;
+use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
 use brdf_rig::reconstruct::ladder::Family;
@@ -122,6 +123,13 @@ pub struct Args {
     /// the basis + peak (0 to 1; 0: the basis alone). docs/reconstruction.md, stage 6.
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub peak_average: f64,
+    /// Study knob: carry each pixel to its basis row's centre before the written basis fit,
+    /// its value times Lambert + GGX's ratio between the row's theta_d and phi_d and its own
+    /// (`difference`), or leave the pixels as they are (`off`, the default). The model ladder
+    /// decides on the pixels as they are either way. Measured, not adopted: docs/evaluation.md
+    /// section 1s.
+    #[arg(long, value_parser = parse_carry, default_value = "off")]
+    pub carry: Carry,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
     /// object's materials are found first, whatever `--materials` says, and each gets its own
@@ -232,6 +240,10 @@ pub(crate) fn parse_unobserved(s: &str) -> Result<ThetaDShape, String> {
         .ok_or_else(|| format!("{s:?}: expected model, transfer or transfer-basis"))
 }
 
+pub(crate) fn parse_carry(s: &str) -> Result<Carry, String> {
+    Carry::parse(s).ok_or_else(|| format!("{s:?}: expected difference or off"))
+}
+
 fn parse_model(s: &str) -> Result<ModelSelection, String> {
     match s {
         "auto" => Ok(ModelSelection::Auto),
@@ -280,6 +292,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.plausible.theta_d_shape = args.unobserved;
     settings.core.hedge.strength = args.hedge;
     settings.core.peak_average = args.peak_average;
+    settings.core.carry = args.carry;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;

@@ -4,6 +4,7 @@
 //! Pure: no I/O; the caller supplies the observations and the prior.
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
+use super::carry::{CarriedPrior, Carry};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
 use super::confidence::{
     AtProbe, Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement,
@@ -95,6 +96,11 @@ pub struct CoreSettings {
     /// rows per trial saved). Off in reports written before it existed.
     #[serde(default)]
     pub keep_trial_fits: bool,
+    /// Whether the written basis fit (the trials) sees pixels carried to their basis row's
+    /// centre along theta_d and phi_d (`reconstruct::carry`); the ladder always decides on the
+    /// pixels as they are. Off by default: measured, not adopted (docs/evaluation.md 1s).
+    #[serde(default)]
+    pub carry: Carry,
 }
 
 impl Default for CoreSettings {
@@ -114,6 +120,7 @@ impl Default for CoreSettings {
             peak_average: 0.5,
             keep_alternatives: false,
             keep_trial_fits: false,
+            carry: Carry::Off,
         }
     }
 }
@@ -225,6 +232,21 @@ pub fn reconstruct_observations(
         settings.ladder.analytic_max_pixels,
         settings.trials.seed ^ 0xA11A,
     );
+    // The written fit (the trials) may see the pixels carried to their row's centre
+    // (`reconstruct::carry`), by the Lambert + GGX of the analytic rungs' pixels.
+    let carrier = (settings.carry == Carry::Difference)
+        .then(|| fit_lambert_ggx(&analytic_pixels))
+        .flatten()
+        .map(|model| CarriedPrior {
+            inner: prior,
+            model,
+        });
+    // The ladder decides on the pixels as they are; the written fit (the trials) sees them
+    // carried when asked.
+    let trial_prior: &dyn Prior = match &carrier {
+        Some(c) => c,
+        None => prior,
+    };
     // The hybrid's peak is part of the basis method: it sees the reliable pixels.
     let peak_pixels = subset(
         &reliable.pixels,
@@ -291,7 +313,7 @@ pub fn reconstruct_observations(
         settings.trials.trials, settings.trials.samples
     ));
     let (mut trials, fits) = run_trials(
-        prior,
+        trial_prior,
         &reliable,
         observations,
         &settings.reliable,

@@ -24,6 +24,7 @@
 //! [`reconstruct_with_basis`] (a basis in memory, for studies), [`output::write`].
 
 pub mod baselines;
+pub mod carry;
 pub mod compare;
 pub mod components;
 pub mod confidence;

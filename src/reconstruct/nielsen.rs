@@ -57,6 +57,10 @@ impl Prior for NielsenPrior<'_> {
         self.basis.grid().row_of_bin(bin)
     }
 
+    fn row_centre(&self, row: usize) -> Option<usize> {
+        self.basis.grid().bins().get(row).copied()
+    }
+
     /// This basis's own fits together ([`Basis::synthesize_rows_many`]: each basis row read
     /// once for all of them); the same values as each fit's `values_at_bins`, bit for bit.
     fn values_of_fits(&self, fits: &[&dyn Candidate], bins: &[usize]) -> Vec<Vec<[f64; 3]>> {

@@ -1,9 +1,11 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
-//! hedge's strength and the peak average's weight. Each
+//! hedge's strength, the peak average's weight and whether pixels are carried to their row's
+//! centre. Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
+use super::carry::Carry;
 use super::core::CoreSettings;
 use super::plausible::ThetaDShape;
 use super::trials::BasisFit;
@@ -16,6 +18,7 @@ pub struct CoreOverrides {
     pub etas: Option<Vec<f64>>,
     pub hedge: Option<f64>,
     pub peak_average: Option<f64>,
+    pub carry: Option<Carry>,
 }
 
 impl CoreOverrides {
@@ -39,6 +42,9 @@ impl CoreOverrides {
         if let Some(w) = self.peak_average {
             core.peak_average = w;
         }
+        if let Some(c) = self.carry {
+            core.carry = c;
+        }
     }
 }
 
@@ -58,6 +64,7 @@ mod tests {
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.0),
             peak_average: Some(0.25),
+            carry: Some(Carry::Difference),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -66,6 +73,7 @@ mod tests {
         assert_eq!(core.components.etas, vec![0.01, 1.0]);
         assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.peak_average, 0.25);
+        assert_eq!(core.carry, Carry::Difference);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -140,6 +140,18 @@ pub trait Prior: Send + Sync {
         self.fit(samples, k, eta)
             .map(|c| c as Box<dyn Candidate + 'a>)
     }
+
+    /// The MERL bin at the centre of a basis row (the bin whose value the basis holds for the
+    /// whole row), when the prior lives on a grid of rows.
+    fn row_centre(&self, _row: usize) -> Option<usize> {
+        None
+    }
+
+    /// The reflectance a pixel lends its basis row's sample: its own (a prior that carries
+    /// pixels to their row's centre overrides this; `CarriedPrior`).
+    fn row_value(&self, o: &super::observe::Observation) -> [f64; 3] {
+        o.reflectance
+    }
 }
 
 /// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least

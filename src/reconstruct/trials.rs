@@ -105,8 +105,9 @@ pub fn dense_samples(
     let mut rows: Vec<(usize, Vec<&Observation>)> = by_row.into_iter().collect();
     rows.sort_unstable_by_key(|(r, _)| *r);
     for (_, px) in rows {
+        let values: Vec<[f64; 3]> = px.iter().map(|o| prior.row_value(o)).collect();
         let medians: [Option<f64>; 3] = std::array::from_fn(|c| {
-            let mut v: Vec<f64> = px.iter().map(|o| o.reflectance[c]).collect();
+            let mut v: Vec<f64> = values.iter().map(|r| r[c]).collect();
             crate::stats::median(&mut v)
         });
         if let [Some(r), Some(g), Some(b)] = medians {

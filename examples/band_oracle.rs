@@ -1,0 +1,301 @@
+//! Study (session 33, docs/evaluation.md section 1r): on a simulated scene, how far the basis
+//! fit's rendered error moves when the values of some basis rows are replaced by the truth, to
+//! tell coverage (which rows the pixels reach) from the values the pixels give there. Neural
+//! MERL fits as truth (approximations of MERL, not measured MERL data).
+//!
+//! `cargo run --release --example band_oracle -- MATERIAL MESH RIG SEED [exact]`
+//! (`$SIZE` = `WxH`, default 320x240; scenes written once under `$STUDY_DIR`, default
+//! /tmp/band-oracle). The basis fit is the pipeline's (one median sample per basis row of the
+//! reliable pixels, ridge weight scaled by rows / 80, k = 64), scored raw (before the
+//! plausibility step) by the environment error:
+//! - as the pixels give it;
+//! - each pixel given the truth at its own directions (its job normal), then the row medians;
+//! - the rows with theta_d 45-55 and theta_h below 10 degrees given the truth at their centre;
+//! - every observed row given the truth at its centre (coverage alone);
+//! - that, plus every unobserved row of the band given the truth (the band fully seen).
+
+use brdf_rig::brdf::basis::{BasisSettings, GridStride};
+use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
+use brdf_rig::brdf::coords::MerlBin;
+use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
+use brdf_rig::brdf::{BinValues, Brdf};
+use brdf_rig::eval::{Perturb, Truth, baseline_errors, find_material, observe_case};
+use brdf_rig::geometry::mesh_io::load_mesh;
+use brdf_rig::geometry::sfm_like::{SfmLikeParams, sfm_like};
+use brdf_rig::reconstruct::Job;
+use brdf_rig::reconstruct::core::CoreSettings;
+use brdf_rig::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
+use brdf_rig::reconstruct::observe::{Observation, ObserveSettings, to_local};
+use brdf_rig::reconstruct::prior::{Prior, Sample};
+use brdf_rig::reconstruct::reliable::select_reliable;
+use brdf_rig::reconstruct::trials::dense_samples;
+use brdf_rig::sim::job_scene::{SceneSpec, write_scene};
+use std::path::PathBuf;
+
+/// theta_h and theta_d of a bin's centre, degrees.
+fn angles(bin: usize) -> Option<(f64, f64)> {
+    let b = MerlBin::from_index(bin)?;
+    let (wi, wo) = b.centre_directions();
+    let h = (wi + wo).normalize();
+    Some((
+        h.z.clamp(-1.0, 1.0).acos().to_degrees(),
+        wi.dot(&h).clamp(-1.0, 1.0).acos().to_degrees(),
+    ))
+}
+
+fn in_band(bin: usize) -> bool {
+    angles(bin).is_some_and(|(h, d)| (45.0..55.0).contains(&d) && h < 10.0)
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    anyhow::ensure!(args.len() >= 4, "usage: MATERIAL MESH RIG SEED [exact]");
+    let (name, mesh_name, rig) = (&args[0], &args[1], &args[2]);
+    let seed: u64 = args[3].parse()?;
+    let exact = args.get(4).is_some_and(|a| a == "exact");
+    let root = PathBuf::from(std::env::var("STUDY_DIR").unwrap_or("/tmp/band-oracle".into()));
+    let materials = load_dir(&default_dir())?;
+    let net = find_material(&materials, name)?;
+    let bs = BasisSettings {
+        stride: GridStride::default(),
+        basis_components: 64,
+        exclude: vec![name.clone()],
+    };
+    let (basis, _) = load_or_build(&bs, &materials, &default_cache_dir())?;
+    let truth = Truth::new(net, 5);
+    let file = match mesh_name.as_str() {
+        "spot" => "spot_triangulated.obj",
+        _ => "stanford-bunny.obj",
+    };
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/meshes");
+    let (mesh, _) = load_mesh(&data.join(file))?;
+    let size = std::env::var("SIZE").unwrap_or("320x240".into());
+    let dir = root.join(format!(
+        "{mesh_name}-{name}-{rig}-{seed}-{size}{}",
+        if exact { "-exact" } else { "" }
+    ));
+    let job_file = dir.join("job.toml");
+    let job = if job_file.exists() {
+        Job::from_file(&job_file)?
+    } else {
+        let mut spec = match rig.as_str() {
+            "one-light" => SceneSpec::one_light(30.0),
+            _ => SceneSpec::default(),
+        };
+        let (w, h) = size
+            .split_once('x')
+            .ok_or_else(|| anyhow::anyhow!("SIZE={size:?}: write WxH"))?;
+        spec.width = w.parse()?;
+        spec.height = h.parse()?;
+        let job_mesh = if exact {
+            mesh.clone()
+        } else {
+            sfm_like(
+                &mesh,
+                &SfmLikeParams {
+                    seed: 7 + seed,
+                    ..SfmLikeParams::default()
+                },
+            )
+        };
+        write_scene(&dir, &mesh, &job_mesh, net, &spec)?
+    };
+    let obs = observe_case(&job, &ObserveSettings::default(), &Perturb::default())?;
+    let (lam, ggx) = baseline_errors(&truth, &obs);
+    let core = CoreSettings::default();
+    let reliable = select_reliable(&obs, &core.reliable);
+    let prior = NielsenPrior {
+        basis: &basis,
+        settings: NielsenSettings::default(),
+    };
+    let samples = dense_samples(&prior, &reliable.pixels, reliable.brightest.as_ref());
+    let centre = |s: &Sample| {
+        prior
+            .row_of(s.bin)
+            .map_or(s.bin, |r| basis.grid().bins()[r])
+    };
+    let at = |bin: usize| net.values_at(&[bin])[0];
+    let band_rows: Vec<usize> = (0..basis.n_rows())
+        .filter(|&r| in_band(basis.grid().bins()[r]))
+        .collect();
+    let seen_rows: std::collections::HashSet<usize> =
+        samples.iter().filter_map(|s| prior.row_of(s.bin)).collect();
+    let seen_band = band_rows.iter().filter(|r| seen_rows.contains(r)).count();
+    let band_pixels = reliable
+        .pixels
+        .iter()
+        .filter(|o| {
+            prior
+                .row_of(o.bin)
+                .is_some_and(|r| in_band(basis.grid().bins()[r]))
+        })
+        .count();
+    let truth_band: Vec<Sample> = samples
+        .iter()
+        .map(|s| {
+            let c = centre(s);
+            if in_band(c) {
+                Sample {
+                    bin: c,
+                    reflectance: at(c),
+                }
+            } else {
+                *s
+            }
+        })
+        .collect();
+    let truth_all: Vec<Sample> = samples
+        .iter()
+        .map(|s| {
+            let c = centre(s);
+            Sample {
+                bin: c,
+                reflectance: at(c),
+            }
+        })
+        .collect();
+    // Each pixel given the truth at its own directions (its job normal), then the row medians:
+    // what the pixels would give without noise, shading errors or a wrong normal's value.
+    let truth_px: Vec<Observation> = reliable
+        .pixels
+        .iter()
+        .map(|o| {
+            let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
+            Observation {
+                reflectance: net.eval_local(&wi, &wo),
+                ..*o
+            }
+        })
+        .collect();
+    let first = reliable.brightest.as_ref().map(|o| {
+        let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
+        Observation {
+            reflectance: net.eval_local(&wi, &wo),
+            ..*o
+        }
+    });
+    let truth_pixels = dense_samples(&prior, &truth_px, first.as_ref());
+    // Each pixel carried to its row's centre by Lambert + GGX's ratio (fitted to the same
+    // pixels): r * LG(centre) / LG(pixel's directions), channel by channel.
+    let lg = brdf_rig::reconstruct::baselines::fit_lambert_ggx(&reliable.pixels)
+        .ok_or_else(|| anyhow::anyhow!("no Lambert + GGX"))?;
+    let carry = |o: &Observation, model: &dyn Brdf| -> Observation {
+        let (wi, wo) = to_local(&o.normal, &o.light, &o.view);
+        let c = prior
+            .row_of(o.bin)
+            .map_or(o.bin, |r| basis.grid().bins()[r]);
+        let Some(b) = MerlBin::from_index(c) else {
+            return *o;
+        };
+        let (ci, co) = b.centre_directions();
+        let (at_c, at_p) = (model.eval_local(&ci, &co), model.eval_local(&wi, &wo));
+        Observation {
+            reflectance: std::array::from_fn(|k| {
+                if at_p[k] > 0.0 && at_c[k].is_finite() {
+                    o.reflectance[k] * at_c[k] / at_p[k]
+                } else {
+                    o.reflectance[k]
+                }
+            }),
+            ..*o
+        }
+    };
+    let carried: Vec<Observation> = reliable.pixels.iter().map(|o| carry(o, &lg)).collect();
+    let carried_first = reliable.brightest.as_ref().map(|o| carry(o, &lg));
+    let carried_samples = dense_samples(&prior, &carried, carried_first.as_ref());
+    let mut band_full = truth_all.clone();
+    for &r in &band_rows {
+        if !seen_rows.contains(&r) {
+            let c = basis.grid().bins()[r];
+            band_full.push(Sample {
+                bin: c,
+                reflectance: at(c),
+            });
+        }
+    }
+    println!(
+        "{mesh_name} {name} {rig} seed {seed}{}: {} reliable pixels, {} rows; band theta_d 45-55, theta_h < 10: {} of {} rows seen, {} pixels; Lambert {:.3}, Lambert + GGX {:.3}",
+        if exact { " (exact mesh)" } else { "" },
+        reliable.pixels.len(),
+        samples.len(),
+        seen_band,
+        band_rows.len(),
+        band_pixels,
+        lam.map_or(f64::NAN, |e| e.environment),
+        ggx.map_or(f64::NAN, |e| e.environment),
+    );
+    // The carried fit read back at every bin through the same model: the row's value times
+    // m(bin) / m(row centre) (the block no longer flat).
+    struct Uncarried<'a> {
+        fit: &'a dyn brdf_rig::reconstruct::prior::Candidate,
+        prior: &'a dyn Prior,
+        model: &'a dyn Brdf,
+    }
+    impl BinValues for Uncarried<'_> {
+        fn values_at(&self, bins: &[usize]) -> Vec<[f64; 3]> {
+            bins.iter()
+                .map(|&b| {
+                    let v = self.fit.eval_bin(b);
+                    let Some(c) = self.prior.row_of(b).and_then(|r| self.prior.row_centre(r))
+                    else {
+                        return v;
+                    };
+                    let (Some(bb), Some(cb)) = (MerlBin::from_index(b), MerlBin::from_index(c))
+                    else {
+                        return v;
+                    };
+                    let ((bi, bo), (ci, co)) = (bb.centre_directions(), cb.centre_directions());
+                    let (mb, mc) = (
+                        self.model.eval_local(&bi, &bo),
+                        self.model.eval_local(&ci, &co),
+                    );
+                    std::array::from_fn(|k| {
+                        let r = mb[k] / mc[k];
+                        if mb[k] > 0.0 && mc[k] > 0.0 && r.is_finite() {
+                            v[k] * r.clamp(0.25, 4.0)
+                        } else {
+                            v[k]
+                        }
+                    })
+                })
+                .collect()
+        }
+    }
+    {
+        let scale = (carried_samples.len() as f64 / 80.0).max(1.0);
+        let mut line = String::new();
+        for eta in [1.0, 10.0, 40.0] {
+            let fit = prior.fit(&carried_samples, 64, eta * scale)?;
+            let u = Uncarried {
+                fit: fit.as_ref(),
+                prior: &prior,
+                model: &lg,
+            };
+            line += &format!(" {:.3}", truth.errors_of(&u).environment);
+        }
+        println!(
+            "  {:24} env error at eta 1 / 10 / 40:{line}",
+            "carried, read uncarried"
+        );
+    }
+    for (label, s) in [
+        ("pixels", &samples),
+        ("pixels' own truth", &truth_pixels),
+        ("pixels carried by L+GGX", &carried_samples),
+        ("band rows true", &truth_band),
+        ("seen rows true", &truth_all),
+        ("seen rows + band true", &band_full),
+    ] {
+        let scale = (s.len() as f64 / 80.0).max(1.0);
+        let mut line = String::new();
+        for eta in [1.0, 10.0, 40.0] {
+            let fit = prior.fit(s, 64, eta * scale)?;
+            line += &format!(
+                " {:.3}",
+                truth.errors_of_candidate(fit.as_ref()).environment
+            );
+        }
+        println!("  {label:24} env error at eta 1 / 10 / 40:{line}");
+    }
+    Ok(())
+}
