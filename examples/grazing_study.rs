@@ -3,9 +3,11 @@
 //! truth: the basis (ridge, leave-one-out) or Lambert + GGX fitted to the same bins? Neural
 //! MERL fits as truth (approximations of MERL, not measured MERL data).
 //!
-//! `cargo run --release --example grazing_study -- THETA_D_MAX_DEG STRIDE_H STRIDE_D STRIDE_P [TARGET...]`
-//! (no targets: all materials). Prints, per target, the environment error of each model over
-//! the whole table and with the truth kept where observed (only the extrapolation judged).
+//! `cargo run --release --example grazing_study -- THETA_D_MAX_DEG SH SD SP [TARGET...]`
+//! (`SH SD SP`: the basis grid's stride; no targets: all materials; `BAND_DROP=LO,HI,TH` also
+//! withholds the rows with theta_d in [LO, HI) and theta_h below TH degrees). Prints, per
+//! target, the environment error of each model over the whole table and with the truth kept
+//! where observed (only the extrapolation judged).
 
 use brdf_rig::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};

@@ -219,7 +219,11 @@ mod tests {
         let (at_c, at_p) = (m.eval_local(&ti, &to), m.eval_local(&wi, &wo));
         for k in 0..3 {
             let want = r[k] * at_c[k] / at_p[k];
-            assert!((got[k] - want).abs() <= 1e-12 * want, "{k}: {} {want}", got[k]);
+            assert!(
+                (got[k] - want).abs() <= 1e-12 * want,
+                "{k}: {} {want}",
+                got[k]
+            );
         }
         // The Fresnel and 1 / cos factors rise with theta_d: a pixel below its row's theta_d
         // is carried up, not left as it is.
@@ -265,7 +269,10 @@ mod tests {
         }
         .index();
         let got = carried(&sharp, [1.0; 3], Some((wi, wo)), Some(centre));
-        assert!(got.iter().all(|&v| (v - MAX_RATIO).abs() < 1e-12), "{got:?}");
+        assert!(
+            got.iter().all(|&v| (v - MAX_RATIO).abs() < 1e-12),
+            "{got:?}"
+        );
     }
 
     /// Rows of two theta_d bins (centre: the even one); nothing else is used.
@@ -277,7 +284,13 @@ mod tests {
         }
         fn row_of(&self, bin: usize) -> Option<usize> {
             let b = MerlBin::from_index(bin)?;
-            Some(MerlBin { theta_d: b.theta_d / 2 * 2, ..b }.index())
+            Some(
+                MerlBin {
+                    theta_d: b.theta_d / 2 * 2,
+                    ..b
+                }
+                .index(),
+            )
         }
         fn select(&self, chosen: &[usize], _: &[usize], _: usize, _: usize, _: u64) -> Vec<usize> {
             chosen.to_vec()
@@ -310,7 +323,9 @@ mod tests {
             inner: &inner,
             model: glossy(),
         };
-        let centre = inner.row_of(merl_index(&wi, &wo)).and_then(|r| inner.row_centre(r));
+        let centre = inner
+            .row_of(merl_index(&wi, &wo))
+            .and_then(|r| inner.row_centre(r));
         let (li, lo) = to_local(&o.normal, &o.light, &o.view);
         let want = carried(&glossy(), o.reflectance, Some((li, lo)), centre);
         assert_eq!(carried_prior.row_value(&o), want);

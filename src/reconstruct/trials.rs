@@ -77,10 +77,11 @@ impl Default for TrialSettings {
     }
 }
 
-/// One sample per basis row from every pixel of `pool`: the per-channel median reflectance of
-/// the row's pixels (robust to the few whose normal is far off; `stats::median`), `first` (the
-/// brightest pixel, eq. 2) as its own sample, its row's other pixels left out as
-/// `select_pixels` does. A row whose values are not all numbers gives no sample.
+/// One sample per basis row from every pixel of `pool`: the per-channel median of the values
+/// the row's pixels lend it (`Prior::row_value`: their reflectance, unless the prior carries
+/// them to the row's centre; the median is robust to the few whose normal is far off;
+/// `stats::median`), `first` (the brightest pixel, eq. 2) as its own sample, its row's other
+/// pixels left out as `select_pixels` does. A row whose values are not all numbers gives no sample.
 pub fn dense_samples(
     prior: &dyn Prior,
     pool: &[Observation],
