@@ -10,6 +10,9 @@
 //! plausibility step) by the environment error:
 //! - as the pixels give it;
 //! - each pixel given the truth at its own directions (its job normal), then the row medians;
+//! - each pixel carried to its row's centre by Lambert + GGX's ratio (all three angles; and
+//!   read back through the same ratio at every bin); and along theta_d and phi_d only, as
+//!   `reconstruct --carry difference` does;
 //! - the rows with theta_d 45-55 and theta_h below 10 degrees given the truth at their centre;
 //! - every observed row given the truth at its centre (coverage alone);
 //! - that, plus every unobserved row of the band given the truth (the band fully seen).
@@ -203,6 +206,12 @@ fn main() -> anyhow::Result<()> {
     let carried: Vec<Observation> = reliable.pixels.iter().map(|o| carry(o, &lg)).collect();
     let carried_first = reliable.brightest.as_ref().map(|o| carry(o, &lg));
     let carried_samples = dense_samples(&prior, &carried, carried_first.as_ref());
+    // The library's carry (`reconstruct --carry difference`): theta_d and phi_d only.
+    let knob = brdf_rig::reconstruct::carry::CarriedPrior {
+        inner: &prior,
+        model: lg,
+    };
+    let knob_samples = dense_samples(&knob, &reliable.pixels, reliable.brightest.as_ref());
     let mut band_full = truth_all.clone();
     for &r in &band_rows {
         if !seen_rows.contains(&r) {
@@ -282,6 +291,7 @@ fn main() -> anyhow::Result<()> {
         ("pixels", &samples),
         ("pixels' own truth", &truth_pixels),
         ("pixels carried by L+GGX", &carried_samples),
+        ("carried (--carry)", &knob_samples),
         ("band rows true", &truth_band),
         ("seen rows true", &truth_all),
         ("seen rows + band true", &band_full),
