@@ -427,7 +427,11 @@ fn f3(x: f64) -> String {
     }
 }
 
-/// The markdown page.
+/// The geometric mean (1 for no values).
+fn gm(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x.ln()).sum::<f64>() / v.len().max(1) as f64).exp()
+}
+
 /// One object's times, for the page's time row: materials found, seconds of the
 /// several-material fit (finding the materials included), of finding the materials, and of
 /// the one-material fit of the same pixels.
@@ -442,7 +446,6 @@ struct Timing {
 /// one-material time (geometric mean, max, how many within 2x), the summed seconds and their
 /// ratio, finding the materials' share, and the ratio by the number of materials found.
 fn time_row(t: &[Timing], repeats: usize) -> String {
-    let gm = |v: &[f64]| (v.iter().map(|x| x.ln()).sum::<f64>() / v.len().max(1) as f64).exp();
     let ratio = |x: &Timing| x.seconds / x.one;
     let times: Vec<f64> = t.iter().map(ratio).collect();
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
@@ -484,6 +487,7 @@ fn time_row(t: &[Timing], repeats: usize) -> String {
     )
 }
 
+/// The markdown page.
 pub fn markdown(
     spec: &MaterialsSpec,
     results: &[ObjectResult],
@@ -506,7 +510,6 @@ pub fn markdown(
         .iter()
         .flat_map(|r| r.scores.iter().filter_map(|m| m.ratio()))
         .collect();
-    let gm = |v: &[f64]| (v.iter().map(|x| x.ln()).sum::<f64>() / v.len().max(1) as f64).exp();
     s += "## Summary\n\n| | value |\n|---|---|\n";
     s += &format!(
         "| objects of several materials | {} |\n| count right | {} of {} |\n| agreement >= 0.9 | {} of {} (min {}) |\n",
