@@ -25,6 +25,7 @@ use crate::brdf::Brdf;
 use crate::brdf::analytic::LambertGgx;
 use crate::brdf::coords::{HalfDiff, MerlBin};
 use crate::brdf::ridge::RidgeError;
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 /// The largest factor a pixel's value is carried by (either way).
@@ -65,15 +66,17 @@ pub struct CarriedPrior<'a> {
     pub model: LambertGgx,
 }
 
-/// `r * m(centre) / m(pixel)` per channel for a pixel at `(wi, wo)` (local frame) whose row's
-/// centre bin is `centre`; the pixel's own value where either is not positive and finite.
+/// `r * m(target) / m(pixel)` per channel for a pixel at `(wi, wo)` (local frame) whose row's
+/// centre bin is `centre`, `target` the pixel's theta_h and phi_h with the centre's theta_d and
+/// phi_d, the ratio bounded by [`MAX_RATIO`]; the pixel's own value without a centre, below
+/// the horizon, or where either value is not positive and finite.
 pub fn carried(
     model: &dyn Brdf,
     reflectance: [f64; 3],
-    wi_wo: Option<(nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)>,
+    (wi, wo): (Vector3<f64>, Vector3<f64>),
     centre: Option<usize>,
 ) -> [f64; 3] {
-    let (Some((wi, wo)), Some(b)) = (wi_wo, centre.and_then(MerlBin::from_index)) else {
+    let Some(b) = centre.and_then(MerlBin::from_index) else {
         return reflectance;
     };
     if wi.z <= 0.0 || wo.z <= 0.0 {
@@ -163,7 +166,7 @@ impl Prior for CarriedPrior<'_> {
         carried(
             &self.model,
             o.reflectance,
-            Some(to_local(&o.normal, &o.light, &o.view)),
+            to_local(&o.normal, &o.light, &o.view),
             centre,
         )
     }
@@ -174,7 +177,7 @@ mod tests {
     use super::super::observation::Seen;
     use super::*;
     use crate::brdf::coords::merl_index;
-    use nalgebra::{Point3, Vector3};
+    use nalgebra::Point3;
 
     fn glossy() -> LambertGgx {
         LambertGgx {
@@ -206,7 +209,7 @@ mod tests {
             phi_d: 44,
         };
         let r = [0.2, 0.3, 0.4];
-        let got = carried(&m, r, Some((wi, wo)), Some(centre.index()));
+        let got = carried(&m, r, (wi, wo), Some(centre.index()));
         // The model at the pixel's theta_h and phi_h with the centre's theta_d and phi_d.
         let p = HalfDiff::from_directions(&wi, &wo);
         let c = centre.centre();
@@ -244,11 +247,10 @@ mod tests {
         }
         .index();
         let r = [0.2, 0.3, 0.4];
-        assert_eq!(carried(&lambert, r, Some((wi, wo)), Some(centre)), r);
-        assert_eq!(carried(&glossy(), r, Some((wi, wo)), None), r);
-        assert_eq!(carried(&glossy(), r, None, Some(centre)), r);
+        assert_eq!(carried(&lambert, r, (wi, wo), Some(centre)), r);
+        assert_eq!(carried(&glossy(), r, (wi, wo), None), r);
         let below = Vector3::new(wi.x, wi.y, -wi.z);
-        assert_eq!(carried(&glossy(), r, Some((below, wo)), Some(centre)), r);
+        assert_eq!(carried(&glossy(), r, (below, wo), Some(centre)), r);
     }
 
     #[test]
@@ -268,7 +270,7 @@ mod tests {
             phi_d: 90,
         }
         .index();
-        let got = carried(&sharp, [1.0; 3], Some((wi, wo)), Some(centre));
+        let got = carried(&sharp, [1.0; 3], (wi, wo), Some(centre));
         assert!(
             got.iter().all(|&v| (v - MAX_RATIO).abs() < 1e-12),
             "{got:?}"
@@ -327,7 +329,7 @@ mod tests {
             .row_of(merl_index(&wi, &wo))
             .and_then(|r| inner.row_centre(r));
         let (li, lo) = to_local(&o.normal, &o.light, &o.view);
-        let want = carried(&glossy(), o.reflectance, Some((li, lo)), centre);
+        let want = carried(&glossy(), o.reflectance, (li, lo), centre);
         assert_eq!(carried_prior.row_value(&o), want);
         assert_ne!(want, o.reflectance);
         // Everything else is the inner prior's.
