@@ -16,6 +16,10 @@
 //! - the rows with theta_d 45-55 and theta_h below 10 degrees given the truth at their centre;
 //! - every observed row given the truth at its centre (coverage alone);
 //! - that, plus every unobserved row of the band given the truth (the band fully seen).
+//! - (session 34, section 1t) the rows weighted by how well their pixels agree: the inverse
+//!   variance of the row's median in log space (`1.57 MAD^2 / n`, the typical row's spread
+//!   for rows of fewer than 3 pixels) plus a floor `s0^2` (0.03, 0.1, 0.3), as integer
+//!   duplicates of each row's sample (1 to 40, 4 on average).
 
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
@@ -285,6 +289,67 @@ fn main() -> anyhow::Result<()> {
         println!(
             "  {:24} env error at eta 1 / 10 / 40:{line}",
             "carried, read uncarried"
+        );
+    }
+    // Rows weighted by how well their pixels agree (inverse variance of the row median in log
+    // space, with a floor `s0` for what the basis cannot fit), as integer duplicates of each
+    // row's sample (the ridge's normal equations sum its samples).
+    let weighted = |s0: f64| -> Vec<Sample> {
+        let mut by_row: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
+        for o in &reliable.pixels {
+            if let Some(r) = prior.row_of(o.bin) {
+                let v = o.reflectance.iter().map(|x| x.max(1e-9).ln()).sum::<f64>() / 3.0;
+                by_row.entry(r).or_default().push(v);
+            }
+        }
+        let spread = |v: &[f64]| -> Option<f64> {
+            if v.len() < 3 {
+                return None;
+            }
+            let mut s = v.to_vec();
+            let m = brdf_rig::stats::median(&mut s)?;
+            let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+            brdf_rig::stats::median(&mut d).map(|x| 1.4826 * x)
+        };
+        let mut all: Vec<f64> = by_row.values().filter_map(|v| spread(v)).collect();
+        let typical = brdf_rig::stats::median(&mut all).unwrap_or(0.1);
+        let var = |r: usize| -> f64 {
+            let v = &by_row[&r];
+            let sd = spread(v).unwrap_or(typical);
+            s0 * s0 + 1.57 * sd * sd / v.len() as f64
+        };
+        let ws: Vec<(Sample, f64)> = samples
+            .iter()
+            .map(|s| {
+                let w = prior
+                    .row_of(s.bin)
+                    .filter(|r| by_row.contains_key(r))
+                    .map_or(1.0 / (s0 * s0), |r| 1.0 / var(r));
+                (*s, w)
+            })
+            .collect();
+        let mean = ws.iter().map(|x| x.1).sum::<f64>() / ws.len().max(1) as f64;
+        ws.iter()
+            .flat_map(|(s, w)| {
+                let d = ((4.0 * w / mean).round() as usize).clamp(1, 40);
+                std::iter::repeat_n(*s, d)
+            })
+            .collect()
+    };
+    for s0 in [0.03, 0.1, 0.3] {
+        let w = weighted(s0);
+        let scale = (w.len() as f64 / 80.0).max(1.0);
+        let mut line = String::new();
+        for eta in [1.0, 10.0, 40.0] {
+            let fit = prior.fit(&w, 64, eta * scale)?;
+            line += &format!(
+                " {:.3}",
+                truth.errors_of_candidate(fit.as_ref()).environment
+            );
+        }
+        println!(
+            "  {:24} env error at eta 1 / 10 / 40:{line}",
+            format!("rows weighted, s0 {s0}")
         );
     }
     for (label, s) in [

@@ -42,6 +42,10 @@ pub struct FitKnobs {
     /// `reconstruct --carry` (`off`, the default, or `difference`).
     #[arg(long, value_parser = super::reconstruct::parse_carry)]
     pub carry: Option<Carry>,
+    /// Study knob: run the theta_d extrapolation check at these quantiles of the reliable
+    /// pixels' theta_d (`reconstruct::extrapolation`; reported in `plausibility.extrapolation`).
+    #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Open(1.0)))]
+    pub extrapolation: Option<Vec<f64>>,
 }
 
 impl FitKnobs {
@@ -55,6 +59,7 @@ impl FitKnobs {
             hedge: self.hedge,
             peak_average: self.peak_average,
             carry: self.carry,
+            extrapolation: self.extrapolation.clone(),
         }
     }
 
@@ -83,6 +88,10 @@ impl FitKnobs {
         if let Some(c) = self.carry {
             s += &format!(" --carry {}", c.name());
         }
+        if let Some(q) = &self.extrapolation {
+            let q: Vec<String> = q.iter().map(|x| x.to_string()).collect();
+            s += &format!(" --extrapolation {}", q.join(","));
+        }
         s
     }
 }
@@ -104,6 +113,7 @@ mod tests {
             hedge: Some(0.25),
             peak_average: Some(0.75),
             carry: Some(Carry::Difference),
+            extrapolation: Some(vec![0.7, 0.8]),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -113,9 +123,10 @@ mod tests {
         assert_eq!(o.hedge, Some(0.25));
         assert_eq!(o.peak_average, Some(0.75));
         assert_eq!(o.carry, Some(Carry::Difference));
+        assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --extrapolation 0.7,0.8"
         );
     }
 }

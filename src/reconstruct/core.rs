@@ -10,6 +10,9 @@ use super::confidence::{
     AtProbe, Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement,
     unseen_render_share,
 };
+use super::extrapolation::{
+    ExtrapolationInput, ExtrapolationSettings, check as check_extrapolation,
+};
 use super::hedge::{Hedge, HedgeSettings, blend_into};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, NO_PEAK, WithPeak, climb,
@@ -101,6 +104,10 @@ pub struct CoreSettings {
     /// pixels as they are. Off by default: measured, not adopted (docs/evaluation.md 1s).
     #[serde(default)]
     pub carry: Carry,
+    /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written
+    /// before it existed.
+    #[serde(default = "ExtrapolationSettings::off")]
+    pub extrapolation: ExtrapolationSettings,
 }
 
 impl Default for CoreSettings {
@@ -121,6 +128,7 @@ impl Default for CoreSettings {
             keep_alternatives: false,
             keep_trial_fits: false,
             carry: Carry::Off,
+            extrapolation: ExtrapolationSettings::off(),
         }
     }
 }
@@ -304,6 +312,31 @@ pub fn reconstruct_observations(
         ),
         _ => (components.k, components.eta),
     };
+
+    // How each family extrapolates in theta_d, on the scene's own pixels (a report; it
+    // changes no fit and no choice).
+    let t = Instant::now();
+    let extrapolation = if ladder.is_some() && !settings.extrapolation.quantiles.is_empty() {
+        progress("theta_d extrapolation check");
+        check_extrapolation(
+            &ExtrapolationInput {
+                prior,
+                reliable: &reliable,
+                reliable_settings: &settings.reliable,
+                analytic_pixels: &analytic_pixels,
+                analytic_max_pixels: settings.ladder.analytic_max_pixels,
+                samples: settings.trials.samples,
+                basis_fit: settings.trials.basis_fit,
+                k,
+                eta,
+                seed: settings.trials.seed,
+            },
+            &settings.extrapolation,
+        )
+    } else {
+        Vec::new()
+    };
+    timings.push(("extrapolation".to_string(), t.elapsed().as_secs_f64()));
 
     // Trials of the basis at (k, eta): the paper's fit and eq. 3, also the confidence's
     // measure of agreement whatever the family.
@@ -562,6 +595,7 @@ pub fn reconstruct_observations(
             analytic_weight,
         });
     }
+    plausibility.extrapolation = extrapolation;
     timings.push(("plausible".to_string(), t.elapsed().as_secs_f64()));
 
     let t = Instant::now();
@@ -791,7 +825,9 @@ mod tests {
         let old = json.as_object_mut().unwrap();
         assert!(old.remove("hedge").is_some());
         assert!(old.remove("peak_average").is_some());
+        assert!(old.remove("extrapolation").is_some());
         let read: CoreSettings = serde_json::from_value(json).unwrap();
+        assert!(read.extrapolation.quantiles.is_empty());
         assert_eq!(read.hedge.strength, 0.0);
         assert_eq!(read.peak_average, 0.0);
         assert_eq!(

@@ -450,6 +450,14 @@ pub fn image_error(c: &dyn Candidate, obs: &[Observation]) -> f64 {
     }
 }
 
+/// The log-space error of `c` over `held` (one fold's [`HeldOutMetric::Log`] error); `None`
+/// when nothing could be scored.
+pub fn log_error(c: &dyn Candidate, held: &[Observation]) -> Option<f64> {
+    score(c, held, usize::MAX)
+        .residual_log
+        .map(|(n, d)| (n / d).sqrt())
+}
+
 /// A seeded subset of at most `max` observations (all of them when fewer).
 pub fn subset(obs: &[Observation], max: usize, seed: u64) -> Vec<Observation> {
     if obs.len() <= max {

@@ -19,6 +19,8 @@ pub struct CoreOverrides {
     pub hedge: Option<f64>,
     pub peak_average: Option<f64>,
     pub carry: Option<Carry>,
+    /// Quantiles of theta_d for the extrapolation check (empty: off).
+    pub extrapolation: Option<Vec<f64>>,
 }
 
 impl CoreOverrides {
@@ -45,6 +47,9 @@ impl CoreOverrides {
         if let Some(c) = self.carry {
             core.carry = c;
         }
+        if let Some(q) = &self.extrapolation {
+            core.extrapolation.quantiles = q.clone();
+        }
     }
 }
 
@@ -65,6 +70,7 @@ mod tests {
             hedge: Some(0.0),
             peak_average: Some(0.25),
             carry: Some(Carry::Difference),
+            extrapolation: Some(vec![0.8]),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -74,6 +80,7 @@ mod tests {
         assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.peak_average, 0.25);
         assert_eq!(core.carry, Carry::Difference);
+        assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }
