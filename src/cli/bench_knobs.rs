@@ -46,6 +46,10 @@ pub struct FitKnobs {
     /// pixels' theta_d (`reconstruct::extrapolation`; reported in `plausibility.extrapolation`).
     #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Open(1.0)))]
     pub extrapolation: Option<Vec<f64>>,
+    /// Study knob: a chosen basis rung must beat Lambert + GGX's held-out error by this
+    /// fraction, or Lambert + GGX is chosen (`LadderSettings::analytic_margin`; default 0, off).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Open(1.0)))]
+    pub analytic_margin: Option<f64>,
 }
 
 impl FitKnobs {
@@ -60,6 +64,7 @@ impl FitKnobs {
             peak_average: self.peak_average,
             carry: self.carry,
             extrapolation: self.extrapolation.clone(),
+            analytic_margin: self.analytic_margin,
         }
     }
 
@@ -92,6 +97,9 @@ impl FitKnobs {
             let q: Vec<String> = q.iter().map(|x| x.to_string()).collect();
             s += &format!(" --extrapolation {}", q.join(","));
         }
+        if let Some(m) = self.analytic_margin {
+            s += &format!(" --analytic-margin {m}");
+        }
         s
     }
 }
@@ -114,6 +122,7 @@ mod tests {
             peak_average: Some(0.75),
             carry: Some(Carry::Difference),
             extrapolation: Some(vec![0.7, 0.8]),
+            analytic_margin: Some(0.25),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -124,9 +133,10 @@ mod tests {
         assert_eq!(o.peak_average, Some(0.75));
         assert_eq!(o.carry, Some(Carry::Difference));
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
+        assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --extrapolation 0.7,0.8"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --extrapolation 0.7,0.8 --analytic-margin 0.25"
         );
     }
 }

@@ -21,6 +21,8 @@ pub struct CoreOverrides {
     pub carry: Option<Carry>,
     /// Quantiles of theta_d for the extrapolation check (empty: off).
     pub extrapolation: Option<Vec<f64>>,
+    /// The margin a basis must beat Lambert + GGX's held-out error by.
+    pub analytic_margin: Option<f64>,
 }
 
 impl CoreOverrides {
@@ -50,6 +52,9 @@ impl CoreOverrides {
         if let Some(q) = &self.extrapolation {
             core.extrapolation.quantiles = q.clone();
         }
+        if let Some(m) = self.analytic_margin {
+            core.ladder.analytic_margin = m;
+        }
     }
 }
 
@@ -71,6 +76,7 @@ mod tests {
             peak_average: Some(0.25),
             carry: Some(Carry::Difference),
             extrapolation: Some(vec![0.8]),
+            analytic_margin: Some(0.25),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -81,6 +87,7 @@ mod tests {
         assert_eq!(core.peak_average, 0.25);
         assert_eq!(core.carry, Carry::Difference);
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
+        assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -109,6 +109,8 @@ struct LadderSettingsMirror {
     max_trial_disagreement: f64,
     #[serde(default)]
     min_gain: f64,
+    #[serde(default)]
+    analytic_margin: f64,
 }
 
 #[derive(Deserialize)]
@@ -301,6 +303,7 @@ mod tests {
         round_trip(&LadderSettings {
             rule: ChoiceRule::OneStandardError,
             metric: HeldOutMetric::Linear,
+            analytic_margin: 0.25,
             ..LadderSettings::default()
         });
         round_trip(&RefineReport {
