@@ -315,10 +315,10 @@ pub fn reconstruct_observations(
 
     // How each family extrapolates in theta_d, on the scene's own pixels (a report; it
     // changes no fit and no choice).
-    let t = Instant::now();
     let extrapolation = if ladder.is_some() && !settings.extrapolation.quantiles.is_empty() {
+        let t = Instant::now();
         progress("theta_d extrapolation check");
-        check_extrapolation(
+        let checks = check_extrapolation(
             &ExtrapolationInput {
                 prior,
                 reliable: &reliable,
@@ -332,11 +332,12 @@ pub fn reconstruct_observations(
                 seed: settings.trials.seed,
             },
             &settings.extrapolation,
-        )
+        );
+        timings.push(("extrapolation".to_string(), t.elapsed().as_secs_f64()));
+        checks
     } else {
         Vec::new()
     };
-    timings.push(("extrapolation".to_string(), t.elapsed().as_secs_f64()));
 
     // Trials of the basis at (k, eta): the paper's fit and eq. 3, also the confidence's
     // measure of agreement whatever the family.

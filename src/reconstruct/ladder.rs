@@ -42,7 +42,9 @@
 //!
 //! The choice, in two stages: (1) among the analytic and basis rungs, the simplest (fewest
 //! parameters, then the most regularised) whose fold-by-fold excess over the best is within one
-//! standard error of that paired difference; (2) a chosen basis rung gets the GGX peak (the
+//! standard error of that paired difference (with `analytic_margin`, a study knob off by
+//! default, a basis rung not that fraction below Lambert + GGX gives way to it); (2) a chosen
+//! basis rung gets the GGX peak (the
 //! hybrid) only when that lowers the held-out error beyond noise (the peak adds parameters, so
 //! the plain basis wins a tie); (3, in `core`, after the
 //! eq. 3 trials) a basis family is set aside for the best analytic rung when its trials
