@@ -9,7 +9,8 @@
 //! absent, which is what a file written before them means, and a reader that predates them
 //! ignores them, so the version stayed 1. Likewise `boundary_pixels` (per material) and
 //! `settings.fit_interior_only` (session 27): absent, they read as 0 and `false`, what a file
-//! written before them did (every labelled pixel in its material's fit).
+//! written before them did (every labelled pixel in its material's fit); and
+//! `settings.merge_same_body` (session 34): absent, `false` (no merge by body colour).
 
 use super::confidence::Confidence;
 use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_observations};
@@ -424,6 +425,13 @@ mod tests {
                 .is_some()
         );
         assert!(
+            old["settings"]
+                .as_object_mut()
+                .unwrap()
+                .remove("merge_same_body")
+                .is_some()
+        );
+        assert!(
             old["materials"][0]
                 .as_object_mut()
                 .unwrap()
@@ -432,6 +440,7 @@ mod tests {
         );
         let back: MaterialsFile = serde_json::from_value(old).unwrap();
         assert!(!back.settings.fit_interior_only);
+        assert!(!back.settings.merge_same_body);
         assert_eq!(back.materials[0].boundary_pixels, 0);
         assert_eq!(back.materials[0].observed_pixels, 10);
     }

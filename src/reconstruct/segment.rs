@@ -15,8 +15,11 @@
 //!    smoothness**: a few sweeps of iterated conditional modes on the mesh's vertex graph
 //!    (a Potts cost per neighbour of another label), which also labels the vertices no pixel
 //!    saw. Materials below `min_share` of the observed vertices, whose centres are closer
-//!    than `merge_distance`, or that lie between two larger ones (the mixed pixels where two
-//!    materials meet), are merged away.
+//!    than `merge_distance`, whose body colours are (the chromaticity of each vertex's darker
+//!    half of pixels, [`body_colours`]: a dielectric's white highlights and grazing reflections
+//!    whiten the regions seen most often near them, its darker pixels keep its colour;
+//!    docs/materials.md, "Phantom materials at 128x96"), or that lie between two larger ones
+//!    (the mixed pixels where two materials meet), are merged away.
 //! 3. **How many materials**: for each count, on folds of whole images, the labels are found
 //!    from the training images alone, the count model (`count_model`; by default one
 //!    reflectance shape shared by the object times an RGB scale per material,
@@ -85,6 +88,10 @@ pub struct SegmentSettings {
     /// every pixel goes to the material of the face corner nearest to it.
     #[serde(default)]
     pub fit_interior_only: bool,
+    /// Merge two found materials whose body colours ([`Features::body`]) lie within
+    /// `merge_distance`. `false` (what a `materials.json` written before session 34 means).
+    #[serde(default)]
+    pub merge_same_body: bool,
 }
 
 impl Default for SegmentSettings {
@@ -104,6 +111,7 @@ impl Default for SegmentSettings {
             seed: 0x5E6,
             count_min_theta_h_deg: 10.0,
             fit_interior_only: true,
+            merge_same_body: true,
         }
     }
 }
@@ -245,6 +253,10 @@ struct Features {
     points: Vec<[f64; 3]>,
     /// Pixels pooled per point.
     weight: Vec<f64>,
+    /// Per point: the chromaticity (r, g shares, scaled as the features) of the pooled pixels
+    /// at or below their median level: the body colour, which a dielectric's white highlight
+    /// or grazing reflection does not move.
+    body: Vec<[f64; 2]>,
 }
 
 /// The features of the observations `keep` admits, each at its nearest corner (`corners`, in
@@ -272,6 +284,7 @@ fn features(
     let mut slot = vec![None; n];
     let mut points = Vec::new();
     let mut weight = Vec::new();
+    let mut body = Vec::new();
     for v in 0..n {
         if per_vertex[v].is_empty() {
             continue;
@@ -290,12 +303,32 @@ fn features(
             levels.push(((r[0] + r[1] + r[2]) / 3.0).ln());
         }
         let total = sum[0] + sum[1] + sum[2];
-        let Some(level) = crate::stats::median(&mut levels) else {
+        let Some(level) = crate::stats::median(&mut levels.clone()) else {
             continue;
         };
         if !(total > 0.0 && total.is_finite()) {
             continue;
         }
+        let mut dark = [0.0f64; 3];
+        for (&i, &l) in pooled.iter().zip(&levels) {
+            if l <= level {
+                for (d, x) in dark.iter_mut().zip(obs[i].reflectance) {
+                    *d += x;
+                }
+            }
+        }
+        let dark_total = dark[0] + dark[1] + dark[2];
+        body.push(if dark_total > 0.0 && dark_total.is_finite() {
+            [
+                dark[0] / dark_total / settings.chroma_scale,
+                dark[1] / dark_total / settings.chroma_scale,
+            ]
+        } else {
+            [
+                sum[0] / total / settings.chroma_scale,
+                sum[1] / total / settings.chroma_scale,
+            ]
+        });
         slot[v] = Some(points.len());
         points.push([
             sum[0] / total / settings.chroma_scale,
@@ -308,6 +341,7 @@ fn features(
         slot,
         points,
         weight,
+        body,
     }
 }
 
@@ -573,6 +607,25 @@ fn label_vertices(
             .filter(|&(a, b)| dist2(&centres[a], &centres[b]) < settings.merge_distance.powi(2))
             .min_by_key(|&p| counts[dropped_of(p)])
             .map(dropped_of);
+        // One body colour: two materials whose darker pixels share a chromaticity (within
+        // `merge_distance`) are one material whose highlights or grazing reflections whitened
+        // part of it.
+        let same_body = if settings.merge_same_body {
+            let body = body_colours(f, &labels, centres.len());
+            (0..centres.len())
+                .flat_map(|a| ((a + 1).max(given)..centres.len()).map(move |b| (a, b)))
+                .filter(|&(a, b)| match (body[a], body[b]) {
+                    (Some(x), Some(y)) => {
+                        (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2)
+                            < settings.merge_distance.powi(2)
+                    }
+                    _ => false,
+                })
+                .min_by_key(|&p| counts[dropped_of(p)])
+                .map(dropped_of)
+        } else {
+            None
+        };
         // A blend: a smaller material lying on the segment between two others (within
         // `merge_distance`), as the mixed pixels where two materials meet do.
         let blend = (given..centres.len())
@@ -589,7 +642,7 @@ fn label_vertices(
                 })
             })
             .min_by_key(|&c| counts[c]);
-        let Some(drop) = small.or(close).or(blend) else {
+        let Some(drop) = small.or(close).or(same_body).or(blend) else {
             return (labels, centres.len());
         };
         if centres.len() <= 1 {
@@ -597,6 +650,25 @@ fn label_vertices(
         }
         centres.remove(drop);
     }
+}
+
+/// Per material: the pixel-weighted mean body colour ([`Features::body`]) of its observed
+/// vertices; `None` for a material with none.
+fn body_colours(f: &Features, labels: &[u32], materials: usize) -> Vec<Option<[f64; 2]>> {
+    let mut sum = vec![[0.0f64; 3]; materials];
+    for (v, s) in f.slot.iter().enumerate() {
+        if let (Some(i), Some(&l)) = (s, labels.get(v))
+            && let Some(acc) = sum.get_mut(l as usize)
+        {
+            let w = f.weight[*i];
+            acc[0] += w * f.body[*i][0];
+            acc[1] += w * f.body[*i][1];
+            acc[2] += w;
+        }
+    }
+    sum.iter()
+        .map(|a| (a[2] > 0.0).then(|| [a[0] / a[2], a[1] / a[2]]))
+        .collect()
 }
 
 /// The number of given materials in per-vertex fixed labels (`0..given`, dense).
@@ -1075,6 +1147,61 @@ pub(crate) mod tests {
             alpha,
             f0: 0.04,
         }
+    }
+
+    #[test]
+    fn a_region_whitened_by_highlights_has_its_body_colour_and_is_merged_back() {
+        // One orange material; on the left half one pixel in three is a white highlight, which
+        // moves the left half's chromaticity far from the right half's but not its darker
+        // pixels' (its body colour).
+        let mesh = grid(12);
+        let nb = mesh.vertex_neighbours();
+        let view = Vector3::z();
+        let orange = [0.30, 0.15, 0.05];
+        let mut obs = Vec::new();
+        for img in 0..4 {
+            let light =
+                Vector3::new(0.3 * (img as f64).cos(), 0.3 * (img as f64).sin(), 1.0).normalize();
+            for fi in 0..mesh.faces().len() {
+                let t = mesh.triangle(fi);
+                let c = Point3::from((t[0].coords + t[1].coords + t[2].coords) / 3.0);
+                for k in 0..3 {
+                    let rgb = if c.x < 5.5 && k == 2 {
+                        [0.9, 0.85, 0.8]
+                    } else {
+                        orange.map(|x| x * (1.0 + 0.02 * k as f64))
+                    };
+                    let cos = light.z;
+                    let seen = Seen {
+                        face: fi as u32,
+                        position: c,
+                        ..Seen::pixel(img, fi as u32, k, Vector3::z())
+                    };
+                    if let Some(o) =
+                        Observation::new(seen, light, view, rgb.map(|x| x * cos), [1.0; 3])
+                    {
+                        obs.push(o);
+                    }
+                }
+            }
+        }
+        let settings = SegmentSettings::default();
+        let corners: Vec<Option<usize>> = obs.iter().map(|o| nearest_corner(&mesh, o)).collect();
+        let f = features(&mesh, &nb, &obs, &corners, |_| true, &settings);
+        let off = SegmentSettings {
+            merge_same_body: false,
+            ..settings
+        };
+        assert_eq!(label_vertices(&f, &nb, 2, &off, &[]).1, 2);
+        let (labels, found) = label_vertices(&f, &nb, 2, &settings, &[]);
+        assert_eq!(found, 1);
+        let body = body_colours(&f, &labels, 1);
+        let b = body[0].expect("observed");
+        // the body colour is orange's chromaticity (0.6, 0.3), in chroma_scale units
+        assert!(
+            (b[0] - 0.6 / 0.02).abs() < 0.5 && (b[1] - 0.3 / 0.02).abs() < 0.5,
+            "{b:?}"
+        );
     }
 
     #[test]
