@@ -208,8 +208,9 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
 
 /// A one-material shiny object at the accuracy grid's size (blue-acrylic on Spot, spread
 /// lights, 320x240, seed 0) is one material: with the pixels near the specular peak in the
-/// count's fits and scores (`count_min_theta_h_deg` 0, as before session 29) a second scale
-/// on part of it eased the held-out highlights' miss by 19 % and the object was split in two.
+/// count's fits and scores (`count_min_theta_h_deg` 0, as before session 29) and no merge by
+/// body colour (as before session 34) a second scale on part of it eased the held-out
+/// highlights' miss by 19 % and the object was split in two. Either guard alone keeps it whole.
 #[test]
 fn a_shiny_one_material_object_is_not_split_at_the_grids_size() {
     use brdf_rig::reconstruct::segment::SegmentSettings;
@@ -217,17 +218,23 @@ fn a_shiny_one_material_object_is_not_split_at_the_grids_size() {
         let r = run_small_materials(&["blue-acrylic"], (320, 240, 11), segment, None);
         (r[0].count, r[0].reason.clone())
     };
-    let before = count(SegmentSettings {
+    let with_peak = SegmentSettings {
         count_min_theta_h_deg: 0.0,
         ..SegmentSettings::default()
+    };
+    let before = count(SegmentSettings {
+        merge_same_body: false,
+        ..with_peak
     });
+    let merged = count(with_peak);
     let now = count(SegmentSettings::default());
-    eprintln!("with the peak: {before:?}; without: {now:?}");
+    eprintln!("with the peak, no merge: {before:?}; with the peak: {merged:?}; now: {now:?}");
     assert_eq!(
         before.0, 2,
         "the case this guards against is gone: {}",
         before.1
     );
+    assert_eq!(merged.0, 1, "{}", merged.1);
     assert_eq!(now.0, 1, "{}", now.1);
 }
 
