@@ -15,11 +15,11 @@
 //!    smoothness**: a few sweeps of iterated conditional modes on the mesh's vertex graph
 //!    (a Potts cost per neighbour of another label), which also labels the vertices no pixel
 //!    saw. Materials below `min_share` of the observed vertices, whose centres are closer
-//!    than `merge_distance`, whose body colours are (the chromaticity of each vertex's darker
-//!    half of pixels, [`body_colours`]: a dielectric's white highlights and grazing reflections
-//!    whiten the regions seen most often near them, its darker pixels keep its colour;
-//!    docs/materials.md, "Phantom materials at 128x96"), or that lie between two larger ones
-//!    (the mixed pixels where two materials meet), are merged away.
+//!    than `merge_distance`, whose body colours are that close (the chromaticity of each
+//!    vertex's darker half of pixels, [`body_colours`]: a dielectric's white highlights and
+//!    grazing reflections whiten the regions seen most often near them, its darker pixels
+//!    keep its colour; docs/materials.md, "Phantom materials at 128x96"), or that lie between
+//!    two larger ones (the mixed pixels where two materials meet), are merged away.
 //! 3. **How many materials**: for each count, on folds of whole images, the labels are found
 //!    from the training images alone, the count model (`count_model`; by default one
 //!    reflectance shape shared by the object times an RGB scale per material,
