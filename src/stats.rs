@@ -1,5 +1,5 @@
 //! Order statistics shared across the tool (calibration, reconstruction, the BRDF basis): one
-//! median, by selection. Pure: no I/O.
+//! median, by selection, and a nearest-rank percentile. Pure: no I/O.
 
 /// Median of `values` (reorders them); `None` when empty or when a value is NaN. A selection,
 /// not a sort: linear in the number of values (millions of a 24 MP board's pixels).
@@ -16,6 +16,15 @@ pub fn median(values: &mut [f64]) -> Option<f64> {
         let below = lower.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         0.5 * (below + upper)
     })
+}
+
+/// Nearest-rank percentile of values sorted ascending (`q` in [0, 1], clamped); NaN for none.
+pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((sorted.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    sorted[i]
 }
 
 #[cfg(test)]

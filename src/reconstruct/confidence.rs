@@ -357,12 +357,8 @@ fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observati
 
 /// Nearest-rank percentile (`q` in [0, 1]); NaN for no values.
 fn percentile(xs: &mut [f64], q: f64) -> f64 {
-    if xs.is_empty() {
-        return f64::NAN;
-    }
     xs.sort_by(f64::total_cmp);
-    let i = ((xs.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
-    xs[i]
+    crate::stats::percentile_sorted(xs, q)
 }
 
 #[cfg(test)]

@@ -18,11 +18,14 @@
 //! Pure: no I/O. Must not change a fit or a choice: it only reports errors.
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
-use super::ladder::{AnalyticCandidate, WithPeak, fit_peak, log_error, subset};
+use super::ladder::{
+    AnalyticCandidate, FoldData, WithPeak, fit_peak, fold_data, log_error, subset,
+};
 use super::observation::Observation;
 use super::prior::Prior;
-use super::reliable::{Reliable, ReliableSettings, as_peak, brightest_index};
+use super::reliable::{Reliable, ReliableSettings};
 use super::trials::{BasisFit, basis_samples};
+use crate::stats::percentile_sorted;
 use serde::{Deserialize, Serialize};
 
 /// Knobs of the check.
@@ -86,12 +89,6 @@ fn theta_d_deg(o: &Observation) -> f64 {
     o.angles.theta_d.to_degrees()
 }
 
-/// Nearest-rank quantile of sorted values.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    let i = ((sorted.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
-    sorted[i]
-}
-
 /// What the check needs of the reconstruction.
 pub struct ExtrapolationInput<'a> {
     pub prior: &'a dyn Prior,
@@ -121,13 +118,13 @@ pub fn check(input: &ExtrapolationInput, settings: &ExtrapolationSettings) -> Ve
         return Vec::new();
     }
     td.sort_by(f64::total_cmp);
-    if quantile(&td, 0.95) - quantile(&td, 0.05) < settings.min_span_deg {
+    if percentile_sorted(&td, 0.95) - percentile_sorted(&td, 0.05) < settings.min_span_deg {
         return Vec::new();
     }
     settings
         .quantiles
         .iter()
-        .filter_map(|&q| check_at(input, settings, q, quantile(&td, q)))
+        .filter_map(|&q| check_at(input, settings, q, percentile_sorted(&td, q)))
         .collect()
 }
 
@@ -138,22 +135,33 @@ fn check_at(
     split: f64,
 ) -> Option<Extrapolation> {
     let below = |o: &Observation| theta_d_deg(o) < split;
-    let (mut train, held): (Vec<Observation>, Vec<Observation>) =
-        input.reliable.pixels.iter().partition(|o| below(o));
+    // Two folds, below the split (0) and above it (1, held out); the anchor (eq. 2) as the
+    // ladder's folds take it.
+    let fold_of: Vec<usize> = input
+        .reliable
+        .pixels
+        .iter()
+        .map(|o| usize::from(!below(o)))
+        .collect();
+    let FoldData {
+        train,
+        held,
+        anchor,
+    } = fold_data(
+        &input.reliable.pixels,
+        &fold_of,
+        1,
+        input.reliable.brightest.as_ref(),
+        input
+            .reliable
+            .brightest
+            .as_ref()
+            .map(|b| usize::from(!below(b))),
+        input.reliable_settings.use_brightest,
+    );
     if train.len() < settings.min_pixels || held.len() < settings.min_pixels {
         return None;
     }
-    // The anchor (eq. 2) as the ladder's folds take it: the scene's brightest pixel when it
-    // lies below the split, else the brightest training pixel.
-    let anchor = match &input.reliable.brightest {
-        Some(b) if below(b) => Some(*b),
-        _ if input.reliable_settings.use_brightest => brightest_index(&train).and_then(|i| {
-            let peak = as_peak(&train[i]);
-            train.remove(i);
-            peak
-        }),
-        _ => None,
-    };
     let analytic_train: Vec<Observation> = input
         .analytic_pixels
         .iter()
@@ -310,8 +318,9 @@ mod tests {
     #[test]
     fn quantiles_are_nearest_rank() {
         let v: Vec<f64> = (0..11).map(f64::from).collect();
-        assert_eq!(quantile(&v, 0.0), 0.0);
-        assert_eq!(quantile(&v, 0.8), 8.0);
-        assert_eq!(quantile(&v, 1.0), 10.0);
+        assert_eq!(percentile_sorted(&v, 0.0), 0.0);
+        assert_eq!(percentile_sorted(&v, 0.8), 8.0);
+        assert_eq!(percentile_sorted(&v, 1.0), 10.0);
+        assert!(percentile_sorted(&[], 0.5).is_nan());
     }
 }

@@ -683,13 +683,16 @@ fn empty() -> FoldScore {
 }
 
 /// Everything a fold's fits need.
-struct FoldData {
-    train: Vec<Observation>,
-    held: Vec<Observation>,
-    anchor: Option<Observation>,
+pub(super) struct FoldData {
+    pub train: Vec<Observation>,
+    pub held: Vec<Observation>,
+    pub anchor: Option<Observation>,
 }
 
-fn fold_data(
+/// The training and held-out pixels of `fold`, and the anchor (eq. 2): the scene's brightest
+/// pixel when it lies outside the held-out fold, else (with `use_brightest`) the brightest
+/// training pixel, moved to its half vector and out of the training pixels.
+pub(super) fn fold_data(
     pool: &[Observation],
     fold_of: &[usize],
     fold: usize,
