@@ -20,6 +20,11 @@
 //!   variance of the row's median in log space (`1.57 MAD^2 / n`, the typical row's spread
 //!   for rows of fewer than 3 pixels) plus a floor `s0^2` (0.03, 0.1, 0.3), as integer
 //!   duplicates of each row's sample (1 to 40, 4 on average).
+//! - (session 35, section 1v) the rows weighted by their pixels' sensitivity to the normal
+//!   (errors in the variables); the normals' error estimated from the rows' spread against
+//!   that sensitivity; the fit deblurred for a normal tilt of RMS 2-9 degrees
+//!   (`reconstruct::deblur`'s step, up to three times), and whether held-out images (every 4th)
+//!   can tell the tilt.
 
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
@@ -351,6 +356,206 @@ fn main() -> anyhow::Result<()> {
             "  {:24} env error at eta 1 / 10 / 40:{line}",
             format!("rows weighted, s0 {s0}")
         );
+    }
+    // Rows weighted by how much a wrong normal moves their pixels' values (errors in the
+    // variables): the log value's gradient over the normal, from Lambert + GGX, squared and
+    // taken as the row's median, times a normal error sigma^2, plus a floor s0^2.
+    let sensitivity = |o: &Observation| -> f64 {
+        let frame = brdf_rig::render::frame::ShadingFrame::new(o.normal);
+        let y = |n: nalgebra::Vector3<f64>| -> f64 {
+            let n = n.normalize();
+            let (wi, wo) = to_local(&n, &o.light, &o.view);
+            let f = lg.eval_local(&wi, &wo);
+            let c = n.dot(&o.light).max(1e-3);
+            (1e-6 + c * (f[0] + f[1] + f[2]) / 3.0).ln()
+        };
+        let d = 0.5f64.to_radians();
+        let g = |t: nalgebra::Vector3<f64>| (y(o.normal + d * t) - y(o.normal - d * t)) / (2.0 * d);
+        g(frame.t).powi(2) + g(frame.b).powi(2)
+    };
+    let sens_rows = {
+        let mut by_row: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
+        for o in &reliable.pixels {
+            if let Some(r) = prior.row_of(o.bin) {
+                by_row.entry(r).or_default().push(sensitivity(o));
+            }
+        }
+        by_row
+            .into_iter()
+            .filter_map(|(r, mut v)| brdf_rig::stats::median(&mut v).map(|m| (r, m)))
+            .collect::<std::collections::BTreeMap<usize, f64>>()
+    };
+    {
+        let mut all: Vec<f64> = sens_rows.values().map(|x| x.sqrt()).collect();
+        all.sort_by(f64::total_cmp);
+        let q = |p: f64| all[((all.len() - 1) as f64 * p) as usize];
+        println!(
+            "  row sensitivity |d ln(f cos)/dn| quartiles: {:.2} {:.2} {:.2}, max {:.2}",
+            q(0.25),
+            q(0.5),
+            q(0.75),
+            q(1.0)
+        );
+    }
+    // The normals' error from the pixels' spread: within a row the log values scatter by
+    // sigma_n^2 |d ln(f cos)/dn|^2 plus a floor; the slope of the rows' variance on their
+    // sensitivity^2 estimates sigma_n^2 (rows of at least 3 pixels; medians over sensitivity
+    // deciles, then least squares through them).
+    {
+        let mut by_row: std::collections::BTreeMap<usize, (Vec<f64>, Vec<f64>)> =
+            Default::default();
+        for o in &reliable.pixels {
+            if let Some(r) = prior.row_of(o.bin) {
+                let v = o.reflectance.iter().map(|x| x.max(1e-9)).sum::<f64>() / 3.0;
+                let e = by_row.entry(r).or_default();
+                e.0.push((v * o.cos_theta_i + 1e-6).ln());
+                e.1.push(sensitivity(o));
+            }
+        }
+        let mut pts: Vec<(f64, f64)> = by_row
+            .values()
+            .filter(|(v, _)| v.len() >= 3)
+            .filter_map(|(v, g)| {
+                let mut s = v.clone();
+                let m = brdf_rig::stats::median(&mut s)?;
+                let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+                let sd = 1.4826 * brdf_rig::stats::median(&mut d)?;
+                let mut g = g.clone();
+                Some((brdf_rig::stats::median(&mut g)?, sd * sd))
+            })
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = pts.len();
+        let deciles: Vec<(f64, f64)> = (0..10)
+            .filter_map(|k| {
+                let chunk = &pts[k * n / 10..(k + 1) * n / 10];
+                let mut x: Vec<f64> = chunk.iter().map(|p| p.0).collect();
+                let mut y: Vec<f64> = chunk.iter().map(|p| p.1).collect();
+                Some((
+                    brdf_rig::stats::median(&mut x)?,
+                    brdf_rig::stats::median(&mut y)?,
+                ))
+            })
+            .collect();
+        let m = deciles.len() as f64;
+        let (mx, my) = (
+            deciles.iter().map(|p| p.0).sum::<f64>() / m,
+            deciles.iter().map(|p| p.1).sum::<f64>() / m,
+        );
+        let sxy: f64 = deciles.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        let sxx: f64 = deciles.iter().map(|p| (p.0 - mx).powi(2)).sum();
+        let slope = sxy / sxx;
+        println!(
+            "  normals' error from the rows' spread: sigma {:.2} deg (slope {slope:.2e}, floor {:.4}, {n} rows); deciles (g^2, var): {}",
+            slope.max(0.0).sqrt().to_degrees(),
+            my - slope * mx,
+            deciles
+                .iter()
+                .map(|p| format!("({:.2}, {:.4})", p.0, p.1))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+    }
+    for (s0, sigma_deg) in [(0.1, 3.0), (0.1, 6.0), (0.1, 12.0), (0.3, 6.0)] {
+        let sigma = f64::to_radians(sigma_deg);
+        let ws: Vec<(Sample, f64)> = samples
+            .iter()
+            .map(|s| {
+                let g2 = prior
+                    .row_of(s.bin)
+                    .and_then(|r| sens_rows.get(&r).copied())
+                    .unwrap_or(0.0);
+                (*s, 1.0 / (s0 * s0 + sigma * sigma * g2))
+            })
+            .collect();
+        let mean = ws.iter().map(|x| x.1).sum::<f64>() / ws.len().max(1) as f64;
+        let w: Vec<Sample> = ws
+            .iter()
+            .flat_map(|(s, w)| {
+                let d = ((4.0 * w / mean).round() as usize).clamp(1, 40);
+                std::iter::repeat_n(*s, d)
+            })
+            .collect();
+        let scale = (w.len() as f64 / 80.0).max(1.0);
+        let mut line = String::new();
+        for eta in [1.0, 10.0, 40.0] {
+            let fit = prior.fit(&w, 64, eta * scale)?;
+            line += &format!(
+                " {:.3}",
+                truth.errors_of_candidate(fit.as_ref()).environment
+            );
+        }
+        println!(
+            "  {:24} env error at eta 1 / 10 / 40:{line}",
+            format!("sens s0 {s0} sigma {sigma_deg}")
+        );
+    }
+    // Deblurring (`reconstruct::deblur`): each row's sample corrected by the current fit's
+    // ratio of its value to its value blurred over normal tilts of RMS sigma, and refitted.
+    let deblur = |base: &[Sample],
+                  sigma: f64,
+                  eta: f64,
+                  iterations: usize|
+     -> anyhow::Result<Vec<Box<dyn brdf_rig::reconstruct::prior::Candidate>>> {
+        let scale = (base.len() as f64 / 80.0).max(1.0);
+        let mut fit = prior.fit(base, 64, eta * scale)?;
+        let mut out = Vec::new();
+        for _ in 0..iterations {
+            let corrected = brdf_rig::reconstruct::deblur::corrected(fit.as_ref(), base, sigma);
+            let next = prior.fit(&corrected, 64, eta * scale)?;
+            out.push(std::mem::replace(&mut fit, next));
+        }
+        out.push(fit);
+        Ok(out)
+    };
+    for sigma_deg in [2.0, 4.0, 6.0, 9.0] {
+        let sigma = f64::to_radians(sigma_deg);
+        let mut line = String::new();
+        for eta in [1.0, 10.0] {
+            for fit in deblur(&samples, sigma, eta, 3)?.iter().skip(1) {
+                line += &format!(
+                    " {:.3}",
+                    truth.errors_of_candidate(fit.as_ref()).environment
+                );
+            }
+            line += " |";
+        }
+        println!(
+            "  {:24} env error, 3 iterations at eta 1 | 10:{line}",
+            format!("deblurred sigma {sigma_deg}")
+        );
+    }
+    // Can held-out images tell? Every 4th image held out; the rows of the others fitted and
+    // deblurred (one iteration, eta 1); the log error on the held-out pixels beside the
+    // environment error of the fit to every image.
+    {
+        let train: Vec<Observation> = reliable
+            .pixels
+            .iter()
+            .filter(|o| o.image % 4 != 0)
+            .copied()
+            .collect();
+        let held: Vec<Observation> = reliable
+            .pixels
+            .iter()
+            .filter(|o| o.image % 4 == 0)
+            .copied()
+            .collect();
+        let train_samples = dense_samples(&prior, &train, None);
+        let mut line = String::new();
+        for sigma_deg in [0.0, 2.0, 4.0, 6.0, 9.0] {
+            let sigma = f64::to_radians(sigma_deg);
+            let fits = deblur(&train_samples, sigma, 1.0, 1)?;
+            let fit = fits.last().ok_or_else(|| anyhow::anyhow!("no fit"))?;
+            let held_err =
+                brdf_rig::reconstruct::ladder::log_error(fit.as_ref(), &held).unwrap_or(f64::NAN);
+            let all = deblur(&samples, sigma, 1.0, 1)?;
+            let env = all.last().map_or(f64::NAN, |f| {
+                truth.errors_of_candidate(f.as_ref()).environment
+            });
+            line += &format!(" {sigma_deg}: {held_err:.4} / {env:.3};");
+        }
+        println!("  held-out log / env by sigma:{line}");
     }
     for (label, s) in [
         ("pixels", &samples),

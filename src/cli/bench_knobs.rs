@@ -42,6 +42,10 @@ pub struct FitKnobs {
     /// `reconstruct --carry` (`off`, the default, or `difference`).
     #[arg(long, value_parser = super::reconstruct::parse_carry)]
     pub carry: Option<Carry>,
+    /// Study knob: deblur the written basis fit for normals off by this RMS tilt in degrees,
+    /// as `reconstruct --deblur` (default 0, off).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(20.0)))]
+    pub deblur: Option<f64>,
     /// Study knob: run the theta_d extrapolation check at these quantiles of the reliable
     /// pixels' theta_d (`reconstruct::extrapolation`; reported in `plausibility.extrapolation`).
     #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Open(1.0)))]
@@ -63,6 +67,7 @@ impl FitKnobs {
             hedge: self.hedge,
             peak_average: self.peak_average,
             carry: self.carry,
+            deblur_deg: self.deblur,
             extrapolation: self.extrapolation.clone(),
             analytic_margin: self.analytic_margin,
         }
@@ -93,6 +98,9 @@ impl FitKnobs {
         if let Some(c) = self.carry {
             s += &format!(" --carry {}", c.name());
         }
+        if let Some(d) = self.deblur {
+            s += &format!(" --deblur {d}");
+        }
         if let Some(q) = &self.extrapolation {
             let q: Vec<String> = q.iter().map(|x| x.to_string()).collect();
             s += &format!(" --extrapolation {}", q.join(","));
@@ -121,6 +129,7 @@ mod tests {
             hedge: Some(0.25),
             peak_average: Some(0.75),
             carry: Some(Carry::Difference),
+            deblur: Some(3.0),
             extrapolation: Some(vec![0.7, 0.8]),
             analytic_margin: Some(0.25),
         };
@@ -132,11 +141,12 @@ mod tests {
         assert_eq!(o.hedge, Some(0.25));
         assert_eq!(o.peak_average, Some(0.75));
         assert_eq!(o.carry, Some(Carry::Difference));
+        assert_eq!(o.deblur_deg, Some(3.0));
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
         assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --extrapolation 0.7,0.8 --analytic-margin 0.25"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25"
         );
     }
 }

@@ -130,6 +130,11 @@ pub struct Args {
     /// section 1s.
     #[arg(long, value_parser = parse_carry, default_value = "off")]
     pub carry: Carry,
+    /// Study knob: deblur the written basis fit for normals off by this RMS tilt (degrees; one
+    /// Van Cittert step, `reconstruct::deblur`); 0, the default, leaves it as fitted. The
+    /// model ladder decides on the pixels as they are either way. docs/evaluation.md 1v.
+    #[arg(long, default_value_t = 0.0, value_parser = real_in(Closed(0.0), Closed(20.0)))]
+    pub deblur: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
     /// object's materials are found first, whatever `--materials` says, and each gets its own
@@ -293,6 +298,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.hedge.strength = args.hedge;
     settings.core.peak_average = args.peak_average;
     settings.core.carry = args.carry;
+    settings.core.deblur_deg = args.deblur;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;

@@ -10,6 +10,7 @@ use super::confidence::{
     AtProbe, Confidence, ConfidenceSettings, HeldOut, assess, render_disagreement,
     unseen_render_share,
 };
+use super::deblur::DeblurredPrior;
 use super::extrapolation::{
     ExtrapolationInput, ExtrapolationSettings, check as check_extrapolation,
 };
@@ -104,6 +105,11 @@ pub struct CoreSettings {
     /// pixels as they are. Off by default: measured, not adopted (docs/evaluation.md 1s).
     #[serde(default)]
     pub carry: Carry,
+    /// The RMS normal tilt (degrees) the written basis fit is deblurred for
+    /// (`reconstruct::deblur`; 0, the default, off); the ladder always decides on the pixels
+    /// as they are. Study knob: docs/evaluation.md section 1v.
+    #[serde(default)]
+    pub deblur_deg: f64,
     /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written
     /// before it existed.
     #[serde(default = "ExtrapolationSettings::off")]
@@ -128,6 +134,7 @@ impl Default for CoreSettings {
             keep_alternatives: false,
             keep_trial_fits: false,
             carry: Carry::Off,
+            deblur_deg: 0.0,
             extrapolation: ExtrapolationSettings::off(),
         }
     }
@@ -251,9 +258,18 @@ pub fn reconstruct_observations(
         });
     // The ladder decides on the pixels as they are; the written fit (the trials) sees them
     // carried when asked.
-    let trial_prior: &dyn Prior = match &carrier {
+    let carried_prior: &dyn Prior = match &carrier {
         Some(c) => c,
         None => prior,
+    };
+    // ... and deblurred for the normals' error when asked (`reconstruct::deblur`).
+    let deblurred = (settings.deblur_deg > 0.0).then(|| DeblurredPrior {
+        inner: carried_prior,
+        sigma: settings.deblur_deg.to_radians(),
+    });
+    let trial_prior: &dyn Prior = match &deblurred {
+        Some(d) => d,
+        None => carried_prior,
     };
     // The hybrid's peak is part of the basis method: it sees the reliable pixels.
     let peak_pixels = subset(
@@ -449,14 +465,14 @@ pub fn reconstruct_observations(
             let tables: Vec<Box<dyn Candidate>> = fits
                 .iter()
                 .flatten()
-                .filter_map(|f| f.tabulate(prior))
+                .filter_map(|f| f.tabulate(trial_prior))
                 .collect();
             let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
             Box::new(TableCandidate(mean_table(&tables)))
         }
         _ => fits[chosen]
             .as_ref()
-            .and_then(|f| f.tabulate(prior))
+            .and_then(|f| f.tabulate(trial_prior))
             .ok_or(CoreError::AllTrialsFailed)?,
     };
     // The confidence's trial agreement: every trial but the one reported (all with the mean).
@@ -628,7 +644,7 @@ pub fn reconstruct_observations(
     if settings.keep_trial_fits {
         for (i, (trial, fit)) in trials.iter_mut().zip(&fits).enumerate() {
             if settings.choose == TrialChoice::Mean || i != chosen {
-                trial.candidate = fit.as_ref().and_then(|f| f.tabulate(prior));
+                trial.candidate = fit.as_ref().and_then(|f| f.tabulate(trial_prior));
             }
         }
     }

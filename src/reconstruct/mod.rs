@@ -29,6 +29,7 @@ pub mod compare;
 pub mod components;
 pub mod confidence;
 pub mod core;
+pub mod deblur;
 pub mod extrapolation;
 pub mod hedge;
 pub mod job;

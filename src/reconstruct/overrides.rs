@@ -19,6 +19,8 @@ pub struct CoreOverrides {
     pub hedge: Option<f64>,
     pub peak_average: Option<f64>,
     pub carry: Option<Carry>,
+    /// The RMS normal tilt (degrees) the written basis fit is deblurred for.
+    pub deblur_deg: Option<f64>,
     /// Quantiles of theta_d for the extrapolation check (empty: off).
     pub extrapolation: Option<Vec<f64>>,
     /// The margin a basis must beat Lambert + GGX's held-out error by.
@@ -49,6 +51,9 @@ impl CoreOverrides {
         if let Some(c) = self.carry {
             core.carry = c;
         }
+        if let Some(d) = self.deblur_deg {
+            core.deblur_deg = d;
+        }
         if let Some(q) = &self.extrapolation {
             core.extrapolation.quantiles = q.clone();
         }
@@ -75,6 +80,7 @@ mod tests {
             hedge: Some(0.0),
             peak_average: Some(0.25),
             carry: Some(Carry::Difference),
+            deblur_deg: Some(3.0),
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
         }
@@ -86,6 +92,7 @@ mod tests {
         assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.peak_average, 0.25);
         assert_eq!(core.carry, Carry::Difference);
+        assert_eq!(core.deblur_deg, 3.0);
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
