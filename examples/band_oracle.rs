@@ -24,7 +24,7 @@
 //!   (errors in the variables); the normals' error estimated from the rows' spread against
 //!   that sensitivity; the fit deblurred for a normal tilt of RMS 2-9 degrees
 //!   (`reconstruct::deblur`'s step, up to three times), and whether held-out images (every 4th)
-//!   can tell the tilt.
+//!   can tell the tilt; and (section 1w) the reliable pixels' theta_d percentiles.
 
 use brdf_rig::brdf::basis::{BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
@@ -241,6 +241,19 @@ fn main() -> anyhow::Result<()> {
         band_pixels,
         lam.map_or(f64::NAN, |e| e.environment),
         ggx.map_or(f64::NAN, |e| e.environment),
+    );
+    let mut theta_d: Vec<f64> = reliable
+        .pixels
+        .iter()
+        .map(|o| o.angles.theta_d.to_degrees())
+        .collect();
+    theta_d.sort_by(f64::total_cmp);
+    let td = |q: f64| brdf_rig::stats::percentile_sorted(&theta_d, q);
+    println!(
+        "  reliable pixels' theta_d: p50 {:.1}, p90 {:.1}, p99 {:.1} deg",
+        td(0.5),
+        td(0.9),
+        td(0.99)
     );
     // The carried fit read back at every bin through the same model: the row's value times
     // m(bin) / m(row centre) (the block no longer flat).

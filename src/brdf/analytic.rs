@@ -262,7 +262,7 @@ impl LambertGgx {
         samples: &[ReflectanceSample],
         weight: impl Fn(&ReflectanceSample) -> f64,
     ) -> Result<Self, FitError> {
-        Self::fit_impl(samples, weight, true)
+        Self::fit_impl(samples, weight, true, [0.0, 1.0])
     }
 
     /// A specular lobe alone (`kd` = 0), fitted the same way: what a residual peak on top of
@@ -272,13 +272,27 @@ impl LambertGgx {
         samples: &[ReflectanceSample],
         weight: impl Fn(&ReflectanceSample) -> f64,
     ) -> Result<Self, FitError> {
-        Self::fit_impl(samples, weight, false)
+        Self::fit_impl(samples, weight, false, [0.0, 1.0])
+    }
+
+    /// [`LambertGgx::fit_lobe_weighted`] with Schlick's `F0` kept within `[lo, hi]` (each
+    /// clamped to [0, 1]): for samples whose theta_d is too narrow to tell `F0` from `ks` (the
+    /// Fresnel factor is then one constant, and a free `F0` sets the grazing rise at random).
+    pub fn fit_lobe_weighted_f0(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+        lo: f64,
+        hi: f64,
+    ) -> Result<Self, FitError> {
+        let lo = lo.clamp(0.0, 1.0);
+        Self::fit_impl(samples, weight, false, [lo, hi.clamp(lo, 1.0)])
     }
 
     fn fit_impl(
         samples: &[ReflectanceSample],
         weight: impl Fn(&ReflectanceSample) -> f64,
         diffuse: bool,
+        f0_range: [f64; 2],
     ) -> Result<Self, FitError> {
         let s = usable(samples)?;
         let w2: Vec<f64> = s.iter().map(|x| weight(x).powi(2)).collect();
@@ -290,7 +304,10 @@ impl LambertGgx {
         let geometry: Vec<LobeGeometry> =
             s.iter().map(|x| LobeGeometry::new(&x.wi, &x.wo)).collect();
         let clamp = |p: [f64; 2]| -> (f64, f64) {
-            (p[0].exp().clamp(ALPHA_MIN, ALPHA_MAX), p[1].clamp(0.0, 1.0))
+            (
+                p[0].exp().clamp(ALPHA_MIN, ALPHA_MAX),
+                p[1].clamp(f0_range[0], f0_range[1]),
+            )
         };
         let solve = |p: [f64; 2]| -> ([f64; 3], [f64; 3], f64) {
             let (alpha, f0) = clamp(p);

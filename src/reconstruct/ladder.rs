@@ -10,7 +10,11 @@
 //!   first k components of the Nielsen basis;
 //! - **hybrid** (3k + 5): the chosen basis rung plus a GGX lobe fitted to what the basis leaves
 //!   of the pixels: the basis carries the broad part, the lobe the peak, and the lobe's width
-//!   is what the pixels show (the true peak blurred by the normals' error).
+//!   is what the pixels show (the true peak blurred by the normals' error). Its Schlick `F0`
+//!   stays at or above [`MIN_HELD_F0`] when fewer than [`FRESNEL_MIN_SHARE`] of the pixels
+//!   reach [`FRESNEL_THETA_D_DEG`] (one light beside the camera: every pixel near one theta_d,
+//!   where `F0` and the lobe's height are one number, and a free `F0` set the grazing rise at
+//!   random, up to ten thousand times the peak the images show; docs/evaluation.md 1w).
 //!
 //! Held-out data: the reliable pixels are split into folds by **whole images** when there are at
 //! least `min_images_for_image_folds` images (each image's pixels are held out together: a held
@@ -479,7 +483,29 @@ pub fn subset(obs: &[Observation], max: usize, seed: u64) -> Vec<Observation> {
     v
 }
 
-/// A GGX peak fitted to what `base` leaves of the pixels.
+/// A peak's pixels that all lie below this theta_d (degrees; but for [`FRESNEL_MIN_SHARE`] of
+/// them) cannot tell its `F0` from its height: Schlick's factor `(1 - cos theta_d)^5` is below
+/// 4e-4 there, so the Fresnel factor is one constant. (It reaches a typical `F0` of 0.02 only
+/// at 57 degrees; a rule at 55 degrees, measured in docs/evaluation.md section 1w, also moved
+/// materials of spread rigs whose pixels stop short of that, some either way.)
+pub const FRESNEL_THETA_D_DEG: f64 = 35.0;
+
+/// The share of pixels at or beyond [`FRESNEL_THETA_D_DEG`] a peak's `F0` needs to be fitted.
+pub const FRESNEL_MIN_SHARE: f64 = 0.01;
+
+/// The least `F0` a peak may take when its pixels cannot tell it (a dielectric's, index 1.5):
+/// its rise towards grazing theta_d is then at most 1 / 0.04 = 25 times what the images show.
+pub const MIN_HELD_F0: f64 = 0.04;
+
+/// Whether the pixels reach far enough in theta_d to tell a lobe's `F0` from its height.
+pub fn fresnel_identifiable(obs: &[Observation]) -> bool {
+    let limit = FRESNEL_THETA_D_DEG.to_radians();
+    let far = obs.iter().filter(|o| o.angles.theta_d >= limit).count();
+    far as f64 >= FRESNEL_MIN_SHARE * obs.len() as f64 && far > 0
+}
+
+/// A GGX peak fitted to what `base` leaves of the pixels; its `F0` kept at or above
+/// [`MIN_HELD_F0`] when the pixels cannot tell it ([`fresnel_identifiable`]).
 pub fn fit_peak(base: &dyn Candidate, obs: &[Observation]) -> Option<LambertGgx> {
     let samples: Vec<ReflectanceSample> = super::baselines::reflectance_samples(obs)
         .into_iter()
@@ -490,7 +516,11 @@ pub fn fit_peak(base: &dyn Candidate, obs: &[Observation]) -> Option<LambertGgx>
             s
         })
         .collect();
-    LambertGgx::fit_lobe_weighted(&samples, pixel_weight).ok()
+    if fresnel_identifiable(obs) {
+        LambertGgx::fit_lobe_weighted(&samples, pixel_weight).ok()
+    } else {
+        LambertGgx::fit_lobe_weighted_f0(&samples, pixel_weight, MIN_HELD_F0, 1.0).ok()
+    }
 }
 
 /// The split of the pixels into folds.
@@ -1861,5 +1891,92 @@ mod tests {
         assert_eq!(i, 0, "{reason}");
         assert!(reason.contains("within 2 %"), "{reason}");
         assert_eq!(choose(&[simple, clear], margin).unwrap().0, 1);
+    }
+
+    use nalgebra::Vector3;
+
+    /// Pixels of `truth` over a cap of normals, seen from `v` and lit from each of `lights`.
+    fn lobe_pixels(
+        truth: &LambertGgx,
+        v: Vector3<f64>,
+        lights: &[Vector3<f64>],
+    ) -> Vec<Observation> {
+        use crate::reconstruct::observation::Seen;
+        let mut out = Vec::new();
+        for (j, l) in lights.iter().enumerate() {
+            for i in 0..400 {
+                let t = i as f64 * 2.399;
+                let r = 0.4 * ((i as f64 + 0.5) / 400.0).sqrt();
+                let n = Vector3::new(r * t.cos(), r * t.sin(), 1.0).normalize();
+                let Some(mut o) =
+                    Observation::new(Seen::pixel(j, i as u32, 0, n), *l, v, [1.0; 3], [1.0; 3])
+                else {
+                    continue;
+                };
+                let (wi, wo) = super::super::observe::to_local(&n, l, &v);
+                o.reflectance = truth.eval_local(&wi, &wo);
+                o.radiance = o.reflectance.map(|x| x * o.cos_theta_i);
+                out.push(o);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_peak_seen_at_one_theta_d_holds_its_fresnel_and_one_seen_at_grazing_fits_it() {
+        let truth = LambertGgx {
+            kd: [0.0; 3],
+            ks: [0.5; 3],
+            alpha: 0.15,
+            f0: 0.5,
+        };
+        let zero = AnalyticCandidate(crate::brdf::analytic::Lambert { albedo: [0.0; 3] });
+        let dir = |deg: f64| {
+            let a = deg.to_radians();
+            Vector3::new(a.sin(), 0.0, a.cos())
+        };
+        // One light 30 degrees from the camera: every pixel near theta_d 15 degrees.
+        let one = lobe_pixels(&truth, Vector3::z(), &[dir(30.0)]);
+        assert!(!fresnel_identifiable(&one));
+        let held = fit_peak(&zero, &one).expect("a peak");
+        assert!(held.f0 >= MIN_HELD_F0, "F0 {}", held.f0);
+        // What the pixels show is still fitted: the lobe's height absorbs the Fresnel factor.
+        let worst = one
+            .iter()
+            .map(|o| {
+                let (wi, wo) = super::super::observe::to_local(&o.normal, &o.light, &o.view);
+                (held.eval_local(&wi, &wo)[0] - o.reflectance[0]).abs() / o.reflectance[0].max(1e-3)
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.05, "worst relative misfit {worst}");
+        // A faint peak (what a broad material leaves of its pixels) may rise towards grazing
+        // theta_d by at most 1 / MIN_HELD_F0: Schlick's factor at 90 degrees over its value.
+        let faint = LambertGgx {
+            ks: [0.02; 3],
+            ..truth
+        };
+        let faint_fit =
+            fit_peak(&zero, &lobe_pixels(&faint, Vector3::z(), &[dir(30.0)])).expect("a peak");
+        let schlick = |f0: f64, td: f64| f0 + (1.0 - f0) * (1.0 - td.to_radians().cos()).powi(5);
+        let rise = schlick(faint_fit.f0, 90.0) / schlick(faint_fit.f0, 15.0);
+        assert!(rise <= 1.0 / MIN_HELD_F0 + 1e-9, "grazing rise {rise}");
+        // Light and camera 120 degrees apart as well: theta_d near 60 degrees tells F0.
+        let mut spread = one.clone();
+        spread.extend(
+            lobe_pixels(&truth, dir(-60.0), &[dir(60.0)])
+                .into_iter()
+                .map(|mut o| {
+                    o.image += 1;
+                    o
+                }),
+        );
+        assert!(fresnel_identifiable(&spread));
+        let free = fit_peak(&zero, &spread).expect("a peak");
+        assert!((free.f0 - truth.f0).abs() < 0.1, "F0 {}", free.f0);
+        assert!(
+            (free.alpha - truth.alpha).abs() < 0.02,
+            "alpha {}",
+            free.alpha
+        );
     }
 }
