@@ -20,7 +20,7 @@
 //! rows (selection, fits and tabulation are the inner prior's).
 
 use super::observe::{Observation, to_local};
-use super::prior::{Candidate, Prior, Sample};
+use super::prior::{Candidate, Prior, Sample, delegate_prior};
 use crate::brdf::Brdf;
 use crate::brdf::analytic::LambertGgx;
 use crate::brdf::coords::{HalfDiff, MerlBin};
@@ -101,24 +101,7 @@ pub fn carried(
 }
 
 impl Prior for CarriedPrior<'_> {
-    fn max_components(&self) -> usize {
-        self.inner.max_components()
-    }
-
-    fn row_of(&self, bin: usize) -> Option<usize> {
-        self.inner.row_of(bin)
-    }
-
-    fn select(
-        &self,
-        chosen: &[usize],
-        candidates: &[usize],
-        n: usize,
-        k: usize,
-        seed: u64,
-    ) -> Vec<usize> {
-        self.inner.select(chosen, candidates, n, k, seed)
-    }
+    delegate_prior!();
 
     fn fit(
         &self,
@@ -127,14 +110,6 @@ impl Prior for CarriedPrior<'_> {
         eta: f64,
     ) -> Result<Box<dyn Candidate>, RidgeError> {
         self.inner.fit(samples, k, eta)
-    }
-
-    fn values_of_fits(&self, fits: &[&dyn Candidate], bins: &[usize]) -> Vec<Vec<[f64; 3]>> {
-        self.inner.values_of_fits(fits, bins)
-    }
-
-    fn typical(&self) -> Option<Box<dyn Candidate + '_>> {
-        self.inner.typical()
     }
 
     fn fit_lazy_each<'b>(
@@ -152,10 +127,6 @@ impl Prior for CarriedPrior<'_> {
         eta: f64,
     ) -> Result<Box<dyn Candidate + 'b>, RidgeError> {
         self.inner.fit_lazy(samples, k, eta)
-    }
-
-    fn row_centre(&self, row: usize) -> Option<usize> {
-        self.inner.row_centre(row)
     }
 
     fn row_value(&self, o: &Observation) -> [f64; 3] {

@@ -14,7 +14,7 @@
 //!
 //! Pure: wraps a prior; no I/O. Must not change anything but the samples of the prior's fits.
 
-use super::prior::{Candidate, Prior, Sample};
+use super::prior::{Candidate, Prior, Sample, delegate_prior};
 use crate::brdf::coords::{MerlBin, merl_index};
 use crate::brdf::ridge::RidgeError;
 use crate::render::frame::ShadingFrame;
@@ -93,24 +93,7 @@ pub struct DeblurredPrior<'a> {
 }
 
 impl Prior for DeblurredPrior<'_> {
-    fn max_components(&self) -> usize {
-        self.inner.max_components()
-    }
-
-    fn row_of(&self, bin: usize) -> Option<usize> {
-        self.inner.row_of(bin)
-    }
-
-    fn select(
-        &self,
-        chosen: &[usize],
-        candidates: &[usize],
-        n: usize,
-        k: usize,
-        seed: u64,
-    ) -> Vec<usize> {
-        self.inner.select(chosen, candidates, n, k, seed)
-    }
+    delegate_prior!();
 
     fn fit(
         &self,
@@ -133,18 +116,6 @@ impl Prior for DeblurredPrior<'_> {
         let again = corrected(first.as_ref(), samples, self.sigma);
         drop(first);
         self.inner.fit_lazy(&again, k, eta)
-    }
-
-    fn values_of_fits(&self, fits: &[&dyn Candidate], bins: &[usize]) -> Vec<Vec<[f64; 3]>> {
-        self.inner.values_of_fits(fits, bins)
-    }
-
-    fn typical(&self) -> Option<Box<dyn Candidate + '_>> {
-        self.inner.typical()
-    }
-
-    fn row_centre(&self, row: usize) -> Option<usize> {
-        self.inner.row_centre(row)
     }
 
     fn row_value(&self, o: &super::observe::Observation) -> [f64; 3] {

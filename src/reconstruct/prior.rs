@@ -157,6 +157,50 @@ pub trait Prior: Send + Sync {
 /// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least
 /// squares, selection in a seeded random order. The truths in tests are built from it, so the
 /// logic above it is checked against values it cannot see.
+/// The [`Prior`] methods a wrapper around `self.inner: &dyn Prior` passes on unchanged: its
+/// components, rows, selection, several fits' values, typical material and row centres (a
+/// wrapper changes what its fits are given, never the basis they live on). Used inside an
+/// `impl Prior for` block; the wrapper writes `fit` and whatever else it changes.
+macro_rules! delegate_prior {
+    () => {
+        fn max_components(&self) -> usize {
+            self.inner.max_components()
+        }
+
+        fn row_of(&self, bin: usize) -> Option<usize> {
+            self.inner.row_of(bin)
+        }
+
+        fn select(
+            &self,
+            chosen: &[usize],
+            candidates: &[usize],
+            n: usize,
+            k: usize,
+            seed: u64,
+        ) -> Vec<usize> {
+            self.inner.select(chosen, candidates, n, k, seed)
+        }
+
+        fn values_of_fits(
+            &self,
+            fits: &[&dyn $crate::reconstruct::prior::Candidate],
+            bins: &[usize],
+        ) -> Vec<Vec<[f64; 3]>> {
+            self.inner.values_of_fits(fits, bins)
+        }
+
+        fn typical(&self) -> Option<Box<dyn $crate::reconstruct::prior::Candidate + '_>> {
+            self.inner.typical()
+        }
+
+        fn row_centre(&self, row: usize) -> Option<usize> {
+            self.inner.row_centre(row)
+        }
+    };
+}
+pub(crate) use delegate_prior;
+
 #[cfg(test)]
 pub mod synthetic {
     use super::*;
