@@ -309,6 +309,19 @@ fn main() -> anyhow::Result<()> {
             "carried, read uncarried"
         );
     }
+    // The raw basis fit's environment error at eta 1, 10 and 40 (scaled by rows / 80).
+    let env_line = |samples: &[Sample]| -> anyhow::Result<String> {
+        let scale = (samples.len() as f64 / 80.0).max(1.0);
+        let mut line = String::new();
+        for eta in [1.0, 10.0, 40.0] {
+            let fit = prior.fit(samples, 64, eta * scale)?;
+            line += &format!(
+                " {:.3}",
+                truth.errors_of_candidate(fit.as_ref()).environment
+            );
+        }
+        Ok(line)
+    };
     // Rows weighted by how well their pixels agree (inverse variance of the row median in log
     // space, with a floor `s0` for what the basis cannot fit), as integer duplicates of each
     // row's sample (the ridge's normal equations sum its samples).
@@ -356,15 +369,7 @@ fn main() -> anyhow::Result<()> {
     };
     for s0 in [0.03, 0.1, 0.3] {
         let w = weighted(s0);
-        let scale = (w.len() as f64 / 80.0).max(1.0);
-        let mut line = String::new();
-        for eta in [1.0, 10.0, 40.0] {
-            let fit = prior.fit(&w, 64, eta * scale)?;
-            line += &format!(
-                " {:.3}",
-                truth.errors_of_candidate(fit.as_ref()).environment
-            );
-        }
+        let line = env_line(&w)?;
         println!(
             "  {:24} env error at eta 1 / 10 / 40:{line}",
             format!("rows weighted, s0 {s0}")
@@ -489,15 +494,7 @@ fn main() -> anyhow::Result<()> {
                 std::iter::repeat_n(*s, d)
             })
             .collect();
-        let scale = (w.len() as f64 / 80.0).max(1.0);
-        let mut line = String::new();
-        for eta in [1.0, 10.0, 40.0] {
-            let fit = prior.fit(&w, 64, eta * scale)?;
-            line += &format!(
-                " {:.3}",
-                truth.errors_of_candidate(fit.as_ref()).environment
-            );
-        }
+        let line = env_line(&w)?;
         println!(
             "  {:24} env error at eta 1 / 10 / 40:{line}",
             format!("sens s0 {s0} sigma {sigma_deg}")
@@ -579,15 +576,7 @@ fn main() -> anyhow::Result<()> {
         ("seen rows true", &truth_all),
         ("seen rows + band true", &band_full),
     ] {
-        let scale = (s.len() as f64 / 80.0).max(1.0);
-        let mut line = String::new();
-        for eta in [1.0, 10.0, 40.0] {
-            let fit = prior.fit(s, 64, eta * scale)?;
-            line += &format!(
-                " {:.3}",
-                truth.errors_of_candidate(fit.as_ref()).environment
-            );
-        }
+        let line = env_line(s)?;
         println!("  {label:24} env error at eta 1 / 10 / 40:{line}");
     }
     Ok(())
