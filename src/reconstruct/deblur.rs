@@ -14,10 +14,10 @@
 //!
 //! Pure: wraps a prior; no I/O. Must not change anything but the samples of the prior's fits.
 
+use super::observe::to_local;
 use super::prior::{Candidate, Prior, Sample, delegate_prior};
 use crate::brdf::coords::{MerlBin, merl_index};
 use crate::brdf::ridge::RidgeError;
-use crate::render::frame::ShadingFrame;
 use nalgebra::Vector3;
 
 /// The largest factor a sample is corrected by (either way).
@@ -45,8 +45,7 @@ pub fn blurred(c: &dyn Candidate, bin: usize, sigma: f64) -> Option<[f64; 3]> {
     for (x, wx) in NODES {
         for (y, wy) in NODES {
             let n = Vector3::new((x * s).tan(), (y * s).tan(), 1.0).normalize();
-            let frame = ShadingFrame::new(n);
-            let (ti, to) = (frame.to_local(&wi), frame.to_local(&wo));
+            let (ti, to) = to_local(&n, &wi, &wo);
             if ti.z <= 1e-3 || to.z <= 1e-3 {
                 continue;
             }
