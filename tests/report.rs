@@ -260,6 +260,7 @@ fn example_report(job: PathBuf) -> Report {
                 analytic_weight: 0.125,
             }),
             peak_average: None,
+            grazing_transfer: None,
             extrapolation: Vec::new(),
         },
         comparisons: Vec::new(),

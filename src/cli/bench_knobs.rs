@@ -1,7 +1,7 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
-//! ridge weights, the hedge's strength, the peak average's weight and the carry of pixels to
-//! their row's centre. Their parsing, the
+//! ridge weights, the hedge's strength, the peak average's weight, the carry of pixels to
+//! their row's centre and the grazing peak's transfer. Their parsing, the
 //! library's overrides they make (`reconstruct::overrides`), and the words that type them
 //! again for a page's "command" line.
 //! No I/O.
@@ -54,6 +54,10 @@ pub struct FitKnobs {
     /// fraction, or Lambert + GGX is chosen (`LadderSettings::analytic_margin`; default 0, off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Open(1.0)))]
     pub analytic_margin: Option<f64>,
+    /// Study knob: the carried value's weight in the grazing peak cells, as `reconstruct
+    /// --grazing-transfer` (default 0, off).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
+    pub grazing_transfer: Option<f64>,
 }
 
 impl FitKnobs {
@@ -70,6 +74,7 @@ impl FitKnobs {
             deblur_deg: self.deblur,
             extrapolation: self.extrapolation.clone(),
             analytic_margin: self.analytic_margin,
+            grazing_transfer: self.grazing_transfer,
         }
     }
 
@@ -108,6 +113,9 @@ impl FitKnobs {
         if let Some(m) = self.analytic_margin {
             s += &format!(" --analytic-margin {m}");
         }
+        if let Some(w) = self.grazing_transfer {
+            s += &format!(" --grazing-transfer {w}");
+        }
         s
     }
 }
@@ -132,6 +140,7 @@ mod tests {
             deblur: Some(3.0),
             extrapolation: Some(vec![0.7, 0.8]),
             analytic_margin: Some(0.25),
+            grazing_transfer: Some(0.75),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -144,9 +153,10 @@ mod tests {
         assert_eq!(o.deblur_deg, Some(3.0));
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
         assert_eq!(o.analytic_margin, Some(0.25));
+        assert_eq!(o.grazing_transfer, Some(0.75));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75"
         );
     }
 }

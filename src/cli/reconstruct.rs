@@ -135,6 +135,12 @@ pub struct Args {
     /// model ladder decides on the pixels as they are either way. docs/evaluation.md 1v.
     #[arg(long, default_value_t = 0.0, value_parser = real_in(Closed(0.0), Closed(20.0)))]
     pub deblur: f64,
+    /// Study knob: where the written model is the basis's, average its grazing peak cells
+    /// (theta_h below 10 degrees, theta_d 55 and above) geometrically with its value at theta_d
+    /// 54 carried up by Lambert + GGX's shape, with this weight on the carried value (0 to 1;
+    /// 0, the default: off). Measured, not adopted: docs/evaluation.md section 1x.
+    #[arg(long, default_value_t = 0.0, value_parser = real_in(Closed(0.0), Closed(1.0)))]
+    pub grazing_transfer: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
     /// object's materials are found first, whatever `--materials` says, and each gets its own
@@ -299,6 +305,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.peak_average = args.peak_average;
     settings.core.carry = args.carry;
     settings.core.deblur_deg = args.deblur;
+    settings.core.grazing_transfer = args.grazing_transfer;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;
@@ -422,6 +429,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
              in the written table {:.2}",
             100.0 * h.unseen_share,
             h.analytic_weight
+        );
+    }
+    if let Some(w) = p.grazing_transfer {
+        errln!(
+            "grazing peak: carried above theta_d 54 deg by Lambert + GGX's shape, weight {w:.2} \
+             (--grazing-transfer)"
         );
     }
     let confidence = &output.report.confidence;

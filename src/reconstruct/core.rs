@@ -14,6 +14,7 @@ use super::deblur::DeblurredPrior;
 use super::extrapolation::{
     ExtrapolationInput, ExtrapolationSettings, check as check_extrapolation,
 };
+use super::grazing::GrazingTransfer;
 use super::hedge::{Hedge, HedgeSettings, blend_into};
 use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, NO_PEAK, WithPeak, climb,
@@ -110,6 +111,12 @@ pub struct CoreSettings {
     /// as they are. Study knob: docs/evaluation.md section 1v.
     #[serde(default)]
     pub deblur_deg: f64,
+    /// Where the written model is the basis's (or the basis + peak's), its grazing peak cells
+    /// averaged geometrically with its value at theta_d 54 degrees carried up by Lambert +
+    /// GGX's shape, with this weight on the carried value (`reconstruct::grazing`; 0, the
+    /// default: off). Study knob, measured and not adopted: docs/evaluation.md section 1x.
+    #[serde(default)]
+    pub grazing_transfer: f64,
     /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written
     /// before it existed.
     #[serde(default = "ExtrapolationSettings::off")]
@@ -135,6 +142,7 @@ impl Default for CoreSettings {
             keep_trial_fits: false,
             carry: Carry::Off,
             deblur_deg: 0.0,
+            grazing_transfer: 0.0,
             extrapolation: ExtrapolationSettings::off(),
         }
     }
@@ -561,6 +569,16 @@ pub fn reconstruct_observations(
     .flatten();
     let typical = prior.typical();
     let plausible_of = |c: &dyn Candidate| {
+        // The grazing peak carried by Lambert + GGX's theta_d shape (reconstruct::grazing).
+        let carried = prior_model
+            .as_ref()
+            .filter(|_| settings.grazing_transfer > 0.0)
+            .map(|p| GrazingTransfer {
+                model: c,
+                shape: p,
+                weight: settings.grazing_transfer,
+            });
+        let c = carried.as_ref().map_or(c, |g| g as &dyn Candidate);
         make_plausible_shaped(
             c,
             prior_model.as_ref().map(|p| {
@@ -575,6 +593,9 @@ pub fn reconstruct_observations(
         )
     };
     let (mut table, mut plausibility) = plausible_of(brdf.as_ref());
+    if prior_model.is_some() && settings.grazing_transfer > 0.0 {
+        plausibility.grazing_transfer = Some(settings.grazing_transfer.min(1.0));
+    }
     if let Some(peak) = averaged_peak {
         let with_peak = WithPeak {
             base: Box::new(Borrowed(brdf.as_ref())),
@@ -918,6 +939,51 @@ mod tests {
         let out = reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
             .expect("reconstructs");
         (out, obs)
+    }
+
+    /// The grazing transfer (`reconstruct::grazing`) changes the written table in the grazing
+    /// peak cells only, by the carried value's weight, and the report says it was done. The
+    /// scene is dark enough that no bin is scaled for the albedo and the hedge is off (its
+    /// weight reads the whole render), so every other bin is the same number.
+    #[test]
+    fn the_grazing_transfer_moves_only_the_grazing_peak_cells_and_is_reported() {
+        use super::super::grazing::carried;
+        use crate::brdf::coords::MerlBin;
+        let obs = cap_pixels(|b| 0.04 + 0.01 * ((b % 5) as f64), 400, [1.0, 0.8, 0.6]);
+        let run = |w: f64| {
+            let mut settings = CoreSettings {
+                fixed_k: Some(3),
+                grazing_transfer: w,
+                // The hedge's weight follows the whole render, which the transfer changes.
+                hedge: HedgeSettings::off(),
+                ..CoreSettings::default()
+            };
+            settings.trials.trials = 3;
+            settings.trials.samples = 6;
+            reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+                .expect("reconstructs")
+        };
+        let (off, on) = (run(0.0), run(0.5));
+        assert_eq!(off.model.family, Family::Basis);
+        assert_eq!(off.plausibility.grazing_transfer, None);
+        assert_eq!(on.plausibility.grazing_transfer, Some(0.5));
+        assert_eq!(
+            (off.plausibility.scaled_bins, on.plausibility.scaled_bins),
+            (0, 0)
+        );
+        let (mut moved, mut kept) = (0, 0);
+        for index in (0..crate::brdf::coords::MERL_BINS).step_by(7) {
+            let Some(b) = MerlBin::from_index(index).filter(MerlBin::is_above_horizon) else {
+                continue;
+            };
+            if carried(&b) {
+                moved += usize::from(on.table.get(index) != off.table.get(index));
+            } else {
+                assert_eq!(on.table.get(index), off.table.get(index), "{b:?}");
+                kept += 1;
+            }
+        }
+        assert!(moved > 100 && kept > 10_000, "{moved} moved, {kept} kept");
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
 //! hedge's strength, the peak average's weight and whether pixels are carried to their row's
-//! centre. Each
+//! centre, and the grazing peak's transfer. Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
@@ -25,6 +25,8 @@ pub struct CoreOverrides {
     pub extrapolation: Option<Vec<f64>>,
     /// The margin a basis must beat Lambert + GGX's held-out error by.
     pub analytic_margin: Option<f64>,
+    /// The carried value's weight in the grazing peak cells (`reconstruct::grazing`).
+    pub grazing_transfer: Option<f64>,
 }
 
 impl CoreOverrides {
@@ -60,6 +62,9 @@ impl CoreOverrides {
         if let Some(m) = self.analytic_margin {
             core.ladder.analytic_margin = m;
         }
+        if let Some(w) = self.grazing_transfer {
+            core.grazing_transfer = w;
+        }
     }
 }
 
@@ -83,6 +88,7 @@ mod tests {
             deblur_deg: Some(3.0),
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
+            grazing_transfer: Some(0.75),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -95,6 +101,7 @@ mod tests {
         assert_eq!(core.deblur_deg, 3.0);
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
+        assert_eq!(core.grazing_transfer, 0.75);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -125,6 +125,10 @@ pub struct Plausibility {
     /// where it was not done and in reports written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_average: Option<f64>,
+    /// The carried value's weight in the grazing peak cells (`reconstruct::grazing`; absent
+    /// where it was not done and in reports written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grazing_transfer: Option<f64>,
     /// How each family extrapolated from the pixels below a theta_d split to those above it
     /// (`reconstruct::extrapolation`; empty where it was not run, and in reports written
     /// before it existed).
@@ -356,6 +360,7 @@ pub fn make_plausible_shaped(
         prior: prior.map_or_else(|| "none".to_string(), |(_, name)| name.to_string()),
         hedge: None,
         peak_average: None,
+        grazing_transfer: None,
         extrapolation: Vec::new(),
     };
     (table, report)
