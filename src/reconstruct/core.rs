@@ -942,7 +942,7 @@ mod tests {
     }
 
     /// The grazing transfer (`reconstruct::grazing`) changes the written table in the grazing
-    /// peak cells only, by the carried value's weight, and the report says it was done. The
+    /// peak cells only, and the report gives its weight where it was applied. The
     /// scene is dark enough that no bin is scaled for the albedo and the hedge is off (its
     /// weight reads the whole render), so every other bin is the same number.
     #[test]
