@@ -154,9 +154,6 @@ pub trait Prior: Send + Sync {
     }
 }
 
-/// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least
-/// squares, selection in a seeded random order. The truths in tests are built from it, so the
-/// logic above it is checked against values it cannot see.
 /// The [`Prior`] methods a wrapper around `self.inner: &dyn Prior` passes on unchanged: its
 /// components, rows, selection, several fits' values, typical material and row centres (a
 /// wrapper changes what its fits are given, never the basis they live on). Used inside an
@@ -201,6 +198,9 @@ macro_rules! delegate_prior {
 }
 pub(crate) use delegate_prior;
 
+/// A small synthetic prior for tests: K smooth functions of the `theta_h` bin, fitted by least
+/// squares, selection in a seeded random order. The truths in tests are built from it, so the
+/// logic above it is checked against values it cannot see.
 #[cfg(test)]
 pub mod synthetic {
     use super::*;
