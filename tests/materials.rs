@@ -350,7 +350,37 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
     for m in &file.materials {
         let table = brdf_rig::brdf::merl::MerlTable::read(&out.join(&m.file)).unwrap();
         assert!(table.get(0).is_some(), "{} reads back", m.file);
+        // its own ladder, whose chosen rung is the model it reports, and its plausibility step
+        let ladder = m.ladder.as_ref().expect("each material keeps its ladder");
+        assert!(
+            ladder.rungs.len() >= 3,
+            "{}: {} rungs",
+            m.name,
+            ladder.rungs.len()
+        );
+        let chosen = &ladder.rungs[ladder.chosen];
+        assert!(
+            m.model.starts_with(&chosen.family.to_string()),
+            "{}: model {} but the ladder chose {}",
+            m.name,
+            m.model,
+            chosen.family
+        );
+        let p = m
+            .plausibility
+            .as_ref()
+            .expect("each material keeps its plausibility");
+        assert!(
+            p.max_albedo_after <= 1.0 + 1e-9,
+            "{}: albedo {}",
+            m.name,
+            p.max_albedo_after
+        );
     }
+    assert_ne!(
+        file.materials[0].ladder, file.materials[1].ladder,
+        "each material's ladder is its own"
+    );
     // the map's labels, per face by the majority of its corners, against the truth
     let found = map_face_labels(&out.join(&file.material_map), &mesh);
     let agreement = area_agreement(&mesh, &labels, &found, None);
@@ -370,6 +400,19 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         assert!(s.contains(&format!("id=\"material-{}\"", i + 1)), "{s}");
         let reason = brdf_rig::report::html::escape(&m.model_reason);
         assert!(s.contains(&m.name) && s.contains(&reason), "{}", m.name);
+        // its ladder as a table, one row per rung, the chosen one marked
+        let ladder = m.ladder.as_ref().unwrap();
+        let table = &s[s
+            .find("<table class=\"ladder\">")
+            .expect("its ladder table")..];
+        let table = &table[..table.find("</table>").unwrap()];
+        assert_eq!(
+            table.matches("<tr").count(),
+            ladder.rungs.len() + 1,
+            "{table}"
+        );
+        assert_eq!(table.matches("class=\"chosen\"").count(), 1, "{table}");
+        assert!(s.contains("Plausibility of its written table"), "{s}");
         assert!(
             s.contains(&format!(
                 "{} pixels on faces across a boundary",

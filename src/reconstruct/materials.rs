@@ -10,12 +10,16 @@
 //! ignores them, so the version stayed 1. Likewise `boundary_pixels` (per material) and
 //! `settings.fit_interior_only` (session 27): absent, they read as 0 and `false`, what a file
 //! written before them did (every labelled pixel in its material's fit); and
-//! `settings.merge_same_body` (session 34): absent, `false` (no merge by body colour).
+//! `settings.merge_same_body` (session 34): absent, `false` (no merge by body colour). And
+//! `ladder` and `plausibility` (per material, session 37: every rung's held-out score and what
+//! the plausibility step did, as `report.json` gives them for the whole result): absent, `None`.
 
 use super::confidence::Confidence;
 use super::core::{CoreError, CoreOutput, CoreSettings, ModelReport, reconstruct_observations};
+use super::ladder::Ladder;
 use super::mask_labels::FixedLabels;
 use super::observation::Observation;
+use super::plausible::Plausibility;
 use super::prior::Prior;
 use super::segment::{
     CountScore, SegmentSettings, Segmentation, interior_groups, segment_with_labels,
@@ -72,6 +76,10 @@ pub struct MaterialResult {
     /// Its result as written (`materials/NAME.binary`; its core's, shared).
     pub table: Arc<MerlTable>,
     pub model: ModelReport,
+    /// Its model ladder (every rung's held-out score); `None` when the ladder did not run.
+    pub ladder: Option<Ladder>,
+    /// What the plausibility step found and did to its table.
+    pub plausibility: Plausibility,
     pub confidence: Confidence,
 }
 
@@ -210,6 +218,8 @@ pub fn reconstruct_materials(
                 mask_vertices: segmentation.fixed_vertices[i],
                 table: Arc::clone(&core.table),
                 model: core.model.clone(),
+                ladder: core.ladder.clone(),
+                plausibility: core.plausibility.clone(),
                 confidence: core.confidence.clone(),
             });
             cores.push(core);
@@ -265,6 +275,14 @@ pub struct MaterialEntry {
     pub confidence: String,
     pub confidence_reasons: Vec<String>,
     pub held_out_error: Option<f64>,
+    /// Its model ladder, every rung's held-out score (`None` in a file written before it was
+    /// kept, or when the ladder did not run).
+    #[serde(default)]
+    pub ladder: Option<Ladder>,
+    /// What the plausibility step found and did to its table (`None` in a file written before
+    /// it was kept).
+    #[serde(default)]
+    pub plausibility: Option<Plausibility>,
 }
 
 /// `materials.json`: how many materials and why, and one entry per material.
@@ -319,6 +337,8 @@ impl MaterialsFile {
                     confidence: r.confidence.level.to_string(),
                     confidence_reasons: r.confidence.reasons.clone(),
                     held_out_error: r.confidence.held_out_error,
+                    ladder: r.ladder.clone(),
+                    plausibility: Some(r.plausibility.clone()),
                 })
                 .collect(),
         }
@@ -401,6 +421,8 @@ mod tests {
             confidence: "high".into(),
             confidence_reasons: Vec::new(),
             held_out_error: None,
+            ladder: None,
+            plausibility: None,
         };
         let file = MaterialsFile {
             format_version: MATERIALS_FORMAT_VERSION,
@@ -438,7 +460,17 @@ mod tests {
                 .remove("boundary_pixels")
                 .is_some()
         );
+        for key in ["ladder", "plausibility"] {
+            assert!(
+                old["materials"][0]
+                    .as_object_mut()
+                    .unwrap()
+                    .remove(key)
+                    .is_some()
+            );
+        }
         let back: MaterialsFile = serde_json::from_value(old).unwrap();
+        assert!(back.materials[0].ladder.is_none() && back.materials[0].plausibility.is_none());
         assert!(!back.settings.fit_interior_only);
         assert!(!back.settings.merge_same_body);
         assert_eq!(back.materials[0].boundary_pixels, 0);

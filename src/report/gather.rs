@@ -26,7 +26,8 @@ use crate::brdf::Brdf;
 use crate::brdf::merl::MerlTable;
 use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
-use crate::reconstruct::ladder::{Family, FoldScheme};
+use crate::reconstruct::ladder::{Family, FoldScheme, Ladder};
+use crate::reconstruct::plausible::Plausibility;
 use crate::reconstruct::report_file::{self, BRDF_FILE, REPORT_FILE, Report};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -361,50 +362,57 @@ fn model_label(family: Family, k: Option<usize>, eta: Option<f64>) -> String {
 /// `model`, `ladder` and `plausibility` of report.json.
 fn ladder_section(r: &Report) -> LadderSection {
     let ladder = r.ladder.as_ref();
-    let rows = ladder
-        .map(|l| {
-            l.rungs
-                .iter()
-                .enumerate()
-                .map(|(i, g)| LadderRow {
-                    label: model_label(g.family, g.k, g.eta),
-                    parameters: Some(g.parameters as f64),
-                    error: g.error,
-                    standard_error: g.standard_error,
-                    chosen: i == l.chosen,
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    let scheme = ladder
-        .map(|l| match l.scheme {
-            FoldScheme::Images { folds } => format!("whole images held out, {folds} folds"),
-            FoldScheme::Blocks { folds, block_px } => {
-                format!("spatial blocks of {block_px} px held out, {folds} folds")
-            }
-        })
-        .unwrap_or_else(|| "the ladder did not run".to_string());
     LadderSection {
         model: model_label(r.model.family, r.model.k, r.model.eta),
         reason: r.model.reason.clone(),
-        scheme,
-        rows,
-        plausibility: fields_as_text(&r.plausibility)
-            .into_iter()
-            .map(|(k, v)| match (k.as_str(), &r.plausibility.hedge) {
-                ("hedge", Some(h)) => (
-                    "hedge (averaged with Lambert + GGX)".to_string(),
-                    format!(
-                        "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + \
-                         GGX's weight in the written table {:.2} (docs/reconstruction.md, stage 6)",
-                        100.0 * h.unseen_share,
-                        h.analytic_weight
-                    ),
-                ),
-                _ => (k.replace('_', " "), v),
-            })
-            .collect(),
+        scheme: ladder.map_or_else(|| "the ladder did not run".to_string(), ladder_scheme),
+        rows: ladder.map(ladder_rows).unwrap_or_default(),
+        plausibility: plausibility_rows(&r.plausibility),
     }
+}
+
+/// A ladder's rungs as the page shows them (the whole result's, or one material's).
+pub fn ladder_rows(l: &Ladder) -> Vec<LadderRow> {
+    l.rungs
+        .iter()
+        .enumerate()
+        .map(|(i, g)| LadderRow {
+            label: model_label(g.family, g.k, g.eta),
+            parameters: Some(g.parameters as f64),
+            error: g.error,
+            standard_error: g.standard_error,
+            chosen: i == l.chosen,
+        })
+        .collect()
+}
+
+/// How a ladder held pixels out, in words.
+pub fn ladder_scheme(l: &Ladder) -> String {
+    match l.scheme {
+        FoldScheme::Images { folds } => format!("whole images held out, {folds} folds"),
+        FoldScheme::Blocks { folds, block_px } => {
+            format!("spatial blocks of {block_px} px held out, {folds} folds")
+        }
+    }
+}
+
+/// What the plausibility step found and did, as (field, value) rows.
+pub fn plausibility_rows(p: &Plausibility) -> Vec<(String, String)> {
+    fields_as_text(p)
+        .into_iter()
+        .map(|(k, v)| match (k.as_str(), &p.hedge) {
+            ("hedge", Some(h)) => (
+                "hedge (averaged with Lambert + GGX)".to_string(),
+                format!(
+                    "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + \
+                     GGX's weight in the written table {:.2} (docs/reconstruction.md, stage 6)",
+                    100.0 * h.unseen_share,
+                    h.analytic_weight
+                ),
+            ),
+            _ => (k.replace('_', " "), v),
+        })
+        .collect()
 }
 
 /// `normals` of report.json; `None` when the refinement did not run.

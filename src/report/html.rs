@@ -324,29 +324,35 @@ fn section_ladder(h: &mut String, ladder: &Avail<LadderSection>) {
                 escape(&l.reason),
                 escape(&l.scheme)
             );
-            if !l.rows.is_empty() {
-                h.push_str("<table><tr><th>model</th><th>parameters</th><th>held-out error</th><th>+- SE</th><th></th></tr>");
-                for r in &l.rows {
-                    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
-                    let _ = write!(
-                        h,
-                        "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                        if r.chosen { " class=\"chosen\"" } else { "" },
-                        escape(&r.label),
-                        escape(&num(r.parameters)),
-                        escape(&num(r.error)),
-                        escape(&num(r.standard_error)),
-                        if r.chosen { "chosen" } else { "" }
-                    );
-                }
-                h.push_str("</table>");
-            }
+            ladder_table(h, &l.rows);
             if !l.plausibility.is_empty() {
                 h.push_str("<h3>Plausibility of the written table</h3>");
                 kv_table(h, &l.plausibility);
             }
         }
     }
+}
+
+/// A ladder's rungs as a table, the chosen one marked (nothing when there are none).
+fn ladder_table(h: &mut String, rows: &[super::gather::LadderRow]) {
+    if rows.is_empty() {
+        return;
+    }
+    h.push_str("<table class=\"ladder\"><tr><th>model</th><th>parameters</th><th>held-out error</th><th>+- SE</th><th></th></tr>");
+    let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
+    for r in rows {
+        let _ = write!(
+            h,
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            if r.chosen { " class=\"chosen\"" } else { "" },
+            escape(&r.label),
+            escape(&num(r.parameters)),
+            escape(&num(r.error)),
+            escape(&num(r.standard_error)),
+            if r.chosen { "chosen" } else { "" }
+        );
+    }
+    h.push_str("</table>");
 }
 
 fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
@@ -536,6 +542,20 @@ fn section_material(
             ("file".into(), e.file.clone()),
         ],
     );
+    // its own ladder and plausibility step (materials.json files before session 37 have none)
+    if let Some(l) = &e.ladder {
+        let _ = write!(
+            h,
+            "<p>Its model ladder ({}): every model fitted to this material's reliable pixels \
+             and scored on its pixels it did not see, as in the model section above.</p>",
+            escape(&super::gather::ladder_scheme(l))
+        );
+        ladder_table(h, &super::gather::ladder_rows(l));
+    }
+    if let Some(p) = &e.plausibility {
+        h.push_str("<p>Plausibility of its written table:</p>");
+        kv_table(h, &super::gather::plausibility_rows(p));
+    }
     let Some(d) = detail else {
         na(h, "internal: no details gathered for this material");
         h.push_str("</section>");
