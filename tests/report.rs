@@ -166,8 +166,8 @@ fn example_report(job: PathBuf) -> Report {
         error: Some(error),
         standard_error: Some(0.01),
         fold_errors_log: vec![Some(error)],
-        error_log: Some(error),
-        standard_error_log: Some(0.01),
+        error_log: Some(error / 2.0),
+        standard_error_log: Some(0.005),
         fold_errors_patch: vec![Some(error)],
         error_patch: Some(error),
         standard_error_patch: Some(0.01),
@@ -508,6 +508,21 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     assert_eq!(l.model, "basis (k = 6, eta = 40)");
     assert_eq!(l.scheme, "whole images held out, 2 folds");
     assert_eq!((l.rows.len(), l.rows[1].chosen), (2, true));
+    // both held-out errors, the log one (what the default choice reads) and the linear one
+    assert_eq!(
+        (l.rows[1].error_log, l.rows[1].error),
+        (Some(0.1), Some(0.2))
+    );
+    let html = render_html(&data);
+    let table = &html[html
+        .find("<table class=\"ladder\">")
+        .expect("the ladder's table")..];
+    let table = &table[..table.find("</table>").unwrap()];
+    assert!(table.contains("held-out error, log space"), "{table}");
+    assert!(
+        table.contains("<td>0.1</td><td>0.005</td><td>0.2</td><td>0.01</td>"),
+        "{table}"
+    );
     let n = data.normals.as_ref().unwrap();
     assert!(n.accepted);
     assert_eq!((n.rows.len(), n.rows[1].held_out_error), (2, Some(0.35)));

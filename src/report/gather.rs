@@ -152,8 +152,12 @@ pub struct NormalsSection {
 pub struct LadderRow {
     pub label: String,
     pub parameters: Option<f64>,
+    /// Held-out relative error of the linear pixel values, mean over folds, and its SE.
     pub error: Option<f64>,
     pub standard_error: Option<f64>,
+    /// The same in log space (the error the default choice reads).
+    pub error_log: Option<f64>,
+    pub standard_error_log: Option<f64>,
     pub chosen: bool,
 }
 
@@ -381,6 +385,8 @@ pub fn ladder_rows(l: &Ladder) -> Vec<LadderRow> {
             parameters: Some(g.parameters as f64),
             error: g.error,
             standard_error: g.standard_error,
+            error_log: g.error_log,
+            standard_error_log: g.standard_error_log,
             chosen: i == l.chosen,
         })
         .collect()

@@ -317,9 +317,10 @@ fn section_ladder(h: &mut String, ladder: &Avail<LadderSection>) {
             let _ = write!(
                 h,
                 "<p>Reported model: <b>{}</b>. {}</p><p>Every model was fitted to the reliable \
-                 pixels and scored on pixels it did not see ({}): relative error of the \
-                 re-rendered pixels, mean over folds +- standard error. The simplest model within \
-                 noise of the best is reported.</p>",
+                 pixels and scored on pixels it did not see ({}): the relative error of the \
+                 re-rendered pixels in log space (of ln(1 + I / s), s the fold's median pixel) and \
+                 of their linear values, each the mean over folds +- standard error. The simplest \
+                 model within noise of the best is reported, by the error the reason names.</p>",
                 escape(&l.model),
                 escape(&l.reason),
                 escape(&l.scheme)
@@ -338,15 +339,21 @@ fn ladder_table(h: &mut String, rows: &[super::gather::LadderRow]) {
     if rows.is_empty() {
         return;
     }
-    h.push_str("<table class=\"ladder\"><tr><th>model</th><th>parameters</th><th>held-out error</th><th>+- SE</th><th></th></tr>");
+    h.push_str(
+        "<table class=\"ladder\"><tr><th>model</th><th>parameters</th>\
+         <th>held-out error, log space</th><th>+- SE</th>\
+         <th>held-out error, linear</th><th>+- SE</th><th></th></tr>",
+    );
     let num = |x: Option<f64>| x.map(fmt_num).unwrap_or_else(|| "-".into());
     for r in rows {
         let _ = write!(
             h,
-            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr{}><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
             if r.chosen { " class=\"chosen\"" } else { "" },
             escape(&r.label),
             escape(&num(r.parameters)),
+            escape(&num(r.error_log)),
+            escape(&num(r.standard_error_log)),
             escape(&num(r.error)),
             escape(&num(r.standard_error)),
             if r.chosen { "chosen" } else { "" }
