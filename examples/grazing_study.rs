@@ -5,19 +5,51 @@
 //!
 //! `cargo run --release --example grazing_study -- THETA_D_MAX_DEG SH SD SP [TARGET...]`
 //! (`SH SD SP`: the basis grid's stride; no targets: all materials; `BAND_DROP=LO,HI,TH` also
-//! withholds the rows with theta_d in [LO, HI) and theta_h below TH degrees). Prints, per
-//! target, the environment error of each model over the whole table and with the truth kept
-//! where observed (only the extrapolation judged).
+//! withholds the rows with theta_d in [LO, HI) and theta_h below TH degrees; `AUGMENT=N`, session
+//! 37, builds each basis with the first N of 48 analytic dielectrics added as materials, see
+//! [`analytic_family`]). Prints, per target, the environment error of each model over the whole
+//! table and with the truth kept where observed (only the extrapolation judged).
 
 use brdf_rig::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
-use brdf_rig::brdf::basis::{BasisSettings, GridStride};
+use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
 use brdf_rig::brdf::basis_cache::{default_cache_dir, load_or_build};
 use brdf_rig::brdf::coords::MerlBin;
 use brdf_rig::brdf::metrics::bin_solid_angle;
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
 use brdf_rig::brdf::ridge::{BasisSample, RidgeSettings, reconstruct};
 use brdf_rig::brdf::{BinValues, Brdf};
+use brdf_rig::eval::BrdfValues;
 use brdf_rig::render::probe::{ProbeSettings, SphereProbe, compare};
+
+/// Lambert + GGX dielectrics whose Schlick Fresnel rises to 1 at grazing theta_d: white
+/// specular (ks 1), F0 0.03 and 0.06, alpha 0.01-0.32, four diffuse colours (48 in all). Added
+/// as materials, they ask whether a basis that holds such a rise extrapolates a measured
+/// material's grazing peak better (docs/evaluation.md section 1y).
+fn analytic_family() -> Vec<(String, LambertGgx)> {
+    let kds: [[f64; 3]; 4] = [
+        [0.04, 0.04, 0.04],
+        [0.3, 0.3, 0.3],
+        [0.5, 0.3, 0.15],
+        [0.1, 0.2, 0.5],
+    ];
+    let mut out = Vec::new();
+    for (ai, alpha) in [0.01, 0.02, 0.04, 0.08, 0.16, 0.32].iter().enumerate() {
+        for (fi, f0) in [0.03, 0.06].iter().enumerate() {
+            for (ki, kd) in kds.iter().enumerate() {
+                out.push((
+                    format!("~ggx-a{ai}-f{fi}-k{ki}"),
+                    LambertGgx {
+                        kd: *kd,
+                        ks: [1.0; 3],
+                        alpha: *alpha,
+                        f0: *f0,
+                    },
+                ));
+            }
+        }
+    }
+    out
+}
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -37,6 +69,13 @@ fn main() -> anyhow::Result<()> {
     } else {
         materials.iter().map(|(n, _)| n.clone()).collect()
     };
+    let augment: usize = match std::env::var("AUGMENT") {
+        Ok(v) => v
+            .parse()
+            .map_err(|e| anyhow::anyhow!("AUGMENT={v}: not a count ({e})"))?,
+        Err(_) => 0,
+    };
+    let family: Vec<(String, LambertGgx)> = analytic_family().into_iter().take(augment).collect();
     let probe = SphereProbe::standard(ProbeSettings::default());
     let pbins = probe.bins().to_vec();
     let seen = |bin: usize| {
@@ -66,7 +105,8 @@ fn main() -> anyhow::Result<()> {
     };
     let pseen: Vec<bool> = pbins.iter().map(|&b| seen(b)).collect();
     println!(
-        "# theta_d < {d_max} deg seen; stride {stride:?}; env error (whole | extrapolation only)"
+        "# theta_d < {d_max} deg seen; stride {stride:?}; {} analytic materials added; env error (whole | extrapolation only)",
+        family.len()
     );
     println!(
         "target basis_eta1 basis_eta10 basis_eta40 lggx | basis_eta1 basis_eta10 basis_eta40 lggx"
@@ -77,7 +117,23 @@ fn main() -> anyhow::Result<()> {
             basis_components: 64,
             exclude: vec![target.clone()],
         };
-        let (basis, _) = load_or_build(&settings, &materials, &default_cache_dir())?;
+        let basis = if family.is_empty() {
+            load_or_build(&settings, &materials, &default_cache_dir())?.0
+        } else {
+            // not cached: the cache keys on the neural fits only
+            let values: Vec<BrdfValues> = family.iter().map(|(_, m)| BrdfValues(m)).collect();
+            let mut list: Vec<(&str, &dyn BinValues)> = materials
+                .iter()
+                .map(|(n, m)| (n.as_str(), m as &dyn BinValues))
+                .collect();
+            list.extend(
+                family
+                    .iter()
+                    .zip(&values)
+                    .map(|((n, _), v)| (n.as_str(), v as &dyn BinValues)),
+            );
+            Basis::build(&settings, &list)?
+        };
         let net = &materials
             .iter()
             .find(|(n, _)| n == target)
