@@ -272,6 +272,7 @@ fn example_report(job: PathBuf) -> Report {
             analytic_held_out_error: None,
             theta_d_span_deg: 12.0,
             unseen_energy: 0.1,
+            unseen_band: None,
         },
         normals: Some(RefineReport {
             accepted: true,

@@ -20,7 +20,10 @@
 //!   the domain is extrapolated.
 //! - **unseen share**: the share of the result's environment render that comes from
 //!   (theta_h, theta_d) cells of 10 x 10 MERL bins where no pixel was observed: how much of what
-//!   a user will see was never measured.
+//!   a user will see was never measured. When it lowers the verdict, its reason also names the
+//!   theta_d band that holds most of it and the light positions that would observe that band:
+//!   the angle between light and view at a surface point is twice theta_d, whatever theta_h
+//!   ([`UnseenBand`]).
 //!
 //! The thresholds are the `ConfidenceSettings` defaults, tuned on one half of the accuracy grid
 //! and checked on the other (`brdf-rig bench confidence`, docs/evaluation.md section 5). Pure
@@ -178,6 +181,43 @@ pub struct Confidence {
     pub theta_d_span_deg: f64,
     /// Share of the result's environment render from never-observed (theta_h, theta_d) cells.
     pub unseen_energy: f64,
+    /// The theta_d band holding most of that share, when the share lowered the verdict
+    /// (`None` otherwise, and in reports written before it was recorded).
+    #[serde(default)]
+    pub unseen_band: Option<UnseenBand>,
+}
+
+/// Where in theta_d the unseen share of a render lies: the narrowest run of 10-degree cells,
+/// grown from the largest, that holds at least half of it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct UnseenBand {
+    /// The band's theta_d range, degrees (`[low, high)`).
+    pub theta_d_deg: [f64; 2],
+    /// Its share of the unseen part of the render (0 to 1).
+    pub share_of_unseen: f64,
+}
+
+impl UnseenBand {
+    /// What a user can do about it, in words: the light-to-camera angles (as seen from the
+    /// object) that observe the band, twice its theta_d.
+    pub fn advice(&self) -> String {
+        let [lo, hi] = self.theta_d_deg;
+        let mut s = format!(
+            "{:.0} % of it at theta_d {lo:.0}-{hi:.0} degrees: a light {:.0}-{:.0} degrees from \
+             the camera, as seen from the object, observes those angles (light and view are \
+             twice theta_d apart)",
+            100.0 * self.share_of_unseen,
+            2.0 * lo,
+            (2.0 * hi).min(180.0)
+        );
+        if hi > 80.0 {
+            s.push_str(
+                "; near 180 degrees light and camera face each other and no surface sees both, \
+                 so the most grazing angles stay extrapolated",
+            );
+        }
+        s
+    }
 }
 
 /// Cells of `CELL x CELL` (theta_h, theta_d) bins.
@@ -212,13 +252,26 @@ pub fn assess(
 
     let unseen_energy = unseen_share(probe, &values, reliable);
 
-    judge(
+    let mut verdict = judge(
         trial_disagreement,
         held_out,
         theta_d_span_deg,
         unseen_energy,
         settings,
-    )
+    );
+    if unseen_energy > settings.unseen_energy_medium {
+        verdict.unseen_band = unseen_band(probe, &values, reliable);
+        if let Some(band) = verdict.unseen_band
+            && let Some(r) = verdict
+                .reasons
+                .iter_mut()
+                .find(|r| r.contains(UNSEEN_REASON))
+        {
+            r.push_str("; ");
+            r.push_str(&band.advice());
+        }
+    }
+    verdict
 }
 
 /// The verdict from the four indicators (the thresholds of `settings`); also what the
@@ -302,7 +355,7 @@ pub fn judge(
         unseen_energy > settings.unseen_energy_medium,
         unseen_energy > settings.unseen_energy_low,
         format!(
-            "{:.0} % of a render of the result comes from angles no pixel observed",
+            "{:.0} % of a render of the result {UNSEEN_REASON}",
             100.0 * unseen_energy
         ),
     );
@@ -314,7 +367,95 @@ pub fn judge(
         analytic_held_out_error: held_out.analytic,
         theta_d_span_deg,
         unseen_energy,
+        unseen_band: None,
     }
+}
+
+/// The words of the unseen-share reason that [`UnseenBand::advice`] is appended to.
+const UNSEEN_REASON: &str = "comes from angles no pixel observed";
+
+/// The (theta_h, theta_d) cells of `CELL` x `CELL` bins some reliable pixel falls in, and the
+/// number of theta_d cells (row length).
+fn seen_cells(reliable: &[&Observation]) -> (Vec<bool>, usize) {
+    let (ch, cd) = (THETA_H_BINS.div_ceil(CELL), THETA_D_BINS.div_ceil(CELL));
+    let mut seen = vec![false; ch * cd];
+    for o in reliable {
+        if let Some(b) = MerlBin::from_index(o.bin) {
+            seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] = true;
+        }
+    }
+    (seen, cd)
+}
+
+/// The energy (sum over pixels and channels) of the probe's environment render.
+fn render_energy(probe: &SphereProbe, values: &[[f64; 3]]) -> f64 {
+    probe
+        .render_values(values)
+        .environment
+        .iter()
+        .flatten()
+        .filter(|x| x.is_finite())
+        .map(|x| x.max(0.0))
+        .sum()
+}
+
+/// Where in theta_d the unseen part of the render of `values` lies ([`UnseenBand`]); `None`
+/// when nothing of it is unseen. The render is linear in the values, so each theta_d cell's
+/// part is the render of the unseen bins of that cell alone.
+fn unseen_band(
+    probe: &SphereProbe,
+    values: &[[f64; 3]],
+    reliable: &[&Observation],
+) -> Option<UnseenBand> {
+    let (seen, cd) = seen_cells(reliable);
+    let per_cell: Vec<f64> = (0..cd)
+        .map(|cell| {
+            let part: Vec<[f64; 3]> = probe
+                .bins()
+                .iter()
+                .zip(values)
+                .map(|(&bin, v)| match MerlBin::from_index(bin) {
+                    Some(b)
+                        if b.theta_d / CELL == cell
+                            && !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] =>
+                    {
+                        *v
+                    }
+                    _ => [0.0; 3],
+                })
+                .collect();
+            if part.iter().flatten().any(|x| *x > 0.0) {
+                render_energy(probe, &part)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let total: f64 = per_cell.iter().sum();
+    if !total.is_finite() || total <= 0.0 {
+        return None;
+    }
+    let (mut lo, mut hi) = per_cell
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(i, _)| (i, i + 1))?;
+    let mut held = per_cell[lo];
+    while held < 0.5 * total {
+        let below = lo.checked_sub(1).map(|i| per_cell[i]);
+        let above = per_cell.get(hi).copied();
+        match (below, above) {
+            (Some(b), Some(a)) if a > b => (hi, held) = (hi + 1, held + a),
+            (Some(b), _) => (lo, held) = (lo - 1, held + b),
+            (None, Some(a)) => (hi, held) = (hi + 1, held + a),
+            (None, None) => break,
+        }
+    }
+    let deg = |cell: usize| (cell * CELL).min(THETA_D_BINS) as f64 * 90.0 / THETA_D_BINS as f64;
+    Some(UnseenBand {
+        theta_d_deg: [deg(lo), deg(hi)],
+        share_of_unseen: held / total,
+    })
 }
 
 /// The share of `result`'s environment render (the standard probe) that comes from
@@ -327,13 +468,7 @@ pub fn unseen_render_share(result: &dyn BinValues, reliable: &[&Observation]) ->
 /// The share of the environment render of `values` (at the probe's bins) that comes from
 /// bins in never-observed (theta_h, theta_d) cells.
 fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {
-    let (ch, cd) = (THETA_H_BINS.div_ceil(CELL), THETA_D_BINS.div_ceil(CELL));
-    let mut seen = vec![false; ch * cd];
-    for o in reliable {
-        if let Some(b) = MerlBin::from_index(o.bin) {
-            seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] = true;
-        }
-    }
+    let (seen, cd) = seen_cells(reliable);
     let unseen_only: Vec<[f64; 3]> = probe
         .bins()
         .iter()
@@ -343,15 +478,8 @@ fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observati
             _ => [0.0; 3],
         })
         .collect();
-    let energy = |r: &[[f64; 3]]| -> f64 {
-        r.iter()
-            .flatten()
-            .filter(|x| x.is_finite())
-            .map(|x| x.max(0.0))
-            .sum()
-    };
-    let total = energy(&probe.render_values(values).environment);
-    let unseen = energy(&probe.render_values(&unseen_only).environment);
+    let total = render_energy(probe, values);
+    let unseen = render_energy(probe, &unseen_only);
     if total > 0.0 { unseen / total } else { 1.0 }
 }
 
@@ -479,6 +607,68 @@ mod tests {
         assert!(c.theta_d_span_deg < 1.5);
         assert!(c.unseen_energy > 0.8, "{}", c.unseen_energy);
         assert!(c.reasons.iter().any(|r| r.contains("theta_d")));
+    }
+
+    #[test]
+    fn the_unseen_share_names_its_theta_d_band_and_the_lights_that_would_observe_it() {
+        // Every theta_h seen, theta_d only below 50 degrees: all the unseen render lies above.
+        let obs: Vec<Observation> = (0..90)
+            .flat_map(|h| (0..50).map(move |d| obs(h as f64, d as f64)))
+            .collect();
+        let refs: Vec<&Observation> = obs.iter().collect();
+        let settings = ConfidenceSettings {
+            unseen_energy_medium: 0.0,
+            ..ConfidenceSettings::default()
+        };
+        let c = assess(
+            &CandidateValues(&Const(0.3)),
+            &[],
+            &refs,
+            HeldOut::default(),
+            &settings,
+        );
+        assert!(
+            c.unseen_energy > 0.0 && c.unseen_energy < 0.9,
+            "{}",
+            c.unseen_energy
+        );
+        let band = c
+            .unseen_band
+            .expect("the share lowered the verdict, so its band is named");
+        let [lo, hi] = band.theta_d_deg;
+        assert!(lo >= 50.0 && hi > lo && hi <= 90.0, "{band:?}");
+        assert!(
+            band.share_of_unseen >= 0.5 && band.share_of_unseen <= 1.0,
+            "{band:?}"
+        );
+        let reason = c
+            .reasons
+            .iter()
+            .find(|r| r.contains(UNSEEN_REASON))
+            .expect("the unseen share's reason");
+        let lights = format!(
+            "a light {:.0}-{:.0} degrees from the camera",
+            2.0 * lo,
+            (2.0 * hi).min(180.0)
+        );
+        assert!(reason.contains(&lights), "{reason}");
+
+        // Seen everywhere: the share stays below the threshold and no band is named.
+        let all: Vec<Observation> = cells(90);
+        let refs: Vec<&Observation> = all.iter().collect();
+        let c = assess(
+            &CandidateValues(&Const(0.3)),
+            &[],
+            &refs,
+            HeldOut::default(),
+            &ConfidenceSettings::default(),
+        );
+        assert_eq!(c.unseen_band, None);
+        assert!(
+            c.reasons
+                .iter()
+                .all(|r| !r.contains("degrees from the camera"))
+        );
     }
 
     #[test]
