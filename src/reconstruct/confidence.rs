@@ -187,8 +187,9 @@ pub struct Confidence {
     pub unseen_band: Option<UnseenBand>,
 }
 
-/// Where in theta_d the unseen share of a render lies: the narrowest run of 10-degree cells,
-/// grown from the largest, that holds at least half of it.
+/// Where in theta_d the unseen share of a render lies: a run of 10-degree theta_d cells, grown
+/// from the one holding most of it towards the larger neighbour, one cell at a time, until it
+/// holds at least half of it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct UnseenBand {
     /// The band's theta_d range, degrees (`[low, high)`).
