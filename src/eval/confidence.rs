@@ -57,6 +57,7 @@ pub fn verdict(run: &Run, s: &ConfidenceSettings) -> Level {
         },
         run.theta_d_span_deg,
         run.unseen_energy,
+        None,
         s,
     )
     .level

@@ -253,35 +253,30 @@ pub fn assess(
 
     let unseen_energy = unseen_share(probe, &values, reliable);
 
-    let mut verdict = judge(
+    // where the unseen share lies, only when it will lower the verdict (nine more renders)
+    let band = (unseen_energy > settings.unseen_energy_medium)
+        .then(|| unseen_band(probe, &values, reliable))
+        .flatten();
+
+    judge(
         trial_disagreement,
         held_out,
         theta_d_span_deg,
         unseen_energy,
+        band,
         settings,
-    );
-    if unseen_energy > settings.unseen_energy_medium {
-        verdict.unseen_band = unseen_band(probe, &values, reliable);
-        if let Some(band) = verdict.unseen_band
-            && let Some(r) = verdict
-                .reasons
-                .iter_mut()
-                .find(|r| r.contains(UNSEEN_REASON))
-        {
-            r.push_str("; ");
-            r.push_str(&band.advice());
-        }
-    }
-    verdict
+    )
 }
 
 /// The verdict from the four indicators (the thresholds of `settings`); also what the
-/// threshold tuning of `eval::confidence` replays on recorded indicators.
+/// threshold tuning of `eval::confidence` replays on recorded indicators. `unseen_band` only
+/// adds its advice to the unseen share's reason (and is recorded); it never moves the level.
 pub fn judge(
     trial_disagreement: Option<f64>,
     held_out: HeldOut,
     theta_d_span_deg: f64,
     unseen_energy: f64,
+    unseen_band: Option<UnseenBand>,
     settings: &ConfidenceSettings,
 ) -> Confidence {
     let mut level = Level::High;
@@ -356,8 +351,9 @@ pub fn judge(
         unseen_energy > settings.unseen_energy_medium,
         unseen_energy > settings.unseen_energy_low,
         format!(
-            "{:.0} % of a render of the result {UNSEEN_REASON}",
-            100.0 * unseen_energy
+            "{:.0} % of a render of the result comes from angles no pixel observed{}",
+            100.0 * unseen_energy,
+            unseen_band.map_or(String::new(), |b| format!("; {}", b.advice()))
         ),
     );
     Confidence {
@@ -368,12 +364,9 @@ pub fn judge(
         analytic_held_out_error: held_out.analytic,
         theta_d_span_deg,
         unseen_energy,
-        unseen_band: None,
+        unseen_band,
     }
 }
-
-/// The words of the unseen-share reason that [`UnseenBand::advice`] is appended to.
-const UNSEEN_REASON: &str = "comes from angles no pixel observed";
 
 /// The (theta_h, theta_d) cells of `CELL` x `CELL` bins some reliable pixel falls in, and the
 /// number of theta_d cells (row length).
@@ -386,6 +379,30 @@ fn seen_cells(reliable: &[&Observation]) -> (Vec<bool>, usize) {
         }
     }
     (seen, cd)
+}
+
+/// `values` (at the probe's bins) kept only in never-observed cells (`seen_cells`; of theta_d
+/// cell `cell` alone, when given), zero elsewhere.
+fn unseen_values(
+    probe: &SphereProbe,
+    values: &[[f64; 3]],
+    (seen, cd): &(Vec<bool>, usize),
+    cell: Option<usize>,
+) -> Vec<[f64; 3]> {
+    probe
+        .bins()
+        .iter()
+        .zip(values)
+        .map(|(&bin, v)| match MerlBin::from_index(bin) {
+            Some(b)
+                if cell.is_none_or(|c| b.theta_d / CELL == c)
+                    && !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] =>
+            {
+                *v
+            }
+            _ => [0.0; 3],
+        })
+        .collect()
 }
 
 /// The energy (sum over pixels and channels) of the probe's environment render.
@@ -408,23 +425,10 @@ fn unseen_band(
     values: &[[f64; 3]],
     reliable: &[&Observation],
 ) -> Option<UnseenBand> {
-    let (seen, cd) = seen_cells(reliable);
-    let per_cell: Vec<f64> = (0..cd)
+    let seen = seen_cells(reliable);
+    let per_cell: Vec<f64> = (0..seen.1)
         .map(|cell| {
-            let part: Vec<[f64; 3]> = probe
-                .bins()
-                .iter()
-                .zip(values)
-                .map(|(&bin, v)| match MerlBin::from_index(bin) {
-                    Some(b)
-                        if b.theta_d / CELL == cell
-                            && !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] =>
-                    {
-                        *v
-                    }
-                    _ => [0.0; 3],
-                })
-                .collect();
+            let part = unseen_values(probe, values, &seen, Some(cell));
             if part.iter().flatten().any(|x| *x > 0.0) {
                 render_energy(probe, &part)
             } else {
@@ -469,16 +473,7 @@ pub fn unseen_render_share(result: &dyn BinValues, reliable: &[&Observation]) ->
 /// The share of the environment render of `values` (at the probe's bins) that comes from
 /// bins in never-observed (theta_h, theta_d) cells.
 fn unseen_share(probe: &SphereProbe, values: &[[f64; 3]], reliable: &[&Observation]) -> f64 {
-    let (seen, cd) = seen_cells(reliable);
-    let unseen_only: Vec<[f64; 3]> = probe
-        .bins()
-        .iter()
-        .zip(values)
-        .map(|(&bin, v)| match MerlBin::from_index(bin) {
-            Some(b) if !seen[(b.theta_h / CELL) * cd + b.theta_d / CELL] => *v,
-            _ => [0.0; 3],
-        })
-        .collect();
+    let unseen_only = unseen_values(probe, values, &seen_cells(reliable), None);
     let total = render_energy(probe, values);
     let unseen = render_energy(probe, &unseen_only);
     if total > 0.0 { unseen / total } else { 1.0 }
@@ -645,7 +640,7 @@ mod tests {
         let reason = c
             .reasons
             .iter()
-            .find(|r| r.contains(UNSEEN_REASON))
+            .find(|r| r.contains("comes from angles no pixel observed"))
             .expect("the unseen share's reason");
         let lights = format!(
             "a light {:.0}-{:.0} degrees from the camera",
