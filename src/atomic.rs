@@ -1,7 +1,9 @@
 //! Atomic file writes: bytes go to a temporary file beside the target (`.NAME.tmp-XXXXXX`),
 //! which is fsynced and renamed over it, so a crash leaves the old file or the new one, never
-//! half of one; and the removal of the temporaries a killed write left. Every file this tool
-//! writes goes through here. Depends on nothing in the crate.
+//! half of one; the same without the fsyncs for large results a run can make again (MERL
+//! tables), and a link (or copy) made the same way; and the removal of the temporaries a
+//! killed write left. Every file this tool writes goes through here. Depends on nothing in the
+//! crate.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -37,9 +39,28 @@ pub fn remove_stray_temporaries(dir: &Path, names: Option<&[&str]>) -> std::io::
     Ok(removed)
 }
 
+/// [`write_atomic`] without the fsyncs, for large results a run can make again (a MERL table
+/// is 35 MB, and an object of three materials writes three): a killed or crashed process
+/// leaves the old file or the new one, never half of one; after a power loss the file system's
+/// ordering decides (ext4 flushes a file renamed over another by default), which is why the
+/// captures, the job and the reports, which cannot be made again or are small, use
+/// [`write_atomic`].
+pub fn write_atomic_unsynced(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    replace_with(path, false, |f| f.write_all(bytes))
+}
+
 /// Atomic write where `fill` streams into the (seekable) temp file.
 pub fn write_atomic_with(
     path: &Path,
+    fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    replace_with(path, true, fill)
+}
+
+/// The temporary file beside `path`, filled, fsynced when `sync`, renamed over `path`.
+fn replace_with(
+    path: &Path,
+    sync: bool,
     fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     let dir = match path.parent() {
@@ -55,12 +76,42 @@ pub fn write_atomic_with(
         .tempfile_in(&dir)?;
     fill(tmp.as_file_mut())?;
     tmp.as_file_mut().flush()?;
-    tmp.as_file().sync_all()?;
+    if sync {
+        tmp.as_file().sync_all()?;
+    }
     tmp.persist(path).map_err(|e| e.error)?;
     // make the rename itself durable; not every platform can open a directory, so best effort
-    if let Ok(d) = std::fs::File::open(&dir) {
+    if sync && let Ok(d) = std::fs::File::open(&dir) {
         let _ = d.sync_all();
     }
+    Ok(())
+}
+
+/// Gives `dst` the contents of the file `src` atomically: a hard link where the file system
+/// allows one (nothing written twice), a copy otherwise; made beside `dst` under a temporary
+/// name (`.NAME.tmp-XXXXXX`) and renamed over it, so a crash leaves the old `dst` or the new
+/// one. Not fsynced, like [`write_atomic_unsynced`], whose large results it serves. A later
+/// [`write_atomic`] of either name renames a new file over that name and leaves the other as
+/// it was.
+pub fn link_or_copy_atomic(src: &Path, dst: &Path) -> std::io::Result<()> {
+    let dir = match dst.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = dst
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    // a unique name, then free for the link (which must not find a file there)
+    let tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}.tmp-"))
+        .tempfile_in(&dir)?
+        .into_temp_path();
+    std::fs::remove_file(&tmp)?;
+    if std::fs::hard_link(src, &tmp).is_err() {
+        std::fs::copy(src, &tmp)?;
+    }
+    tmp.persist(dst).map_err(|e| e.error)?;
     Ok(())
 }
 
@@ -68,6 +119,33 @@ pub fn write_atomic_with(
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_linked_file_has_the_contents_and_a_later_write_of_one_name_leaves_the_other() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        let (src, dst) = (d.join("material-1.binary"), d.join("brdf.binary"));
+        write_atomic_unsynced(&src, b"first").unwrap();
+        write_atomic_unsynced(&dst, b"old").unwrap();
+        assert_eq!(std::fs::read(&dst).unwrap(), b"old");
+        link_or_copy_atomic(&src, &dst).unwrap();
+        assert_eq!(std::fs::read(&dst).unwrap(), b"first");
+        // no temporary left beside them
+        let mut names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["brdf.binary", "material-1.binary"]);
+        // rewriting one name does not change the other (a new file is renamed over it)
+        write_atomic(&dst, b"second").unwrap();
+        assert_eq!(std::fs::read(&src).unwrap(), b"first");
+        write_atomic(&src, b"third").unwrap();
+        assert_eq!(std::fs::read(&dst).unwrap(), b"second");
+        // a source that does not exist is an error, and the target stays as it was
+        assert!(link_or_copy_atomic(&d.join("missing.binary"), &dst).is_err());
+        assert_eq!(std::fs::read(&dst).unwrap(), b"second");
+    }
 
     #[test]
     fn stray_temporaries_are_removed_and_nothing_else() {

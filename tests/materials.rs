@@ -381,6 +381,21 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         file.materials[0].ladder, file.materials[1].ladder,
         "each material's ladder is its own"
     );
+    // `brdf.binary` is the largest (first) material's table, byte for byte, and no temporary
+    // file of its link is left beside it
+    assert_eq!(
+        std::fs::read(out.join("brdf.binary")).unwrap(),
+        std::fs::read(out.join(&file.materials[0].file)).unwrap()
+    );
+    assert!(
+        std::fs::read_dir(&out).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .contains(".tmp-")),
+        "a temporary file left in {}",
+        out.display()
+    );
     // the map's labels, per face by the majority of its corners, against the truth
     let found = map_face_labels(&out.join(&file.material_map), &mesh);
     let agreement = area_agreement(&mesh, &labels, &found, None);

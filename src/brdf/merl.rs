@@ -253,11 +253,15 @@ impl MerlTable {
         Self::from_bytes(&bytes, path)
     }
 
-    /// Writes a MERL `.binary` file.
+    /// Writes a MERL `.binary` file, atomically (`atomic::write_atomic_unsynced`: a killed or
+    /// crashed run leaves the old file or the new one, never a truncated table; not fsynced, a
+    /// table is 35 MB and can be made again).
     pub fn write(&self, path: &Path) -> Result<(), MerlError> {
-        std::fs::write(path, self.to_bytes()).map_err(|source| MerlError::Write {
-            path: path.to_path_buf(),
-            source,
+        crate::atomic::write_atomic_unsynced(path, &self.to_bytes()).map_err(|source| {
+            MerlError::Write {
+                path: path.to_path_buf(),
+                source,
+            }
         })
     }
 }

@@ -70,7 +70,8 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
         Some(p) => p,
         None => {
             let p = a.out.join("quick-plan.toml");
-            std::fs::write(&p, QUICK_PLAN).with_context(|| format!("writing {}", p.display()))?;
+            brdf_rig::atomic::write_atomic(&p, QUICK_PLAN.as_bytes())
+                .with_context(|| format!("writing {}", p.display()))?;
             p
         }
     };

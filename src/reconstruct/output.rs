@@ -5,7 +5,8 @@
 //!
 //! The sphere is seen by a camera on +z looking at the origin, lit from 45 degrees above-right in
 //! the camera's plane (a fixed, documented view, so reports compare across runs).
-//! Files are written atomically (`atomic::write_atomic`).
+//! Files are written atomically (`atomic::write_atomic`); with several materials `brdf.binary`
+//! is a link to (or copy of) the largest material's file (`atomic::link_or_copy_atomic`).
 
 use super::compare::Comparison;
 use super::core::CoreOutput;
@@ -199,14 +200,27 @@ pub fn write(dir: &Path, output: &Output) -> Result<(), OutputError> {
         path: dir.to_path_buf(),
         source,
     })?;
-    output.table.write(&dir.join(BRDF_FILE))?;
+    // With several materials `brdf.binary` is the largest material's table: its file, written
+    // first, is linked there (a copy where the file system has no links), not written twice.
+    let mut linked = None;
+    if let Some(m) = output.materials.as_ref().filter(|m| !m.results.is_empty()) {
+        super::materials::write(dir, m)?;
+        linked = m
+            .results
+            .iter()
+            .find(|r| Arc::ptr_eq(&r.table, &output.table))
+            .map(|r| dir.join(super::materials::material_file(&r.name)));
+    }
+    let brdf = dir.join(BRDF_FILE);
+    match linked {
+        Some(src) => crate::atomic::link_or_copy_atomic(&src, &brdf)
+            .map_err(|source| OutputError::Io { path: brdf, source })?,
+        None => output.table.write(&brdf)?,
+    }
     report_file::write(dir, &output.report)?;
     let sphere = sphere_preview(&output.table, 256);
     imageio::write_exr(&dir.join("sphere.exr"), &sphere, ExrPrecision::F32)?;
     imageio::write_preview_png(&dir.join("sphere.png"), &sphere, 0.0)?;
-    if let Some(m) = output.materials.as_ref().filter(|m| !m.results.is_empty()) {
-        super::materials::write(dir, m)?;
-    }
     if let Some(mesh) = &output.refined_mesh {
         write_ply(
             &dir.join("mesh_refined.ply"),

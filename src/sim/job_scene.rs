@@ -237,6 +237,6 @@ pub fn write_scene_materials(
         write_truth_labels(&dir.join(TRUTH_LABELS_FILE), labels, names).map_err(|e| io(&e))?;
     }
     let text = job.to_toml(dir).map_err(std::io::Error::other)?;
-    std::fs::write(&job.source, text)?;
+    crate::atomic::write_atomic(&job.source, text.as_bytes())?;
     Ok(job)
 }
