@@ -124,12 +124,13 @@ fn small_accuracy_grid_beats_lambert_and_a_measured_ceiling() {
 /// The multi-material study in miniature: `objects` on Spot (`views` light images of `width` x
 /// `height`), spread lights, one seed, a coarse
 /// basis without the objects' materials, the tests' small core; run in a scratch folder with
-/// the tests' shared basis cache.
+/// the tests' shared basis cache; with `time_command`, the whole commands timed too.
 fn run_small_materials(
     objects: &[&str],
     (width, height, views): (usize, usize, usize),
     segment: brdf_rig::reconstruct::segment::SegmentSettings,
     refine: Option<brdf_rig::reconstruct::refine::RefineSettings>,
+    time_command: bool,
 ) -> Vec<brdf_rig::eval::materials::ObjectResult> {
     let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
     let (spot, _) = load_mesh(&util::shared_data().join("meshes/spot_triangulated.obj")).unwrap();
@@ -148,10 +149,12 @@ fn run_small_materials(
         bin_step: 5,
         refine,
         time_repeats: 1,
+        time_command,
+        nbrdf_dir: Some(util::shared_data().join("merl-nbrdf")),
     };
     let scratch = tempfile::tempdir().unwrap();
     let cache = std::env::temp_dir().join("brdf-rig-test-basis");
-    brdf_rig::eval::materials::run(
+    let results = brdf_rig::eval::materials::run(
         &spec,
         &materials,
         &cache,
@@ -159,14 +162,35 @@ fn run_small_materials(
         &mut |_| {},
         &mut |_| {},
     )
-    .unwrap()
+    .unwrap();
+    // the whole commands' output folders are not kept (tens of MB each)
+    let left: Vec<String> = walk_names(scratch.path())
+        .into_iter()
+        .filter(|n| n.starts_with("command-"))
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    results
+}
+
+/// Every file and folder name under `dir`, recursively.
+fn walk_names(dir: &std::path::Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        out.push(e.file_name().to_string_lossy().into_owned());
+        if e.file_type().unwrap().is_dir() {
+            out.extend(walk_names(&e.path()));
+        }
+    }
+    out
 }
 
 /// The multi-material study in miniature (`bench materials --refine-normals`): a two-material
 /// Spot, the normals refined first with a reflectance table per material, then the materials
 /// found and fitted. The count and the labels are right, the refinement fitted two tables and
 /// lowered the normals' error, and every found material is scored against its truth beside the
-/// baselines (fitted to the unrefined pixels).
+/// baselines (fitted to the unrefined pixels). The whole `reconstruct` is timed both ways
+/// (`--time-command`) and its output folders are not left behind.
 #[test]
 fn small_materials_study_refines_the_normals_with_a_table_per_material() {
     use brdf_rig::reconstruct::refine::RefineSettings;
@@ -176,6 +200,7 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
         (128, 96, 8),
         SegmentSettings::default(),
         Some(RefineSettings::default()),
+        true,
     );
     assert_eq!(results.len(), 1);
     let r = &results[0];
@@ -197,6 +222,9 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
     assert!(r.agreement >= 0.9);
     assert_eq!(n.tables, 2);
     assert!(n.accepted && n.median_after_deg < 0.9 * n.median_before_deg);
+    // the whole commands were timed, both ways
+    let (auto, one) = r.command_seconds.expect("the whole commands timed");
+    assert!(auto > 0.0 && one > 0.0, "{auto} {one}");
     let mut truths: Vec<&str> = r.scores.iter().map(|m| m.truth.as_str()).collect();
     truths.sort_unstable();
     assert_eq!(truths, ["green-latex", "pink-fabric"]);
@@ -215,7 +243,8 @@ fn small_materials_study_refines_the_normals_with_a_table_per_material() {
 fn a_shiny_one_material_object_is_not_split_at_the_grids_size() {
     use brdf_rig::reconstruct::segment::SegmentSettings;
     let count = |segment: SegmentSettings| {
-        let r = run_small_materials(&["blue-acrylic"], (320, 240, 11), segment, None);
+        let r = run_small_materials(&["blue-acrylic"], (320, 240, 11), segment, None, false);
+        assert!(r[0].command_seconds.is_none(), "timed though not asked");
         (r[0].count, r[0].reason.clone())
     };
     let with_peak = SegmentSettings {

@@ -52,6 +52,11 @@ pub struct BenchMaterialsArgs {
     /// with what else the machine does.
     #[arg(long, default_value_t = 1, value_parser = int_in(1usize, 20))]
     pub time_repeats: usize,
+    /// Also time the whole `reconstruct` a user runs on each object, with `--materials auto`
+    /// and with one material (the basis from the cache, the job from disk, every output file
+    /// written), beside the cores' times; as many times as `--time-repeats`, the least of each.
+    #[arg(long)]
+    pub time_command: bool,
     /// Output folder for materials.md and materials.json.
     #[arg(long, default_value = "docs/eval/materials")]
     pub out: PathBuf,
@@ -69,7 +74,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
@@ -87,6 +92,11 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         } else {
             String::new()
         },
+        if a.time_command {
+            " --time-command"
+        } else {
+            ""
+        },
         a.out.display()
     );
     let options = MaterialsBenchOptions {
@@ -99,6 +109,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         keep_boundary_pixels: a.keep_boundary_pixels,
         refine: a.refine_unknowns.settings(a.refine_normals),
         time_repeats: a.time_repeats,
+        time_command: a.time_command,
         out: a.out.clone(),
         command,
     };

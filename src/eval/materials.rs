@@ -58,6 +58,15 @@ pub struct MaterialsSpec {
     /// the machine only ever adds time). At least 1; the results are the first run's (every
     /// run gives the same).
     pub time_repeats: usize,
+    /// Also time the whole command a user runs, both ways (`reconstruct --materials auto` and
+    /// the one-material default): the basis from the cache, the job loaded from disk and
+    /// observed (and refined), the cores, the photo/re-render comparison and every file
+    /// written; the least of `time_repeats` timings of each, in turn ([`time_commands`]).
+    pub time_command: bool,
+    /// The neural fits' folder the whole command reads (`None`: the data folder's), as
+    /// `reconstruct --nbrdf-dir`.
+    #[serde(skip)]
+    pub nbrdf_dir: Option<std::path::PathBuf>,
 }
 
 /// One found material against its true one.
@@ -123,6 +132,9 @@ pub struct ObjectResult {
     /// Of `seconds`, finding the materials (the count's held-out fits included).
     pub segment_seconds: f64,
     pub seconds_one: f64,
+    /// With [`MaterialsSpec::time_command`]: the whole command's seconds with
+    /// `--materials auto` and with one material.
+    pub command_seconds: Option<(f64, f64)>,
     /// With `refine`: the median vertex-normal error against the truth before and after, in
     /// degrees, and whether the refinement was accepted.
     pub normals: Option<NormalsChange>,
@@ -338,6 +350,14 @@ pub fn run(
                         drop(single()?);
                         seconds_one = seconds_one.min(t.elapsed().as_secs_f64());
                     }
+                    let command_seconds = if spec.time_command {
+                        progress(&format!(
+                            "{object} on {mesh_name}: the whole commands, timed"
+                        ));
+                        Some(time_commands(&job, spec, &core, (&bs, cache_dir), &dir)?)
+                    } else {
+                        None
+                    };
                     let found =
                         FaceLabels::from_vertex_labels(&seg_mesh, &m.segmentation.vertex_labels);
                     let visible = visible_faces(mesh, &scene);
@@ -399,6 +419,7 @@ pub fn run(
                         seconds,
                         segment_seconds: m.segment_seconds,
                         seconds_one,
+                        command_seconds,
                         normals,
                     };
                     progress(&format!(
@@ -416,6 +437,56 @@ pub fn run(
         }
     }
     Ok(results)
+}
+
+/// The whole `reconstruct` a user runs on `job`, timed with `--materials auto` and with one
+/// material, in turn, `spec.time_repeats` times; the least of each. Each run makes the library
+/// calls the command makes after reading its arguments: `reconstruct::reconstruct` (load,
+/// observe, refine with `spec.refine`, the neural fits' folder and the basis from the cache,
+/// the cores, the photo/re-render comparison) and `output::write` into a folder under `dir`,
+/// removed after.
+pub fn time_commands(
+    job: &crate::reconstruct::Job,
+    spec: &MaterialsSpec,
+    core: &CoreSettings,
+    (basis, cache_dir): (&crate::brdf::basis::BasisSettings, &Path),
+    dir: &Path,
+) -> Result<(f64, f64), EvalError> {
+    use crate::reconstruct::{Settings, output, reconstruct};
+    let settings = |several: bool| {
+        let mut s = Settings {
+            core: core.clone(),
+            basis: basis.clone(),
+            basis_cache: Some(cache_dir.to_path_buf()),
+            refine: spec.refine.clone(),
+            materials: several.then_some(spec.segment),
+            ..Settings::default()
+        };
+        if let Some(d) = &spec.nbrdf_dir {
+            s.nbrdf_dir = d.clone();
+        }
+        s
+    };
+    let (auto, one) = (settings(true), settings(false));
+    let once = |settings: &Settings, name: &str| -> Result<f64, EvalError> {
+        let out = dir.join(name);
+        let t = Instant::now();
+        let o = reconstruct(job, settings, &mut |_| {})?;
+        output::write(&out, &o).map_err(|source| EvalError::Output {
+            dir: out.clone(),
+            source,
+        })?;
+        let s = t.elapsed().as_secs_f64();
+        // 40-140 MB of tables per run: not kept
+        let _ = std::fs::remove_dir_all(&out);
+        Ok(s)
+    };
+    let (mut a, mut b) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..spec.time_repeats.max(1) {
+        a = a.min(once(&auto, "command-auto")?);
+        b = b.min(once(&one, "command-one")?);
+    }
+    Ok((a, b))
 }
 
 /// Three decimals; "-" for a value that is not finite (no error to show).
@@ -445,7 +516,7 @@ struct Timing {
 /// The summary's time row: the ratio of each object's several-material time to its
 /// one-material time (geometric mean, max, how many within 2x), the summed seconds and their
 /// ratio, finding the materials' share, and the ratio by the number of materials found.
-fn time_row(t: &[Timing], repeats: usize) -> String {
+fn time_row(label: &str, t: &[Timing], repeats: usize) -> String {
     let ratio = |x: &Timing| x.seconds / x.one;
     let times: Vec<f64> = t.iter().map(ratio).collect();
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
@@ -468,8 +539,9 @@ fn time_row(t: &[Timing], repeats: usize) -> String {
             )
         })
         .collect();
+    let segment: Vec<f64> = t.iter().map(|x| x.segment / x.one).collect();
     format!(
-        "| time / one-material time (several materials) | gm {}, max {}, within 2x {} of {}; summed {:.1} s / {:.1} s = {} (finding the materials: gm {} of the one-material time); by materials found, {}{} |\n\n",
+        "| {label} | gm {}, max {}, within 2x {} of {}; summed {:.1} s / {:.1} s = {}{}; by materials found, {}{} |\n",
         f3(gm(&times)),
         f3(max(&times)),
         times.iter().filter(|&&r| r <= 2.0).count(),
@@ -477,7 +549,14 @@ fn time_row(t: &[Timing], repeats: usize) -> String {
         seconds,
         one,
         f3(seconds / one),
-        f3(gm(&t.iter().map(|x| x.segment / x.one).collect::<Vec<_>>())),
+        if segment.iter().all(|x| x.is_finite()) {
+            format!(
+                " (finding the materials: gm {} of the one-material time)",
+                f3(gm(&segment))
+            )
+        } else {
+            String::new()
+        },
         by_count.join("; "),
         if repeats > 1 {
             format!("; each the least of {repeats} timings")
@@ -558,7 +637,30 @@ pub fn markdown(
             one: r.seconds_one,
         })
         .collect();
-    s += &time_row(&timings, spec.time_repeats);
+    s += &time_row(
+        "time / one-material time (several materials; the cores, from the observed pixels)",
+        &timings,
+        spec.time_repeats,
+    );
+    let commands: Vec<Timing> = multi
+        .iter()
+        .filter_map(|r| {
+            r.command_seconds.map(|(seconds, one)| Timing {
+                found: r.count,
+                seconds,
+                segment: f64::NAN,
+                one,
+            })
+        })
+        .collect();
+    if !commands.is_empty() {
+        s += &time_row(
+            "the whole `reconstruct` a user runs, `--materials auto` / one material (the basis from the cache, the job from disk, every file written)",
+            &commands,
+            spec.time_repeats,
+        );
+    }
+    s += "\n";
     s += "## Objects\n\n| mesh | materials | rig | seed | count | agreement | found: truth (purity), model, ours / Lambert / L+GGX, ratio | s: all (materials; one-material) |\n|---|---|---|---|---|---|---|---|\n";
     for r in results {
         let per: Vec<String> = r.scores.iter().map(MaterialScore::cell).collect();
@@ -593,8 +695,8 @@ mod tests {
             one,
         };
         // ratios 1.5 and 6 (two materials found), 3 (three)
-        let row = time_row(&[t(2, 3.0, 2.0), t(3, 3.0, 1.0), t(2, 6.0, 1.0)], 2);
-        assert!(row.starts_with("| time / one-material time (several materials) | gm 3.000,"));
+        let row = time_row("time", &[t(2, 3.0, 2.0), t(3, 3.0, 1.0), t(2, 6.0, 1.0)], 2);
+        assert!(row.starts_with("| time | gm 3.000,"), "{row}");
         assert!(row.contains("max 6.000, within 2x 1 of 3;"), "{row}");
         assert!(row.contains("summed 12.0 s / 4.0 s = 3.000"), "{row}");
         assert!(row.contains("finding the materials: gm 0.100 of"), "{row}");
@@ -602,6 +704,17 @@ mod tests {
             row.contains("by materials found, 2: gm 3.000 (max 6.000) over 2; 3: gm 3.000 (max 3.000) over 1; each the least of 2 timings |"),
             "{row}"
         );
-        assert!(!time_row(&[t(2, 3.0, 2.0)], 1).contains("least of"));
+        assert!(!time_row("time", &[t(2, 3.0, 2.0)], 1).contains("least of"));
+        // no segmentation share for timings without one (the whole command's)
+        let whole = Timing {
+            segment: f64::NAN,
+            ..t(2, 3.0, 2.0)
+        };
+        let row = time_row("command", &[whole], 1);
+        assert!(
+            row.contains("= 1.500; by materials found, 2: gm 1.500"),
+            "{row}"
+        );
+        assert!(!row.contains("finding the materials"), "{row}");
     }
 }

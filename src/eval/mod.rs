@@ -84,6 +84,11 @@ pub enum EvalError {
     Material(#[from] crate::reconstruct::materials::MaterialError),
     #[error("basis: {0}")]
     Basis(#[from] crate::brdf::basis_cache::BasisCacheError),
+    #[error("writing the reconstruction to {dir}: {source}")]
+    Output {
+        dir: std::path::PathBuf,
+        source: crate::reconstruct::output::OutputError,
+    },
     #[error("scene {scene} of index.json: the basis without {exclude:?} (its basis_exclude)")]
     SceneBasis {
         scene: String,

@@ -30,6 +30,8 @@ pub struct MaterialsBenchOptions {
     /// Times each object's reconstructions this many times, keeping the least
     /// (`MaterialsSpec::time_repeats`).
     pub time_repeats: usize,
+    /// Also time the whole commands (`MaterialsSpec::time_command`).
+    pub time_command: bool,
     /// Folder of materials.md and materials.json.
     pub out: PathBuf,
     /// The command as typed, quoted by the page.
@@ -78,6 +80,8 @@ pub fn run(
         bin_step: o.scene.bin_step,
         refine: o.refine.clone(),
         time_repeats: o.time_repeats.max(1),
+        time_command: o.time_command,
+        nbrdf_dir: o.scene.nbrdf_dir.clone(),
     };
     let machine = crate::eval::host::machine();
     create_dir(&o.out)?;
