@@ -95,6 +95,11 @@ pub struct ExternalResult {
     pub ours: Result<Errors, String>,
     pub model: Option<ModelReport>,
     pub confidence: Option<Level>,
+    /// The ladder that chose `model` (every rung's held-out errors by fold), so that a study of
+    /// the choice needs no re-run (scripts/heldout_vs_render.py).
+    pub ladder: Option<crate::reconstruct::ladder::Ladder>,
+    /// The confidence's share of a render of the result from cells no pixel observed.
+    pub unseen_energy: Option<f64>,
     pub lambert: Option<Errors>,
     pub lambert_ggx: Option<Errors>,
     /// A scene of several materials: what was found (`ours`, `lambert`, `lambert_ggx` are then
@@ -320,6 +325,8 @@ pub fn run(
                 ours: Err("not run".into()),
                 model: None,
                 confidence: None,
+                ladder: None,
+                unseen_energy: None,
                 lambert: None,
                 lambert_ggx: None,
                 split: None,
@@ -334,6 +341,8 @@ pub fn run(
                 Ok(o) => {
                     r.model = Some(o.core.model.clone());
                     r.confidence = Some(o.core.confidence.level);
+                    r.ladder = o.core.ladder.clone();
+                    r.unseen_energy = Some(o.core.confidence.unseen_energy);
                     match &truth {
                         Some(truth) => {
                             r.ours = Ok(truth.errors_of(&o.table));
