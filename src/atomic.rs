@@ -63,17 +63,7 @@ fn replace_with(
     sync: bool,
     fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let mut tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}.tmp-"))
-        .tempfile_in(&dir)?;
+    let (dir, mut tmp) = temporary_beside(path)?;
     fill(tmp.as_file_mut())?;
     tmp.as_file_mut().flush()?;
     if sync {
@@ -87,6 +77,23 @@ fn replace_with(
     Ok(())
 }
 
+/// A new temporary file `.NAME.tmp-XXXXXX` in `path`'s folder (removed on drop unless
+/// persisted), and that folder.
+fn temporary_beside(path: &Path) -> std::io::Result<(PathBuf, tempfile::NamedTempFile)> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}.tmp-"))
+        .tempfile_in(&dir)?;
+    Ok((dir, tmp))
+}
+
 /// Gives `dst` the contents of the file `src` atomically: a hard link where the file system
 /// allows one (nothing written twice), a copy otherwise; made beside `dst` under a temporary
 /// name (`.NAME.tmp-XXXXXX`) and renamed over it, so a crash leaves the old `dst` or the new
@@ -94,19 +101,8 @@ fn replace_with(
 /// [`write_atomic`] of either name renames a new file over that name and leaves the other as
 /// it was.
 pub fn link_or_copy_atomic(src: &Path, dst: &Path) -> std::io::Result<()> {
-    let dir = match dst.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = dst
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
     // a unique name, then free for the link (which must not find a file there)
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}.tmp-"))
-        .tempfile_in(&dir)?
-        .into_temp_path();
+    let tmp = temporary_beside(dst)?.1.into_temp_path();
     std::fs::remove_file(&tmp)?;
     if std::fs::hard_link(src, &tmp).is_err() {
         std::fs::copy(src, &tmp)?;
