@@ -78,7 +78,9 @@ fn replace_with(
 }
 
 /// A new temporary file `.NAME.tmp-XXXXXX` in `path`'s folder (removed on drop unless
-/// persisted), and that folder.
+/// persisted), and that folder. Created with the permissions any new file gets (0666 less the
+/// umask on unix), not the temporary file's private 0600: it becomes the user's result, which
+/// the lab's group reads as it reads every other file.
 fn temporary_beside(path: &Path) -> std::io::Result<(PathBuf, tempfile::NamedTempFile)> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -88,9 +90,15 @@ fn temporary_beside(path: &Path) -> std::io::Result<(PathBuf, tempfile::NamedTem
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}.tmp-"))
-        .tempfile_in(&dir)?;
+    let prefix = format!(".{name}.tmp-");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder.tempfile_in(&dir)?;
     Ok((dir, tmp))
 }
 
@@ -141,6 +149,22 @@ mod tests {
         // a source that does not exist is an error, and the target stays as it was
         assert!(link_or_copy_atomic(&d.join("missing.binary"), &dst).is_err());
         assert_eq!(std::fs::read(&dst).unwrap(), b"second");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_written_file_has_the_permissions_of_any_new_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        std::fs::write(d.join("plain"), b"x").unwrap();
+        write_atomic(&d.join("synced"), b"x").unwrap();
+        write_atomic_unsynced(&d.join("unsynced"), b"x").unwrap();
+        link_or_copy_atomic(&d.join("unsynced"), &d.join("linked")).unwrap();
+        for name in ["synced", "unsynced", "linked"] {
+            assert_eq!(mode(&d.join(name)), mode(&d.join("plain")), "{name}");
+        }
     }
 
     #[test]

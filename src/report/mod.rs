@@ -63,13 +63,7 @@ pub fn write_report(
         path: path.clone(),
         source,
     };
+    // with the permissions of any new file (`atomic`), so the lab can share the page
     crate::atomic::write_atomic(&path, page.as_bytes()).map_err(werr)?;
-    // The atomic write goes through a private temporary file (mode 0600); a report is meant to
-    // be shared, so give it the usual permissions of a document.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).map_err(werr)?;
-    }
     Ok((path, data))
 }
