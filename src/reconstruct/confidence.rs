@@ -560,6 +560,18 @@ mod tests {
             .collect()
     }
 
+    /// A constant model's confidence on `obs`: one trial, no held-out figures.
+    fn assess_const(value: f64, obs: &[Observation], settings: &ConfidenceSettings) -> Confidence {
+        let refs: Vec<&Observation> = obs.iter().collect();
+        assess(
+            &CandidateValues(&Const(value)),
+            &[],
+            &refs,
+            HeldOut::default(),
+            settings,
+        )
+    }
+
     #[test]
     fn agreeing_trials_over_a_wide_domain_are_trusted() {
         let obs: Vec<Observation> = cells(90);
@@ -611,18 +623,11 @@ mod tests {
         let obs: Vec<Observation> = (0..90)
             .flat_map(|h| (0..50).map(move |d| obs(h as f64, d as f64)))
             .collect();
-        let refs: Vec<&Observation> = obs.iter().collect();
         let settings = ConfidenceSettings {
             unseen_energy_medium: 0.0,
             ..ConfidenceSettings::default()
         };
-        let c = assess(
-            &CandidateValues(&Const(0.3)),
-            &[],
-            &refs,
-            HeldOut::default(),
-            &settings,
-        );
+        let c = assess_const(0.3, &obs, &settings);
         assert!(
             c.unseen_energy > 0.0 && c.unseen_energy < 0.9,
             "{}",
@@ -650,15 +655,7 @@ mod tests {
         assert!(reason.contains(&lights), "{reason}");
 
         // Seen everywhere: the share stays below the threshold and no band is named.
-        let all: Vec<Observation> = cells(90);
-        let refs: Vec<&Observation> = all.iter().collect();
-        let c = assess(
-            &CandidateValues(&Const(0.3)),
-            &[],
-            &refs,
-            HeldOut::default(),
-            &ConfidenceSettings::default(),
-        );
+        let c = assess_const(0.3, &cells(90), &ConfidenceSettings::default());
         assert_eq!(c.unseen_band, None);
         assert!(
             c.reasons
@@ -669,15 +666,7 @@ mod tests {
 
     #[test]
     fn a_single_trial_has_no_disagreement_figure() {
-        let obs: Vec<Observation> = cells(90);
-        let refs: Vec<&Observation> = obs.iter().collect();
-        let c = assess(
-            &CandidateValues(&Const(0.2)),
-            &[],
-            &refs,
-            HeldOut::default(),
-            &ConfidenceSettings::default(),
-        );
+        let c = assess_const(0.2, &cells(90), &ConfidenceSettings::default());
         assert_eq!(c.trial_disagreement, None);
         assert_eq!(c.level, Level::High);
     }
