@@ -360,7 +360,7 @@ pub fn write(dir: &Path, m: &Materials) -> Result<(), MaterialsWriteError> {
     };
     let mdir = dir.join(MATERIALS_DIR);
     std::fs::create_dir_all(&mdir).map_err(io(&mdir))?;
-    // side by side: each table's encoding and fsync overlap the others'
+    // side by side: each table's encoding and writing overlap the others'
     m.results
         .par_iter()
         .try_for_each(|r| r.table.write(&dir.join(material_file(&r.name))))?;
