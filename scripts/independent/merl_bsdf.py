@@ -64,7 +64,12 @@ class MerlTable(mi.BSDF):
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
         self.path = str(props["filename"])
-        self.table = mi.Float(np.ascontiguousarray(read_table(self.path).reshape(-1)))
+        table = read_table(self.path)
+        # The vectorised variants gather from a Dr.Jit array; the scalar one (`scalar_rgb`, the
+        # fallback without libLLVM >= 17) has no array to gather from: it indexes the numpy
+        # table with the one bin each call looks up.
+        self.scalar = not dr.is_array_v(mi.Float)
+        self.table = table if self.scalar else mi.Float(np.ascontiguousarray(table.reshape(-1)))
         flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
         self.m_components = [flags]
         self.m_flags = flags
@@ -74,6 +79,9 @@ class MerlTable(mi.BSDF):
         cos_o = mi.Frame3f.cos_theta(wo)
         ok = active & (cos_i > 0) & (cos_o > 0)
         idx = merl_index(wo, si.wi)
+        if self.scalar:
+            value = mi.Color3f(*self.table[int(idx)]) if ok else mi.Color3f(0.0)
+            return value, cos_o
         value = dr.gather(mi.Color3f, self.table, idx, ok)
         return dr.select(ok, value, 0.0), cos_o
 
