@@ -1389,7 +1389,8 @@ mod tests {
         obs
     }
 
-    fn run(obs: &[Observation], images: usize) -> Ladder {
+    /// The ladder on `obs` with the cosine prior and `settings` (the rest as the tests share).
+    fn run_with(obs: &[Observation], images: usize, settings: LadderSettings) -> Ladder {
         let rs = ReliableSettings::none();
         let reliable = select_reliable(obs, &rs);
         let components = ComponentSettings {
@@ -1405,14 +1406,23 @@ mod tests {
             samples: 40,
             basis_fit: BasisFit::Samples,
             components: &components,
-            settings: &LadderSettings {
-                hybrid: false,
-                ..Default::default()
-            },
+            settings: &settings,
             images,
             seed: 3,
         })
         .expect("a ladder")
+    }
+
+    /// Without the hybrid rung.
+    fn run(obs: &[Observation], images: usize) -> Ladder {
+        run_with(
+            obs,
+            images,
+            LadderSettings {
+                hybrid: false,
+                ..Default::default()
+            },
+        )
     }
 
     #[test]
@@ -1439,30 +1449,16 @@ mod tests {
         assert!(lambert.error.unwrap() > 10.0 * chosen.error.unwrap().max(1e-6));
     }
 
+    /// Without the analytic rungs: the basis and the basis + peak.
     fn run_with_peak(obs: &[Observation], images: usize) -> Ladder {
-        let rs = ReliableSettings::none();
-        let reliable = select_reliable(obs, &rs);
-        let components = ComponentSettings {
-            grid: vec![1, 2, 4, 6],
-            etas: vec![1e-6],
-            ..Default::default()
-        };
-        climb(&LadderInput {
-            prior: &CosinePrior { k: 6 },
-            observations: obs,
-            reliable: &reliable,
-            reliable_settings: &rs,
-            samples: 40,
-            basis_fit: BasisFit::Samples,
-            components: &components,
-            settings: &LadderSettings {
+        run_with(
+            obs,
+            images,
+            LadderSettings {
                 analytic: false,
                 ..Default::default()
             },
-            images,
-            seed: 3,
-        })
-        .expect("a ladder")
+        )
     }
 
     #[test]
