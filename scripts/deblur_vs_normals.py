@@ -29,6 +29,8 @@ def load(path):
 
 
 def main():
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
     a, b = load(sys.argv[1]), load(sys.argv[2])
     keys = [k for k in a if k in b]
     gain = [math.log(b[k][0] / a[k][0]) for k in keys]

@@ -18,7 +18,9 @@ import math
 import sys
 
 
-def rows_of(path):
+def read_rows(path):
+    """Every scene (job) of the file with a ladder: name, ours, lambert, lambert_ggx (the
+    environment errors), ladder, unseen."""
     d = json.load(open(path))
     out = []
     if 'scenes' in d:  # bench accuracy
@@ -46,11 +48,23 @@ def rows_of(path):
                 lambert=r['lambert']['environment'],
                 lambert_ggx=r['lambert_ggx']['environment'],
                 ladder=r['ladder'], unseen=r.get('unseen_energy')))
-    for x in out:
+    return out
+
+
+def rows_of(path):
+    """[`read_rows`] with the chosen rung's held-out gain over the better analytic rung."""
+    scored = []
+    for x in read_rows(path):
         rungs = x['ladder']['rungs']
         ch = rungs[x['ladder']['chosen']]
         an = [r for r in rungs if r['family'] in ('lambert', 'lambert-ggx')
               and r['error_log'] is not None]
+        if not an or ch['error_log'] is None:
+            # a run whose ladder scored no analytic rung (e.g. `--model basis`): no gain to read
+            print('%s: %s left out, its ladder has no held-out analytic rung to compare with'
+                  % (path, x['name']), file=sys.stderr)
+            continue
+        scored.append(x)
         best = min(an, key=lambda r: r['error_log'])
         x['family'] = ch['family']
         x['gain'] = (best['error_log'] - ch['error_log']) / best['error_log']
@@ -63,7 +77,7 @@ def rows_of(path):
         x['ratio'] = base / x['ours']
         switched = x['lambert'] if best['family'] == 'lambert' else x['lambert_ggx']
         x['ratio_analytic'] = base / switched
-    return out
+    return scored
 
 
 def spearman(a, b):
@@ -88,6 +102,8 @@ def gm(v):
 
 def main():
     files = [a for a in sys.argv[1:] if not a.startswith('--')]
+    if not files:
+        sys.exit(__doc__)
     gs = [0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4]
     print('| file | scenes | rank correlation of gain and ratio | '
           + ' | '.join('G = %.2f' % g for g in gs) + ' |')

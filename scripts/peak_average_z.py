@@ -41,7 +41,7 @@ def z_of(ladder):
 def rows_of(path):
     """{scene name: (ladder, ours env, better baseline env)}, read as heldout_vs_render reads."""
     return {r['name']: (r['ladder'], r['ours'], min(r['lambert'], r['lambert_ggx']))
-            for r in heldout_vs_render.rows_of(path)}
+            for r in heldout_vs_render.read_rows(path)}
 
 
 def main(paths):
