@@ -7,7 +7,8 @@
 //! `cargo run --release --example refine_study -- MATERIAL MESH RIG WxH SEED [VARIANT...]`
 //! MESH: spot | bunny; RIG: spread | one30; a VARIANT is `key=value,...` over
 //! iters, sweeps, step, tilt, sigma, smooth, smooth_normals, anchor, cg, cgtol, minpx, gain, movecos,
-//! fitcos, facecap, final, passes, margin, holdout, depth (0/1), dsigma, dcg, dsweeps, starts (a list: `starts=0/2/4`), and `from_truth=1` (start from the true vertex normals on the
+//! fitcos, facecap, final, passes, margin, holdout, depth (0/1), dsigma, dcg, dsweeps, starts (a list: `starts=0/2/4`),
+//! bins (the reflectance table's shape: `bins=32x16x8`), and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth), and
 //! `true_pos=1` (the true positions under the SfM-like normals: the pixels land where they
 //! should; with `from_truth=1`, the truth on the true positions)
@@ -18,7 +19,7 @@ use brdf_rig::eval::{Perturb, find_material, load_case, refine_case, write_case}
 use brdf_rig::geometry::mesh_io::load_mesh;
 use brdf_rig::geometry::sfm_like::SfmLikeParams;
 use brdf_rig::reconstruct::observe::ObserveSettings;
-use brdf_rig::reconstruct::refine::RefineSettings;
+use brdf_rig::reconstruct::refine::{RefineSettings, TableBins};
 use brdf_rig::sim::job_scene::SceneSpec;
 use std::time::Instant;
 
@@ -34,6 +35,22 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
                 .split('/')
                 .map(str::parse)
                 .collect::<Result<Vec<usize>, _>>()?;
+            continue;
+        }
+        if k == "bins" {
+            // the reflectance table's shape: `bins=48x32x8` (theta_h x theta_d x phi_d)
+            let b = v
+                .split('x')
+                .map(str::parse)
+                .collect::<Result<Vec<usize>, _>>()?;
+            let [theta_h, theta_d, phi_d] = b[..] else {
+                anyhow::bail!("bins={v}: three counts HxDxP");
+            };
+            s.table_bins = TableBins {
+                theta_h,
+                theta_d,
+                phi_d,
+            };
             continue;
         }
         let f: f64 = v.parse()?;

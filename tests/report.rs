@@ -290,6 +290,8 @@ fn example_report(job: PathBuf) -> Report {
             max_tilt_deg: 9.0,
             seconds: 2.0,
             materials: 1,
+            table_bins: RefineSettings::default().sparse_table_bins,
+            table_samples_per_cell: Some(1.3),
         }),
         materials: None,
         timings: [("rasterise", 1.5), ("observe", 0.25), ("trials", 3.0)]
@@ -527,6 +529,12 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     let n = data.normals.as_ref().unwrap();
     assert!(n.accepted);
     assert_eq!((n.rows.len(), n.rows[1].held_out_error), (2, Some(0.35)));
+    // the refinement's table: the coarser shape, and why
+    assert!(
+        html.contains("32 x 16 x 8 (theta_h x theta_d x phi_d): 1.3 fitting samples per observed cell of 48 x 32 x 8"),
+        "{}",
+        n.table
+    );
     assert!(
         data.other_facts
             .iter()

@@ -23,6 +23,7 @@ use crate::reconstruct::nielsen::{NielsenPrior, NielsenSettings};
 use crate::reconstruct::observation::Observation;
 use crate::reconstruct::observe::{NO_FACE, ObserveSettings};
 use crate::reconstruct::prepare::observe_scene;
+use crate::reconstruct::refine::TableBins;
 use crate::reconstruct::segment::{SegmentSettings, interior_groups};
 use crate::sim::job_scene::{view_geometry, write_scene_materials};
 use nalgebra::Vector3;
@@ -148,6 +149,10 @@ pub struct NormalsChange {
     pub accepted: bool,
     /// Reflectance tables the refinement fitted (one per material found before it).
     pub tables: usize,
+    /// Their shape, and the fitting samples per observed cell of the finer one that chose it
+    /// (`RefineReport::table_bins`, `table_samples_per_cell`).
+    pub table_bins: TableBins,
+    pub table_samples_per_cell: Option<f64>,
 }
 
 /// What [`score_found`] scores, per found material: name, table as written, model and
@@ -316,6 +321,8 @@ pub fn run(
                                 median_after_deg: n.median_after_deg,
                                 accepted: n.report.accepted,
                                 tables: n.report.materials,
+                                table_bins: n.report.table_bins,
+                                table_samples_per_cell: n.report.table_samples_per_cell,
                             });
                             (c.observations, Some(c.unrefined), normals)
                         }
@@ -619,13 +626,20 @@ pub fn markdown(
     let normals: Vec<&NormalsChange> = results.iter().filter_map(|r| r.normals.as_ref()).collect();
     if spec.refine.is_some() {
         s += &format!(
-            "| normals refined first (a reflectance table per material): median vertex-normal error after / before | gm {} over {} objects, accepted in {} |\n",
+            "| normals refined first (a reflectance table per material): median vertex-normal error after / before | gm {} over {} objects, accepted in {}; the finer table (RefineSettings::table_bins) in {} |\n",
             f3(gm(&normals
                 .iter()
                 .map(|n| n.median_after_deg / n.median_before_deg)
                 .collect::<Vec<_>>())),
             normals.len(),
-            normals.iter().filter(|n| n.accepted).count()
+            normals.iter().filter(|n| n.accepted).count(),
+            normals
+                .iter()
+                .filter(|n| spec
+                    .refine
+                    .as_ref()
+                    .is_some_and(|rs| n.table_bins == rs.table_bins))
+                .count()
         );
     }
     let timings: Vec<Timing> = multi

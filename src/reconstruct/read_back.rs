@@ -12,7 +12,7 @@
 //! Pure: no I/O.
 
 use super::ladder::{ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung};
-use super::refine::{IterationReport, RefineReport, RefineSettings, StartReport};
+use super::refine::{IterationReport, RefineReport, RefineSettings, StartReport, TableBins};
 use serde::{Deserialize, Deserializer};
 
 /// `impl Deserialize for $ty` through its remote mirror `$mirror`.
@@ -38,6 +38,7 @@ through_mirror! {
     IterationReport => IterationReportMirror,
     StartReport => StartReportMirror,
     RefineReport => RefineReportMirror,
+    TableBins => TableBinsMirror,
 }
 
 /// Does nothing at run time: its exhaustive matches make a variant added to a mirrored enum a
@@ -178,6 +179,15 @@ struct RefineSettingsMirror {
     /// Absent in reports written before it existed (no correction passes then).
     #[serde(default)]
     table_passes: usize,
+    /// Absent in reports written before it existed (the table was 32 x 16 x 8 then).
+    #[serde(default = "table_bins_before_session_40")]
+    table_bins: TableBins,
+    /// Absent in reports written before it existed (the one table above for every scene).
+    #[serde(default = "table_bins_before_session_40")]
+    sparse_table_bins: TableBins,
+    /// Absent in reports written before it existed (no choice: 0).
+    #[serde(default)]
+    min_samples_per_cell: f64,
     /// Absent in reports written before it existed (the mesh's normals were the only start).
     #[serde(default)]
     start_smoothing: Vec<usize>,
@@ -196,6 +206,23 @@ struct RefineSettingsMirror {
     /// Absent in reports written before it existed (unused without `depth`).
     #[serde(default)]
     depth_cg_iterations: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(remote = "TableBins")]
+struct TableBinsMirror {
+    theta_h: usize,
+    theta_d: usize,
+    phi_d: usize,
+}
+
+/// The refinement's table in the reports written before it was a setting.
+fn table_bins_before_session_40() -> TableBins {
+    TableBins {
+        theta_h: 32,
+        theta_d: 16,
+        phi_d: 8,
+    }
 }
 
 #[derive(Deserialize)]
@@ -240,6 +267,11 @@ struct RefineReportMirror {
     /// Absent in reports written before a table per material: one table.
     #[serde(default = "one")]
     materials: usize,
+    /// Absent in reports written before the table's shape was chosen: 32 x 16 x 8, unmeasured.
+    #[serde(default = "table_bins_before_session_40")]
+    table_bins: TableBins,
+    #[serde(default)]
+    table_samples_per_cell: Option<f64>,
 }
 
 fn one() -> usize {
@@ -333,6 +365,52 @@ mod tests {
             max_tilt_deg: 9.0,
             seconds: 2.0,
             materials: 2,
+            table_bins: table_bins_before_session_40(),
+            table_samples_per_cell: Some(1.3),
         });
+    }
+
+    /// A report written before the table's shape was a choice reads back with the one shape
+    /// every refinement used then, and no density.
+    #[test]
+    fn an_older_refinement_reads_back_with_the_old_table() {
+        let mut report = RefineReport {
+            accepted: false,
+            reason: "kept".into(),
+            settings: RefineSettings::default(),
+            pixels: 1,
+            pixels_offered: 1,
+            held_out_images: vec![],
+            vertices_refined: 0,
+            starts: vec![],
+            chosen_start_smoothing: 0,
+            iterations: vec![],
+            chosen_iterations: 0,
+            mean_tilt_deg: 0.0,
+            max_tilt_deg: 0.0,
+            seconds: 0.0,
+            materials: 1,
+            table_bins: RefineSettings::default().table_bins,
+            table_samples_per_cell: Some(2.5),
+        };
+        let mut json = serde_json::to_value(&report).unwrap();
+        let o = json.as_object_mut().unwrap();
+        o.remove("table_bins");
+        o.remove("table_samples_per_cell");
+        let settings = o["settings"].as_object_mut().unwrap();
+        for k in ["table_bins", "sparse_table_bins", "min_samples_per_cell"] {
+            settings.remove(k);
+        }
+        let old: RefineReport = serde_json::from_value(json).unwrap();
+        let before = table_bins_before_session_40();
+        assert_eq!((old.table_bins, old.table_samples_per_cell), (before, None));
+        assert_eq!(old.settings.table_bins, before);
+        assert_eq!(old.settings.sparse_table_bins, before);
+        report.table_bins = before;
+        report.table_samples_per_cell = None;
+        report.settings.table_bins = before;
+        report.settings.sparse_table_bins = before;
+        report.settings.min_samples_per_cell = 0.0;
+        assert_eq!(old, report);
     }
 }

@@ -5,12 +5,14 @@
 //! several light images, each lighting it from another direction relative to the surface (on a
 //! turntable the object turns under the light), so the images constrain the normals. The
 //! refinement alternates:
-//! 1. fit a reflectance table f(theta_h, theta_d, phi_d) (32x16x8 cells, trilinear, so normals
-//!    have gradients) to the pixels with the current normals; on an object of several
-//!    materials, found before the refinement (`MeshNormals::labels`, `prepare::material_labels`),
-//!    one table per material: one table for all leaves each material's difference from their
-//!    mean for the normals to absorb, and the held-out images do not catch it (a two-material
-//!    Spot: 2.58 -> 4.73 degrees with one table, accepted; 1.84 with a table each);
+//! 1. fit a reflectance table f(theta_h, theta_d, phi_d) (trilinear, so normals have
+//!    gradients; 48x32x8 cells where the pixels hold that many, else 32x16x8:
+//!    `RefineSettings::table_bins`) to the pixels with the current normals; on an object of
+//!    several materials, found before the refinement (`MeshNormals::labels`,
+//!    `prepare::material_labels`), one table per material: one table for all leaves each
+//!    material's difference from their mean for the normals to absorb, and the held-out
+//!    images do not catch it (a two-material Spot at 160x120: 2.58 -> 4.73 degrees with one
+//!    table, accepted; 1.84 with a table each);
 //! 2. move every vertex normal at once to lower the robust log-space residual of the pixels
 //!    (damped Gauss-Newton on two tangent angles per vertex, numeric derivatives of the table).
 //!    A pixel's normal is the blend of its face's three vertex normals, so each residual couples
@@ -153,6 +155,21 @@ pub struct RefineSettings {
     /// 0 by default: 2 gave better normals on the grid but chose more alternations, over the
     /// time allowed (docs/normal-refinement.md, "Session 22").
     pub table_passes: usize,
+    /// The reflectance table's shape where the pixels hold it: every table's observed cells
+    /// get at least `min_samples_per_cell` fitting samples on average (else
+    /// `sparse_table_bins`). 48 x 32 x 8 since session 40: the finer theta_d follows a spread
+    /// rig's lights across theta_d and leaves less misfit for the normals to absorb
+    /// (docs/normal-refinement.md, "Session 40"; 32 x 16 x 8 for every scene before).
+    pub table_bins: TableBins,
+    /// The table's shape where the pixels are too few for `table_bins`: a finer table than
+    /// its pixels hold fits their noise, and the normals follow it less (small images, where
+    /// about one sample falls in each observed cell of the finer table).
+    pub sparse_table_bins: TableBins,
+    /// Mean fitting samples per observed cell of `table_bins` (each sample counts once; a
+    /// cell is observed when a sample's trilinear weight reaches it) below which the
+    /// `sparse_table_bins` are used. Measured with the mesh's normals on all the pixels, for
+    /// each material's table (the sparsest decides).
+    pub min_samples_per_cell: f64,
     /// Taubin iterations of the mesh's positions tried for the starting normals (the mesh's
     /// vertex-to-vertex noise filtered out, `geometry::taubin`); the held-out images choose
     /// among them before the first alternation. 0 (the mesh's own normals) is always tried.
@@ -196,6 +213,17 @@ impl Default for RefineSettings {
             max_pixels_per_face: 6,
             final_alternations: 1,
             table_passes: 0,
+            table_bins: TableBins {
+                theta_h: 48,
+                theta_d: 32,
+                phi_d: 8,
+            },
+            sparse_table_bins: TableBins {
+                theta_h: 32,
+                theta_d: 16,
+                phi_d: 8,
+            },
+            min_samples_per_cell: 2.0,
             start_smoothing: vec![0, 2, 4, 8, 16],
             edge_margin_px: 1,
             depth: true,
@@ -255,6 +283,11 @@ pub struct RefineReport {
     /// Reflectance tables fitted per alternation: one per material of `MeshNormals::labels`
     /// (1: the object taken as one material).
     pub materials: usize,
+    /// The reflectance table's shape used (`RefineSettings::table_bins` or
+    /// `sparse_table_bins`), and the fitting samples per observed cell of the finer shape
+    /// that chose it (`None` when the refinement stopped before choosing).
+    pub table_bins: TableBins,
+    pub table_samples_per_cell: Option<f64>,
 }
 
 /// The normals to use and what was done.
@@ -388,13 +421,26 @@ fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
     a.cross(b).norm().atan2(a.dot(b)).to_degrees()
 }
 
-/// Bins of the reflectance table along theta_h (spaced as sqrt(theta_h), like MERL), theta_d
-/// (linear) and phi_d (linear over [0, 90] degrees: an isotropic, reciprocal BRDF is symmetric
-/// about both).
-const BINS_H: usize = 32;
-const BINS_D: usize = 16;
-const BINS_P: usize = 8;
-const CELLS: usize = BINS_H * BINS_D * BINS_P;
+/// The reflectance table's shape: bins along theta_h (spaced as sqrt(theta_h), like MERL),
+/// theta_d (linear) and phi_d (linear over [0, 90] degrees: an isotropic, reciprocal BRDF is
+/// symmetric about both). At least 2 each: a refinement with fewer is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct TableBins {
+    pub theta_h: usize,
+    pub theta_d: usize,
+    pub phi_d: usize,
+}
+
+impl TableBins {
+    fn dims(self) -> [usize; 3] {
+        [self.theta_h, self.theta_d, self.phi_d]
+    }
+
+    fn cells(self) -> usize {
+        self.theta_h * self.theta_d * self.phi_d
+    }
+}
+
 /// A material with fewer fitting samples than this shares the table of all pixels.
 const MIN_MATERIAL_SAMPLES: usize = 500;
 
@@ -407,6 +453,7 @@ const MIN_MATERIAL_SAMPLES: usize = 500;
 /// reflectance for the normals to absorb.
 #[derive(Clone, Debug)]
 struct Model {
+    bins: TableBins,
     tables: Vec<Vec<f64>>,
 }
 
@@ -418,7 +465,7 @@ struct Lookup {
     h: Vector3<f64>,
     /// `l` minus its component along `h`.
     lp: Vector3<f64>,
-    /// Continuous theta_d coordinate.
+    /// theta_d as a fraction of 90 degrees.
     td: f64,
 }
 
@@ -429,12 +476,12 @@ impl Lookup {
         Self {
             h,
             lp: l - h * l.dot(&h),
-            td: td / (PI / 2.0) * (BINS_D - 1) as f64,
+            td: td / (PI / 2.0),
         }
     }
 
-    /// Continuous table coordinates for the unit normal `n`.
-    fn coords(&self, n: &Vector3<f64>) -> [f64; 3] {
+    /// Continuous coordinates, in cells of a table of shape `bins`, for the unit normal `n`.
+    fn coords(&self, n: &Vector3<f64>, bins: TableBins) -> [f64; 3] {
         let h = &self.h;
         let cos_h = n.dot(h).clamp(-1.0, 1.0);
         let th = cos_h.acos().min(PI / 2.0);
@@ -450,16 +497,17 @@ impl Lookup {
             None => 0.0,
         };
         [
-            (th / (PI / 2.0)).sqrt() * (BINS_H - 1) as f64,
-            self.td,
-            pd / (PI / 2.0) * (BINS_P - 1) as f64,
+            (th / (PI / 2.0)).sqrt() * (bins.theta_h - 1) as f64,
+            self.td * (bins.theta_d - 1) as f64,
+            pd / (PI / 2.0) * (bins.phi_d - 1) as f64,
         ]
     }
 }
 
-/// The eight cells around continuous coordinates and their trilinear weights.
-fn trilinear(c: [f64; 3]) -> [(usize, f64); 8] {
-    let dims = [BINS_H, BINS_D, BINS_P];
+/// The eight cells of a table of shape `bins` around continuous coordinates, and their
+/// trilinear weights.
+fn trilinear(bins: TableBins, c: [f64; 3]) -> [(usize, f64); 8] {
+    let dims = bins.dims();
     let mut lo = [0usize; 3];
     let mut fr = [0.0f64; 3];
     for k in 0..3 {
@@ -474,27 +522,87 @@ fn trilinear(c: [f64; 3]) -> [(usize, f64); 8] {
             idx[k] = lo[k] + usize::from(up);
             w *= if up { fr[k] } else { 1.0 - fr[k] };
         }
-        ((idx[0] * BINS_D + idx[1]) * BINS_P + idx[2], w)
+        ((idx[0] * bins.theta_d + idx[1]) * bins.phi_d + idx[2], w)
     })
 }
 
-/// A table's trilinear value at continuous coordinates.
-fn interpolate(table: &[f64], c: [f64; 3]) -> f64 {
-    trilinear(c).iter().map(|&(cell, w)| w * table[cell]).sum()
+/// A cell is observed when the samples' trilinear weights on it add up to more than this.
+const OBSERVED_WEIGHT: f64 = 1e-3;
+
+/// Trilinear splatting of samples `(coordinates, value)` onto a table of shape `bins`: per
+/// cell, the weighted sum of the values and the sum of the weights. Non-finite values are
+/// left out.
+fn splat(bins: TableBins, samples: impl Iterator<Item = ([f64; 3], f64)>) -> (Vec<f64>, Vec<f64>) {
+    let mut sum = vec![0.0; bins.cells()];
+    let mut weight = vec![0.0; bins.cells()];
+    for (c, y) in samples {
+        if !y.is_finite() {
+            continue;
+        }
+        for (cell, w) in trilinear(bins, c) {
+            sum[cell] += w * y;
+            weight[cell] += w;
+        }
+    }
+    (sum, weight)
 }
 
-/// The 6-neighbours of a cell.
-fn cell_neighbours(c: usize) -> impl Iterator<Item = usize> {
-    let p = c % BINS_P;
-    let d = (c / BINS_P) % BINS_D;
-    let h = c / (BINS_P * BINS_D);
+/// How many cells of a table of shape `bins` the samples at `coords` observe.
+fn observed_cells(bins: TableBins, coords: &[[f64; 3]]) -> usize {
+    let (_, weight) = splat(bins, coords.iter().map(|&c| (c, 0.0)));
+    weight.iter().filter(|&&w| w > OBSERVED_WEIGHT).count()
+}
+
+/// The fewest samples per observed cell of a table of shape `bins` over the tables that
+/// `Model::fit_groups` fits to `samples` `(material, coordinates, value)` with `groups`
+/// materials: each material's own with `MIN_MATERIAL_SAMPLES` or more, and the pooled one
+/// when there is one material or a material shares it. Infinite without a sample.
+fn sparsest_density(bins: TableBins, samples: &[(u32, [f64; 3], f64)], groups: usize) -> f64 {
+    let density = |own: Vec<[f64; 3]>| {
+        let cells = observed_cells(bins, &own);
+        if cells == 0 {
+            f64::INFINITY
+        } else {
+            own.len() as f64 / cells as f64
+        }
+    };
+    let mut sparsest = f64::INFINITY;
+    let mut pooled = groups < 2;
+    for g in (0..groups as u32).filter(|_| groups >= 2) {
+        let own: Vec<[f64; 3]> = samples.iter().filter(|x| x.0 == g).map(|x| x.1).collect();
+        if own.len() < MIN_MATERIAL_SAMPLES {
+            pooled = true;
+        } else {
+            sparsest = sparsest.min(density(own));
+        }
+    }
+    if pooled {
+        sparsest = sparsest.min(density(samples.iter().map(|x| x.1).collect()));
+    }
+    sparsest
+}
+
+/// A table's trilinear value at continuous coordinates.
+fn interpolate(table: &[f64], bins: TableBins, c: [f64; 3]) -> f64 {
+    trilinear(bins, c)
+        .iter()
+        .map(|&(cell, w)| w * table[cell])
+        .sum()
+}
+
+/// The 6-neighbours of a cell of a table of shape `bins`.
+fn cell_neighbours(bins: TableBins, c: usize) -> impl Iterator<Item = usize> {
+    let [nh, nd, np] = bins.dims();
+    let p = c % np;
+    let d = (c / np) % nd;
+    let h = c / (np * nd);
     [
-        (h > 0).then(|| c - BINS_D * BINS_P),
-        (h + 1 < BINS_H).then(|| c + BINS_D * BINS_P),
-        (d > 0).then(|| c - BINS_P),
-        (d + 1 < BINS_D).then(|| c + BINS_P),
+        (h > 0).then(|| c - nd * np),
+        (h + 1 < nh).then(|| c + nd * np),
+        (d > 0).then(|| c - np),
+        (d + 1 < nd).then(|| c + np),
         (p > 0).then(|| c - 1),
-        (p + 1 < BINS_P).then(|| c + 1),
+        (p + 1 < np).then(|| c + 1),
     ]
     .into_iter()
     .flatten()
@@ -505,8 +613,9 @@ impl Model {
     /// filled from their neighbours, then `passes` corrections (each splats the samples'
     /// residuals back onto the cells they touch). `None` without a sample.
     #[cfg(test)]
-    fn fit(samples: &[([f64; 3], f64)], passes: usize) -> Option<Self> {
-        Self::fit_table(samples, passes).map(|table| Self {
+    fn fit(bins: TableBins, samples: &[([f64; 3], f64)], passes: usize) -> Option<Self> {
+        Self::fit_table(bins, samples, passes).map(|table| Self {
+            bins,
             tables: vec![table],
         })
     }
@@ -515,15 +624,17 @@ impl Model {
     /// with fewer than `min_samples` samples takes the table of all of them. `None` without a
     /// sample.
     fn fit_groups(
+        bins: TableBins,
         samples: &[(u32, [f64; 3], f64)],
         groups: usize,
         min_samples: usize,
         passes: usize,
     ) -> Option<Self> {
         let all: Vec<([f64; 3], f64)> = samples.iter().map(|&(_, c, y)| (c, y)).collect();
-        let pooled = Self::fit_table(&all, passes)?;
+        let pooled = Self::fit_table(bins, &all, passes)?;
         if groups < 2 {
             return Some(Self {
+                bins,
                 tables: vec![pooled],
             });
         }
@@ -538,68 +649,59 @@ impl Model {
                 if own.len() < min_samples {
                     return pooled.clone();
                 }
-                Self::fit_table(&own, passes).unwrap_or_else(|| pooled.clone())
+                Self::fit_table(bins, &own, passes).unwrap_or_else(|| pooled.clone())
             })
             .collect();
-        Some(Self { tables })
+        Some(Self { bins, tables })
     }
 
-    fn fit_table(samples: &[([f64; 3], f64)], passes: usize) -> Option<Vec<f64>> {
-        let mut sum = vec![0.0; CELLS];
-        let mut weight = vec![0.0; CELLS];
-        for &(c, y) in samples {
-            if !y.is_finite() {
-                continue;
-            }
-            for (cell, w) in trilinear(c) {
-                sum[cell] += w * y;
-                weight[cell] += w;
-            }
-        }
-        let observed: Vec<bool> = weight.iter().map(|&w| w > 1e-3).collect();
+    fn fit_table(bins: TableBins, samples: &[([f64; 3], f64)], passes: usize) -> Option<Vec<f64>> {
+        let cells = bins.cells();
+        let (sum, weight) = splat(bins, samples.iter().copied());
+        let observed: Vec<bool> = weight.iter().map(|&w| w > OBSERVED_WEIGHT).collect();
         if !observed.iter().any(|k| *k) {
             return None;
         }
         let mut table: Vec<f64> = sum
             .iter()
             .zip(&weight)
-            .map(|(s, w)| if *w > 1e-3 { s / w } else { 0.0 })
+            .map(|(s, w)| if *w > OBSERVED_WEIGHT { s / w } else { 0.0 })
             .collect();
-        Self::fill(&mut table, &observed);
+        Self::fill(bins, &mut table, &observed);
         for _ in 0..passes {
-            let mut back = vec![0.0; CELLS];
+            let mut back = vec![0.0; cells];
             for &(c, y) in samples {
                 if !y.is_finite() {
                     continue;
                 }
-                let r = y - interpolate(&table, c);
-                for (cell, w) in trilinear(c) {
+                let r = y - interpolate(&table, bins, c);
+                for (cell, w) in trilinear(bins, c) {
                     back[cell] += w * r;
                 }
             }
-            for c in 0..CELLS {
+            for c in 0..cells {
                 if observed[c] {
                     table[c] += back[c] / weight[c].max(1.0);
                 }
             }
-            Self::fill(&mut table, &observed);
+            Self::fill(bins, &mut table, &observed);
         }
         Some(table)
     }
 
     /// Fills the cells no sample reaches, ring by ring from the others.
-    fn fill(table: &mut [f64], observed: &[bool]) {
+    fn fill(bins: TableBins, table: &mut [f64], observed: &[bool]) {
         let mut known = observed.to_vec();
         // Fill the unobserved cells ring by ring from the observed ones (mean of the known
         // neighbours): a flat continuation, no extrapolated slope.
         while known.iter().any(|k| !*k) {
             let mut next = known.clone();
-            for c in 0..CELLS {
+            for c in 0..table.len() {
                 if known[c] {
                     continue;
                 }
                 let (mut acc, mut count) = (0.0, 0usize);
-                for m in cell_neighbours(c) {
+                for m in cell_neighbours(bins, c) {
                     if known[m] {
                         acc += table[m];
                         count += 1;
@@ -637,7 +739,7 @@ impl Model {
         if table.is_empty() {
             return 0.0;
         }
-        interpolate(table, look.coords(n)).max(0.0) * cos_i
+        interpolate(table, self.bins, look.coords(n, self.bins)).max(0.0) * cos_i
     }
 }
 
@@ -657,6 +759,8 @@ struct Problem<'a> {
     /// and how many materials there are.
     groups: Vec<u32>,
     group_count: usize,
+    /// The reflectance table's shape (`choose_bins`).
+    bins: TableBins,
 }
 
 impl<'a> Problem<'a> {
@@ -696,13 +800,46 @@ impl<'a> Problem<'a> {
 
     /// The reflectance table fitted to (an even draw of) the pixels `idx` with normals `n`.
     fn fit(&self, idx: &[usize], n: &[Vector3<f64>]) -> Option<Model> {
+        let samples = self.samples(idx, n, self.bins);
+        Model::fit_groups(
+            self.bins,
+            &samples,
+            self.group_count,
+            MIN_MATERIAL_SAMPLES,
+            self.settings.table_passes,
+        )
+    }
+
+    /// The table's shape for the pixels `idx` with normals `n`: `table_bins` when every table
+    /// fitted gets at least `min_samples_per_cell` samples per observed cell of that shape
+    /// (`sparsest_density`), else `sparse_table_bins`; and that density.
+    fn choose_bins(&self, idx: &[usize], n: &[Vector3<f64>]) -> (TableBins, f64) {
+        let s = self.settings;
+        let samples = self.samples(idx, n, s.table_bins);
+        let density = sparsest_density(s.table_bins, &samples, self.group_count);
+        let bins = if density >= s.min_samples_per_cell {
+            s.table_bins
+        } else {
+            s.sparse_table_bins
+        };
+        (bins, density)
+    }
+
+    /// The fitting samples `(material, coordinates in a table of shape bins, reflectance)` of
+    /// an even draw of the pixels `idx` with normals `n` (at most `max_fit_pixels`; grazing
+    /// ones left out, `fit_min_cos`).
+    fn samples(
+        &self,
+        idx: &[usize],
+        n: &[Vector3<f64>],
+        bins: TableBins,
+    ) -> Vec<(u32, [f64; 3], f64)> {
         let stride = idx
             .len()
             .div_ceil(self.settings.max_fit_pixels.max(1))
             .max(1);
         let min_cos = self.settings.fit_min_cos;
-        let samples: Vec<(u32, [f64; 3], f64)> = idx
-            .iter()
+        idx.iter()
             .step_by(stride)
             .filter_map(|&i| {
                 let p = &self.pixels[i];
@@ -713,17 +850,11 @@ impl<'a> Problem<'a> {
                 }
                 Some((
                     self.groups[i],
-                    self.lookups[i].coords(&np),
+                    self.lookups[i].coords(&np, bins),
                     p.target / cos_i,
                 ))
             })
-            .collect();
-        Model::fit_groups(
-            &samples,
-            self.group_count,
-            MIN_MATERIAL_SAMPLES,
-            self.settings.table_passes,
-        )
+            .collect()
     }
 
     /// The priors for a refinement from the pixels `idx`: a vertex moves when at least
@@ -1303,6 +1434,8 @@ pub fn refine_normals(
         max_tilt_deg: 0.0,
         seconds: 0.0,
         materials: 1,
+        table_bins: settings.table_bins,
+        table_samples_per_cell: None,
     };
     let refuse = |mut report: RefineReport, why: String| {
         report.reason = why;
@@ -1312,6 +1445,18 @@ pub fn refine_normals(
             report,
         }
     };
+    if let Some(b) = [settings.table_bins, settings.sparse_table_bins]
+        .into_iter()
+        .find(|b| b.dims().iter().any(|&k| k < 2))
+    {
+        return refuse(
+            report,
+            format!(
+                "the reflectance table needs at least 2 bins along each angle, not {:?}",
+                b.dims()
+            ),
+        );
+    }
     if images.len() < 3 || held.is_empty() {
         return refuse(
             report,
@@ -1341,10 +1486,15 @@ pub fn refine_normals(
         ln_targets: pixels.iter().map(|p| (eps + p.target).ln()).collect(),
         groups,
         group_count,
+        bins: settings.table_bins,
     };
+    let all: Vec<usize> = (0..pixels.len()).collect();
+    let (bins, density) = problem.choose_bins(&all, n_mesh);
+    problem.bins = bins;
+    report.table_bins = bins;
+    report.table_samples_per_cell = density.is_finite().then_some(density);
     let (train, held_idx): (Vec<usize>, Vec<usize>) =
         (0..pixels.len()).partition(|&i| !held.contains(&pixels[i].image));
-    let all: Vec<usize> = (0..pixels.len()).collect();
 
     // Choose the start on the held-out images: the mesh's normals, or the mesh's normals with
     // its vertex-to-vertex noise smoothed away (a photogrammetry mesh's depth noise tilts
@@ -1817,19 +1967,48 @@ mod tests {
     }
 
     #[test]
+    fn the_sparsest_table_decides_the_density() {
+        let bins = RefineSettings::default().table_bins;
+        // 600 samples on one cell's centre: 8 weights, one of them 1, the rest 0
+        let at = |g: u32, c: [f64; 3], k: usize| (0..k).map(move |_| (g, c, 1.0));
+        let dense: Vec<_> = at(0, [5.0, 3.0, 2.0], 600).collect();
+        assert_eq!(observed_cells(bins, &[[5.0, 3.0, 2.0]]), 1);
+        assert_eq!(observed_cells(bins, &[[5.5, 3.0, 2.0]]), 2);
+        assert_eq!(sparsest_density(bins, &dense, 1), 600.0);
+        // a second material of 600 samples spread over 600 cells: it decides
+        let spread: Vec<_> = dense
+            .iter()
+            .copied()
+            .chain((0..600).map(|i| (1, [(i % 40) as f64, (i / 40) as f64, 2.0], 1.0)))
+            .collect();
+        assert_eq!(sparsest_density(bins, &spread, 2), 1.0);
+        // pooled, the two make 1200 samples on 600 cells (the dense cell is one of them)
+        assert_eq!(sparsest_density(bins, &spread, 1), 2.0);
+        // a material too small for a table of its own counts through the pooled table
+        let small: Vec<_> = dense
+            .iter()
+            .copied()
+            .chain(at(1, [9.0, 9.0, 4.0], 10))
+            .collect();
+        assert_eq!(sparsest_density(bins, &small, 2), 305.0);
+        assert_eq!(sparsest_density(bins, &[], 1), f64::INFINITY);
+    }
+
+    #[test]
     fn a_material_with_too_few_samples_shares_the_pooled_table() {
         let c = [5.0, 3.0, 2.0];
         let mut samples: Vec<(u32, [f64; 3], f64)> = (0..600).map(|_| (0, c, 0.2)).collect();
         samples.extend((0..600).map(|_| (1, c, 0.8)));
         samples.extend((0..10).map(|_| (2, c, 5.0)));
-        let m = Model::fit_groups(&samples, 3, 500, 0).expect("samples");
-        let at = |g: usize| interpolate(&m.tables[g], c);
+        let bins = RefineSettings::default().table_bins;
+        let m = Model::fit_groups(bins, &samples, 3, 500, 0).expect("samples");
+        let at = |g: usize| interpolate(&m.tables[g], bins, c);
         assert!((at(0) - 0.2).abs() < 1e-9 && (at(1) - 0.8).abs() < 1e-9);
         let pooled = (600.0 * 0.2 + 600.0 * 0.8 + 10.0 * 5.0) / 1210.0;
         assert!((at(2) - pooled).abs() < 1e-9, "{} vs {pooled}", at(2));
-        let one = Model::fit_groups(&samples, 1, 500, 0).expect("samples");
+        let one = Model::fit_groups(bins, &samples, 1, 500, 0).expect("samples");
         assert_eq!(one.tables.len(), 1);
-        assert!((interpolate(&one.tables[0], c) - pooled).abs() < 1e-9);
+        assert!((interpolate(&one.tables[0], bins, c) - pooled).abs() < 1e-9);
     }
 
     #[test]
@@ -2152,19 +2331,21 @@ mod tests {
         let v = Vector3::new(-0.2, 0.1, 1.0).normalize();
         let look = Lookup::new(&l, &v);
         let n = Vector3::z();
-        let c = look.coords(&n);
-        let m = Model::fit(&[(c, 0.7)], 0).expect("one sample");
+        let bins = RefineSettings::default().table_bins;
+        let c = look.coords(&n, bins);
+        let m = Model::fit(bins, &[(c, 0.7)], 0).expect("one sample");
         let cos_i = n.dot(&l);
         assert!((m.predict(0, &n, &l, &v, &look) - 0.7 * cos_i).abs() < 1e-9);
         // below the horizon nothing is reflected
         assert_eq!(m.predict(0, &-n, &l, &v, &look), 0.0);
-        assert!(Model::fit(&[], 0).is_none());
+        assert!(Model::fit(bins, &[], 0).is_none());
     }
 
     #[test]
     fn correction_passes_undo_the_splats_blur_of_a_narrow_peak() {
         // A peak one theta_h cell wide, sampled densely: the splat spreads it over the
         // neighbouring cells (twice, with the interpolation), the passes bring it back.
+        let bins = RefineSettings::default().table_bins;
         let truth = |c: [f64; 3]| 0.1 + 5.0 * (-(c[0] - 4.0).powi(2) / 0.5).exp();
         let samples: Vec<([f64; 3], f64)> = (0..400)
             .flat_map(|i| {
@@ -2177,11 +2358,11 @@ mod tests {
         let misfit = |m: &Model| {
             samples
                 .iter()
-                .map(|&(c, y)| (interpolate(&m.tables[0], c) - y).powi(2))
+                .map(|&(c, y)| (interpolate(&m.tables[0], bins, c) - y).powi(2))
                 .sum::<f64>()
         };
-        let splat = Model::fit(&samples, 0).expect("samples");
-        let corrected = Model::fit(&samples, 2).expect("samples");
+        let splat = Model::fit(bins, &samples, 0).expect("samples");
+        let corrected = Model::fit(bins, &samples, 2).expect("samples");
         assert!(
             misfit(&corrected) < 0.5 * misfit(&splat),
             "{} against {}",
@@ -2189,7 +2370,7 @@ mod tests {
             misfit(&splat)
         );
         // the peak's cell comes back towards the peak
-        let peak = |m: &Model| m.tables[0][(4 * BINS_D + 3) * BINS_P + 2];
+        let peak = |m: &Model| m.tables[0][(4 * bins.theta_d + 3) * bins.phi_d + 2];
         assert!(
             peak(&corrected) > peak(&splat) + 0.3,
             "{} {}",

@@ -28,6 +28,7 @@ use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
 use crate::reconstruct::ladder::{Family, FoldScheme, Ladder};
 use crate::reconstruct::plausible::Plausibility;
+use crate::reconstruct::refine::{RefineReport, TableBins};
 use crate::reconstruct::report_file::{self, BRDF_FILE, REPORT_FILE, Report};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -141,6 +142,9 @@ pub struct NormalsSection {
     /// The starts tried, e.g. "0 steps: 0.176; 4 steps: 0.145 (chosen)"; empty when only the
     /// mesh's own normals were (reports written before starts were chosen).
     pub starts: String,
+    /// The reflectance table's shape and why, e.g. "48 x 32 x 8 (theta_h x theta_d x phi_d):
+    /// 2.61 fitting samples per observed cell, at least 2 for this shape".
+    pub table: String,
     pub mean_tilt_deg: Option<f64>,
     pub max_tilt_deg: Option<f64>,
     pub vertices_refined: Option<u64>,
@@ -449,6 +453,7 @@ fn normals_section(r: &Report) -> Option<NormalsSection> {
         } else {
             String::new()
         },
+        table: table_text(n),
         mean_tilt_deg: Some(n.mean_tilt_deg),
         max_tilt_deg: Some(n.max_tilt_deg),
         vertices_refined: Some(n.vertices_refined as u64),
@@ -464,6 +469,27 @@ fn normals_section(r: &Report) -> Option<NormalsSection> {
             })
             .collect(),
     })
+}
+
+/// The refinement's reflectance table as the report says it.
+fn table_text(n: &RefineReport) -> String {
+    let shape = |b: TableBins| format!("{} x {} x {}", b.theta_h, b.theta_d, b.phi_d);
+    let s = &n.settings;
+    let why = match n.table_samples_per_cell {
+        None => "one shape for every scene (reports before session 40), or not chosen".to_string(),
+        Some(d) if n.table_bins == s.table_bins => format!(
+            "{} fitting samples per observed cell, at least {} for this shape",
+            fmt_num(d),
+            fmt_num(s.min_samples_per_cell)
+        ),
+        Some(d) => format!(
+            "{} fitting samples per observed cell of {}, fewer than its {}: the coarser shape",
+            fmt_num(d),
+            shape(s.table_bins),
+            fmt_num(s.min_samples_per_cell)
+        ),
+    };
+    format!("{} (theta_h x theta_d x phi_d): {why}", shape(n.table_bins))
 }
 
 /// `comparisons` of report.json, with their panels embedded.

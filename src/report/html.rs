@@ -388,6 +388,11 @@ fn section_normals(h: &mut String, n: &super::gather::NormalsSection) {
             escape(&n.starts)
         );
     }
+    let _ = write!(
+        h,
+        "<p>Reflectance table of the refinement: {}.</p>",
+        escape(&n.table)
+    );
     if !n.rows.is_empty() {
         h.push_str("<table><tr><th>iteration</th><th>mean tilt (deg)</th><th>largest tilt (deg)</th><th>training error</th><th>held-out error</th><th></th></tr>");
         for r in &n.rows {
