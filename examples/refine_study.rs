@@ -42,7 +42,8 @@ fn variant(spec: &str) -> anyhow::Result<RefineSettings> {
             let b = v
                 .split('x')
                 .map(str::parse)
-                .collect::<Result<Vec<usize>, _>>()?;
+                .collect::<Result<Vec<usize>, _>>()
+                .map_err(|e| anyhow::anyhow!("bins={v}: {e}"))?;
             let [theta_h, theta_d, phi_d] = b[..] else {
                 anyhow::bail!("bins={v}: three counts HxDxP");
             };

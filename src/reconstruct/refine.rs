@@ -441,6 +441,13 @@ impl TableBins {
     }
 }
 
+impl std::fmt::Display for TableBins {
+    /// `48 x 32 x 8` (theta_h x theta_d x phi_d).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} x {} x {}", self.theta_h, self.theta_d, self.phi_d)
+    }
+}
+
 /// A material with fewer fitting samples than this shares the table of all pixels.
 const MIN_MATERIAL_SAMPLES: usize = 500;
 
@@ -1452,8 +1459,8 @@ pub fn refine_normals(
         return refuse(
             report,
             format!(
-                "the reflectance table needs at least 2 bins along each angle, not {:?}",
-                b.dims()
+                "the reflectance table needs at least 2 bins along each angle (theta_h x \
+                 theta_d x phi_d), not {b}"
             ),
         );
     }
@@ -1964,6 +1971,42 @@ mod tests {
             (vec![0, 1, 0, 0], 2)
         );
         assert_eq!(pixel_groups(&faces, &pixels, &[]), (vec![0; 4], 1));
+    }
+
+    #[test]
+    fn the_table_shape_follows_the_pixels_density_and_is_reported() {
+        let mesh = sphere(16, 24);
+        let start = perturbed(&mesh, 8.0, 3);
+        let px = pixels(&mesh, 12, 40.0, 20);
+        let defaults = free_normals();
+        let with_min = |min: f64| RefineSettings {
+            min_samples_per_cell: min,
+            ..defaults.clone()
+        };
+        let fine = run(&mesh, &start, &px, &with_min(0.0)).report;
+        let density = fine.table_samples_per_cell.expect("measured");
+        assert!(density.is_finite() && density > 0.0, "{density}");
+        assert_eq!(fine.table_bins, defaults.table_bins);
+        let coarse = run(&mesh, &start, &px, &with_min(density * 1.01)).report;
+        assert_eq!(coarse.table_bins, defaults.sparse_table_bins);
+        assert_eq!(coarse.table_samples_per_cell, Some(density));
+        // a shape the table cannot have is refused, naming it
+        let flat = RefineSettings {
+            table_bins: TableBins {
+                theta_h: 48,
+                theta_d: 1,
+                phi_d: 8,
+            },
+            ..defaults
+        };
+        let r = run(&mesh, &start, &px, &flat);
+        assert!(!r.report.accepted);
+        assert!(
+            r.report.reason.contains("48 x 1 x 8"),
+            "{}",
+            r.report.reason
+        );
+        assert_eq!(r.normals, start);
     }
 
     #[test]

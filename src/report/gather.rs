@@ -28,7 +28,7 @@ use crate::capture::session::{JOURNAL_FILE, MANIFEST_FILE, SESSION_FILE};
 use crate::pipeline::calibration_file::{self, CALIBRATION_FILE, ChannelCalibration};
 use crate::reconstruct::ladder::{Family, FoldScheme, Ladder};
 use crate::reconstruct::plausible::Plausibility;
-use crate::reconstruct::refine::{RefineReport, TableBins};
+use crate::reconstruct::refine::RefineReport;
 use crate::reconstruct::report_file::{self, BRDF_FILE, REPORT_FILE, Report};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -473,7 +473,6 @@ fn normals_section(r: &Report) -> Option<NormalsSection> {
 
 /// The refinement's reflectance table as the report says it.
 fn table_text(n: &RefineReport) -> String {
-    let shape = |b: TableBins| format!("{} x {} x {}", b.theta_h, b.theta_d, b.phi_d);
     let s = &n.settings;
     let why = match n.table_samples_per_cell {
         None => "one shape for every scene (reports before session 40), or not chosen".to_string(),
@@ -485,11 +484,11 @@ fn table_text(n: &RefineReport) -> String {
         Some(d) => format!(
             "{} fitting samples per observed cell of {}, fewer than its {}: the coarser shape",
             fmt_num(d),
-            shape(s.table_bins),
+            s.table_bins,
             fmt_num(s.min_samples_per_cell)
         ),
     };
-    format!("{} (theta_h x theta_d x phi_d): {why}", shape(n.table_bins))
+    format!("{} (theta_h x theta_d x phi_d): {why}", n.table_bins)
 }
 
 /// `comparisons` of report.json, with their panels embedded.
