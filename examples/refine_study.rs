@@ -11,13 +11,19 @@
 //! bins (the reflectance table's shape: `bins=32x16x8`), and `from_truth=1` (start from the true vertex normals on the
 //! SfM-like mesh's positions: how far the objective's own minimum lies from the truth), and
 //! `true_pos=1` (the true positions under the SfM-like normals: the pixels land where they
-//! should; with `from_truth=1`, the truth on the true positions)
+//! should; with `from_truth=1`, the truth on the true positions), and `blend=F` (start from
+//! the SfM-like normals turned a fraction F of the way to the true ones: does the refinement
+//! keep a share of any start's error?)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
+//! An argument `scene:KEY=VALUE,...` (anywhere after SEED) sets the scene instead: `views`
+//! (11), `sfm_iters` (the SfM-like mesh's Taubin iterations, 10) and `sfm_noise` (its depth
+//! noise in mean edges, 0.05), so the two parts of the degradation can be studied apart. The
+//! tool prints how far the SfM-like mesh's vertices lie from the true ones, in mean edges.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
 use brdf_rig::eval::{Perturb, find_material, load_case, refine_case, write_case};
 use brdf_rig::geometry::mesh_io::load_mesh;
-use brdf_rig::geometry::sfm_like::SfmLikeParams;
+use brdf_rig::geometry::sfm_like::{SfmLikeParams, mean_edge_length, sfm_like};
 use brdf_rig::reconstruct::observe::ObserveSettings;
 use brdf_rig::reconstruct::refine::{RefineSettings, TableBins};
 use brdf_rig::sim::job_scene::SceneSpec;
@@ -96,11 +102,35 @@ fn main() -> anyhow::Result<()> {
     let (w, h) = size
         .split_once('x')
         .ok_or_else(|| anyhow::anyhow!("size {size:?} is not WxH"))?;
-    let variants: Vec<String> = if args.len() > 5 {
-        args[5..].to_vec()
-    } else {
-        vec![String::new()]
+    let (scene_keys, mut variants): (Vec<String>, Vec<String>) = args
+        .iter()
+        .skip(5)
+        .cloned()
+        .partition(|a| a.starts_with("scene:"));
+    if variants.is_empty() {
+        variants.push(String::new());
+    }
+    let mut views = 11;
+    let mut sfm = SfmLikeParams {
+        seed: 7 + seed,
+        ..SfmLikeParams::default()
     };
+    for kv in scene_keys
+        .iter()
+        .flat_map(|a| a.trim_start_matches("scene:").split(','))
+        .filter(|x| !x.is_empty())
+    {
+        let (k, v) = kv
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("scene key {kv:?} is not key=value"))?;
+        let bad = |e: &dyn std::fmt::Display| anyhow::anyhow!("scene key {kv:?}: {e}");
+        match k {
+            "views" => views = v.parse().map_err(|e| bad(&e))?,
+            "sfm_iters" => sfm.iterations = v.parse().map_err(|e| bad(&e))?,
+            "sfm_noise" => sfm.noise_rel = v.parse().map_err(|e| bad(&e))?,
+            other => anyhow::bail!("unknown scene key {other:?} (views, sfm_iters, sfm_noise)"),
+        }
+    }
     let materials = load_dir(&default_dir())?;
     let net = find_material(&materials, &material)?;
     let data = brdf_rig::data::data_dir().join("meshes");
@@ -116,15 +146,30 @@ fn main() -> anyhow::Result<()> {
         other => anyhow::bail!("unknown rig {other:?}"),
     };
     let spec = SceneSpec {
-        views: 11,
+        views,
         width: w.parse()?,
         height: h.parse()?,
         ..base
     };
-    let sfm = SfmLikeParams {
-        seed: 7 + seed,
-        ..SfmLikeParams::default()
-    };
+    {
+        // how far the degradation moves the vertices (the pixels land that far off)
+        let e = mean_edge_length(&mesh);
+        let moved = sfm_like(&mesh, &sfm);
+        let mut d: Vec<f64> = mesh
+            .positions()
+            .iter()
+            .zip(moved.positions())
+            .map(|(a, b)| (a - b).norm() / e)
+            .collect();
+        d.sort_by(f64::total_cmp);
+        if let (Some(mid), Some(p90)) = (d.get(d.len() / 2), d.get(d.len() * 9 / 10)) {
+            println!(
+                "SfM-like mesh ({} Taubin iterations, depth noise {} edges): vertices off the \
+                 truth by a median {mid:.3} and a 90th percentile {p90:.3} mean edges",
+                sfm.iterations, sfm.noise_rel
+            );
+        }
+    }
     let dir = tempfile::tempdir()?;
     let job = write_case(dir.path(), &mesh, &sfm, net, &spec)?;
     let observe = ObserveSettings::default();
@@ -151,8 +196,14 @@ fn main() -> anyhow::Result<()> {
         let true_pos = v.split(',').any(|kv| kv == "true_pos=1");
         let spec: Vec<&str> = v
             .split(',')
-            .filter(|kv| *kv != "from_truth=1" && *kv != "true_pos=1")
+            .filter(|kv| *kv != "from_truth=1" && *kv != "true_pos=1" && !kv.starts_with("blend="))
             .collect();
+        let blend: Option<f64> = v
+            .split(',')
+            .find_map(|kv| kv.strip_prefix("blend="))
+            .map(str::parse)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("{v:?}: blend: {e}"))?;
         let s = variant(&spec.join(","))?;
         let mut scene = load_case(&job, &observe, &Perturb::default())?;
         if from_truth
@@ -161,6 +212,18 @@ fn main() -> anyhow::Result<()> {
                 .set_vertex_normals(mesh.vertex_normals().to_vec())
         {
             anyhow::bail!("the true mesh's normals do not fit the scene's mesh");
+        }
+        if let Some(f) = blend {
+            let n: Vec<_> = scene
+                .mesh
+                .vertex_normals()
+                .iter()
+                .zip(mesh.vertex_normals())
+                .map(|(a, b)| (a * (1.0 - f) + b * f).try_normalize(1e-12).unwrap_or(*a))
+                .collect();
+            if !scene.mesh.set_vertex_normals(n) {
+                anyhow::bail!("the true mesh's normals do not fit the scene's mesh");
+            }
         }
         if true_pos {
             // the true positions under the SfM-like normals: how far the refinement gets when the
