@@ -40,9 +40,6 @@ pub struct BenchExternalArgs {
     /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub seeds: Vec<u64>,
-    /// How the reported trial is chosen (`reconstruct --choose`).
-    #[arg(long, value_parser = super::reconstruct::parse_choice, default_value = "similarity")]
-    pub choose: brdf_rig::reconstruct::core::TrialChoice,
     /// Study knob: how far (a factor) the result may stray from the Lambert + GGX prior where
     /// no pixel was observed (`PlausibleSettings::prior_ratio_limit`; default: the library's).
     #[arg(long, value_parser = clap::value_parser!(f64))]
@@ -93,7 +90,6 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         refine: a.refine_unknowns.settings(a.refine_normals),
         ..Settings::default()
     };
-    settings.core.choose = a.choose;
     if let Some(r) = a.prior_ratio {
         anyhow::ensure!(
             r.is_finite() && r >= 1.0,
@@ -106,7 +102,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     }
     a.knobs.overrides().apply(&mut settings.core);
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.seeds
@@ -116,11 +112,6 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .join(","),
         a.bin_step,
         a.refine_unknowns.command_args(a.refine_normals),
-        match a.choose {
-            brdf_rig::reconstruct::core::TrialChoice::Similarity => "",
-            brdf_rig::reconstruct::core::TrialChoice::PixelError => " --choose pixel-error",
-            brdf_rig::reconstruct::core::TrialChoice::Mean => " --choose mean",
-        },
         a.prior_ratio
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out

@@ -1,12 +1,14 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
 //! ridge weights, the hedge's strength, the peak average's weight, the carry of pixels to
-//! their row's centre and the grazing peak's transfer. Their parsing, the
+//! their row's centre, the grazing peak's transfer and how the trials make the written fit.
+//! Their parsing, the
 //! library's overrides they make (`reconstruct::overrides`), and the words that type them
 //! again for a page's "command" line.
 //! No I/O.
 
 use brdf_rig::reconstruct::carry::Carry;
+use brdf_rig::reconstruct::core::TrialChoice;
 use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
@@ -58,6 +60,10 @@ pub struct FitKnobs {
     /// --grazing-transfer` (default 0, off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub grazing_transfer: Option<f64>,
+    /// How the reported trial is chosen and the written basis fit made, as `reconstruct
+    /// --choose`: `similarity` (the default), `pixel-error`, `mean` or `median`.
+    #[arg(long, value_parser = super::reconstruct::parse_choice)]
+    pub choose: Option<TrialChoice>,
 }
 
 impl FitKnobs {
@@ -75,6 +81,7 @@ impl FitKnobs {
             extrapolation: self.extrapolation.clone(),
             analytic_margin: self.analytic_margin,
             grazing_transfer: self.grazing_transfer,
+            choose: self.choose,
         }
     }
 
@@ -116,6 +123,9 @@ impl FitKnobs {
         if let Some(w) = self.grazing_transfer {
             s += &format!(" --grazing-transfer {w}");
         }
+        if let Some(c) = self.choose {
+            s += &format!(" --choose {}", super::reconstruct::choice_name(c));
+        }
         s
     }
 }
@@ -141,6 +151,7 @@ mod tests {
             extrapolation: Some(vec![0.7, 0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
+            choose: Some(TrialChoice::Median),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -154,9 +165,10 @@ mod tests {
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
         assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(o.grazing_transfer, Some(0.75));
+        assert_eq!(o.choose, Some(TrialChoice::Median));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --choose median"
         );
     }
 }

@@ -89,8 +89,8 @@ pub struct Args {
     #[arg(long, default_value_t = 80, value_parser = int_in(1usize, MAX_COMPONENTS))]
     pub basis_components: usize,
     /// How the reported trial is chosen: `similarity` (the paper's eq. 3, cosine similarity with
-    /// the images), `pixel-error` (lowest relative error over every observed pixel) or `mean`
-    /// (the mean of every trial's table).
+    /// the images), `pixel-error` (lowest relative error over every observed pixel), `mean`
+    /// (the mean of every trial's table) or `median` (its per-bin median).
     #[arg(long, value_parser = parse_choice, default_value = "similarity")]
     pub choose: TrialChoice,
     /// Which model to report: `auto` (the model ladder: the simplest model within noise of the
@@ -233,7 +233,20 @@ pub(crate) fn parse_choice(s: &str) -> Result<TrialChoice, String> {
         "similarity" => Ok(TrialChoice::Similarity),
         "pixel-error" => Ok(TrialChoice::PixelError),
         "mean" => Ok(TrialChoice::Mean),
-        _ => Err(format!("{s:?}: expected similarity, pixel-error or mean")),
+        "median" => Ok(TrialChoice::Median),
+        _ => Err(format!(
+            "{s:?}: expected similarity, pixel-error, mean or median"
+        )),
+    }
+}
+
+/// The word `parse_choice` reads for `c`.
+pub(crate) fn choice_name(c: TrialChoice) -> &'static str {
+    match c {
+        TrialChoice::Similarity => "similarity",
+        TrialChoice::PixelError => "pixel-error",
+        TrialChoice::Mean => "mean",
+        TrialChoice::Median => "median",
     }
 }
 

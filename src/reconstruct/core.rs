@@ -58,6 +58,9 @@ pub enum TrialChoice {
     /// extrapolation. The trial eq. 3 picks is still reported as the chosen one, and its
     /// disagreement with the others still guards the basis.
     Mean,
+    /// The per-bin median of every trial's table: like `Mean`, no single draw decides the
+    /// extrapolation, and a trial that extrapolates far off moves it least.
+    Median,
 }
 
 /// Settings of the steps after observation.
@@ -380,7 +383,7 @@ pub fn reconstruct_observations(
         eta,
     );
     let chosen = match settings.choose {
-        TrialChoice::Similarity | TrialChoice::Mean => best_trial(&trials),
+        TrialChoice::Similarity | TrialChoice::Mean | TrialChoice::Median => best_trial(&trials),
         TrialChoice::PixelError => fits
             .iter()
             .enumerate()
@@ -478,6 +481,15 @@ pub fn reconstruct_observations(
             let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
             Box::new(TableCandidate(mean_table(&tables)))
         }
+        TrialChoice::Median => {
+            let tables: Vec<Box<dyn Candidate>> = fits
+                .iter()
+                .flatten()
+                .filter_map(|f| f.tabulate(trial_prior))
+                .collect();
+            let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
+            Box::new(TableCandidate(median_table(&tables)))
+        }
         _ => fits[chosen]
             .as_ref()
             .and_then(|f| f.tabulate(trial_prior))
@@ -487,7 +499,7 @@ pub fn reconstruct_observations(
     let others: Vec<&dyn Candidate> = at_probe
         .iter()
         .enumerate()
-        .filter(|(i, _)| settings.choose == TrialChoice::Mean || *i != chosen)
+        .filter(|(i, _)| settings.choose.pools_trials() || *i != chosen)
         .filter_map(|(_, f)| f.as_ref().map(|f| f as &dyn Candidate))
         .collect();
     timings.push(("trials".to_string(), t.elapsed().as_secs_f64()));
@@ -664,7 +676,7 @@ pub fn reconstruct_observations(
     timings.push(("confidence".to_string(), t.elapsed().as_secs_f64()));
     if settings.keep_trial_fits {
         for (i, (trial, fit)) in trials.iter_mut().zip(&fits).enumerate() {
-            if settings.choose == TrialChoice::Mean || i != chosen {
+            if settings.choose.pools_trials() || i != chosen {
                 trial.candidate = fit.as_ref().and_then(|f| f.tabulate(trial_prior));
             }
         }
@@ -698,6 +710,26 @@ pub fn reconstruct_observations(
 struct TableCandidate(MerlTable);
 
 /// The bin-by-bin mean of several fits, as a table.
+/// The per-bin, per-channel median of the tables (the mean of the middle two for an even count).
+fn median_table(fits: &[&dyn Candidate]) -> MerlTable {
+    MerlTable::from_fn(|b| {
+        let mut out = [0.0; 3];
+        let mut v: Vec<f64> = Vec::with_capacity(fits.len());
+        for (c, o) in out.iter_mut().enumerate() {
+            v.clear();
+            v.extend(fits.iter().map(|f| f.eval_bin(b.index())[c]));
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            *o = match n {
+                0 => 0.0,
+                _ if n % 2 == 1 => v[n / 2],
+                _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+            };
+        }
+        Some(out)
+    })
+}
+
 fn mean_table(fits: &[&dyn Candidate]) -> MerlTable {
     let n = fits.len().max(1) as f64;
     MerlTable::from_fn(|b| {
@@ -710,6 +742,13 @@ fn mean_table(fits: &[&dyn Candidate]) -> MerlTable {
         }
         Some(sum.map(|x| x / n))
     })
+}
+
+impl TrialChoice {
+    /// Whether the written basis fit pools every trial (`Mean`, `Median`) instead of one.
+    pub fn pools_trials(self) -> bool {
+        matches!(self, Self::Mean | Self::Median)
+    }
 }
 
 impl Candidate for TableCandidate {
@@ -1004,6 +1043,31 @@ mod tests {
         assert!(others.iter().any(|&e| e > chosen), "the trials differ");
     }
 
+    /// A trial that extrapolates far off moves the median by nothing and the mean by a third
+    /// of its excess; with an even count the median is the middle pair's mean.
+    #[test]
+    fn the_median_of_the_trials_tables_ignores_one_far_off_trial() {
+        let constant = |v: f64| TableCandidate(MerlTable::from_fn(|_| Some([v, 2.0 * v, 0.5 * v])));
+        let (a, b, far) = (constant(1.0), constant(2.0), constant(100.0));
+        let three: Vec<&dyn Candidate> = vec![&a, &far, &b];
+        let median = median_table(&three);
+        let mean = mean_table(&three);
+        let close = |t: &MerlTable, index: usize, want: [f64; 3]| {
+            let got = t.get(index).expect("a bin");
+            assert!(
+                got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-9 * w),
+                "bin {index}: {got:?} against {want:?}"
+            );
+        };
+        for index in [0, 12_345, crate::brdf::coords::MERL_BINS - 1] {
+            close(&median, index, [2.0, 4.0, 1.0]);
+            close(&mean, index, [103.0 / 3.0, 206.0 / 3.0, 103.0 / 6.0]);
+        }
+        let c = constant(4.0);
+        let four: Vec<&dyn Candidate> = vec![&a, &b, &c, &far];
+        close(&median_table(&four), 7, [3.0, 6.0, 1.5]);
+    }
+
     #[test]
     fn similarity_choice_reports_the_most_similar_trial() {
         let (out, _) = run(TrialChoice::Similarity);
@@ -1017,7 +1081,11 @@ mod tests {
 
     #[test]
     fn keeping_the_trials_fits_changes_nothing_but_what_the_output_holds() {
-        for choose in [TrialChoice::Similarity, TrialChoice::Mean] {
+        for choose in [
+            TrialChoice::Similarity,
+            TrialChoice::Mean,
+            TrialChoice::Median,
+        ] {
             let (kept, obs) = run(choose);
             let mut settings = CoreSettings {
                 choose,
@@ -1040,8 +1108,9 @@ mod tests {
             }
             assert!(lean.trials.iter().all(|t| t.candidate.is_none()));
             let with_fits = kept.trials.iter().filter(|t| t.candidate.is_some()).count();
-            // the mean reports every trial; otherwise the reported one's fit is `brdf`
-            let expected = if choose == TrialChoice::Mean { 6 } else { 5 };
+            // the mean and the median report every trial; otherwise the reported one's fit is
+            // `brdf`
+            let expected = if choose.pools_trials() { 6 } else { 5 };
             assert_eq!(with_fits, expected, "{choose:?}");
             for (a, b) in lean.trials.iter().zip(&kept.trials) {
                 assert_eq!(a.similarity, b.similarity);

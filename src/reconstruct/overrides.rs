@@ -1,12 +1,13 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
 //! hedge's strength, the peak average's weight and whether pixels are carried to their row's
-//! centre, and the grazing peak's transfer. Each
+//! centre, the grazing peak's transfer, and how the written basis fit comes from the trials.
+//! Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
 use super::carry::Carry;
-use super::core::CoreSettings;
+use super::core::{CoreSettings, TrialChoice};
 use super::plausible::ThetaDShape;
 use super::trials::BasisFit;
 
@@ -27,6 +28,8 @@ pub struct CoreOverrides {
     pub analytic_margin: Option<f64>,
     /// The carried value's weight in the grazing peak cells (`reconstruct::grazing`).
     pub grazing_transfer: Option<f64>,
+    /// How the reported trial is chosen and the written basis fit made (`CoreSettings::choose`).
+    pub choose: Option<TrialChoice>,
 }
 
 impl CoreOverrides {
@@ -65,6 +68,9 @@ impl CoreOverrides {
         if let Some(w) = self.grazing_transfer {
             core.grazing_transfer = w;
         }
+        if let Some(c) = self.choose {
+            core.choose = c;
+        }
     }
 }
 
@@ -89,6 +95,7 @@ mod tests {
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
+            choose: Some(TrialChoice::Median),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -102,6 +109,7 @@ mod tests {
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.grazing_transfer, 0.75);
+        assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }
