@@ -472,23 +472,18 @@ pub fn reconstruct_observations(
     }
     // The trials' fits were evaluated on demand; what is kept is tabulated (the same values).
     let basis_fit: Box<dyn Candidate> = match settings.choose {
-        TrialChoice::Mean => {
+        TrialChoice::Mean | TrialChoice::Median => {
             let tables: Vec<Box<dyn Candidate>> = fits
                 .iter()
                 .flatten()
                 .filter_map(|f| f.tabulate(trial_prior))
                 .collect();
             let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
-            Box::new(TableCandidate(mean_table(&tables)))
-        }
-        TrialChoice::Median => {
-            let tables: Vec<Box<dyn Candidate>> = fits
-                .iter()
-                .flatten()
-                .filter_map(|f| f.tabulate(trial_prior))
-                .collect();
-            let tables: Vec<&dyn Candidate> = tables.iter().map(|t| t.as_ref()).collect();
-            Box::new(TableCandidate(median_table(&tables)))
+            Box::new(TableCandidate(if settings.choose == TrialChoice::Mean {
+                mean_table(&tables)
+            } else {
+                median_table(&tables)
+            }))
         }
         _ => fits[chosen]
             .as_ref()
