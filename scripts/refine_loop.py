@@ -4,7 +4,8 @@
 Runs `examples/refine_study` over 4 materials x Spot, Bunny x spread, one light at 30 degrees
 x seeds, at 320x240, for each VARIANT (study keys, `""` the defaults), and prints per rig and
 material, then over every scene, the geometric mean of the median vertex-normal error after /
-before and the mean held-out error of the normals the refinement returned.
+before and the mean held-out error after the last alternation tried (the one that stopped
+the refinement, or the last allowed).
 
     cargo build --release --example refine_study
     python3 scripts/refine_loop.py [--seeds 0,1,2] [--scene scene:views=21] VARIANT...

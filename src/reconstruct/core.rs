@@ -704,7 +704,6 @@ pub fn reconstruct_observations(
 /// A tabulated BRDF as a candidate.
 struct TableCandidate(MerlTable);
 
-/// The bin-by-bin mean of several fits, as a table.
 /// The per-bin, per-channel median of the tables (the mean of the middle two for an even count).
 fn median_table(fits: &[&dyn Candidate]) -> MerlTable {
     MerlTable::from_fn(|b| {
@@ -725,6 +724,7 @@ fn median_table(fits: &[&dyn Candidate]) -> MerlTable {
     })
 }
 
+/// The bin-by-bin mean of several fits, as a table.
 fn mean_table(fits: &[&dyn Candidate]) -> MerlTable {
     let n = fits.len().max(1) as f64;
     MerlTable::from_fn(|b| {
