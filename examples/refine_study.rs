@@ -16,8 +16,9 @@
 //! keep a share of any start's error?)
 //! (e.g. `smooth=5,anchor=40`); no variant = the defaults.
 //! An argument `scene:KEY=VALUE,...` (anywhere after SEED) sets the scene instead: `views`
-//! (11), `sfm_iters` (the SfM-like mesh's Taubin iterations, 10) and `sfm_noise` (its depth
-//! noise in mean edges, 0.05), so the two parts of the degradation can be studied apart. The
+//! (11), `sfm_iters` (the SfM-like mesh's Taubin iterations, 10), `sfm_noise` (its depth
+//! noise in mean edges, 0.05), so the two parts of the degradation can be studied apart, and
+//! `below=1` (the spread rig's light also from below, `SceneSpec::light_from_below`). The
 //! tool prints how far the SfM-like mesh's vertices lie from the true ones, in mean edges.
 
 use brdf_rig::brdf::nbrdf::{default_dir, load_dir};
@@ -111,6 +112,7 @@ fn main() -> anyhow::Result<()> {
         variants.push(String::new());
     }
     let mut views = 11;
+    let mut below = false;
     let mut sfm = SfmLikeParams {
         seed: 7 + seed,
         ..SfmLikeParams::default()
@@ -128,7 +130,10 @@ fn main() -> anyhow::Result<()> {
             "views" => views = v.parse().map_err(|e| bad(&e))?,
             "sfm_iters" => sfm.iterations = v.parse().map_err(|e| bad(&e))?,
             "sfm_noise" => sfm.noise_rel = v.parse().map_err(|e| bad(&e))?,
-            other => anyhow::bail!("unknown scene key {other:?} (views, sfm_iters, sfm_noise)"),
+            "below" => below = v == "1",
+            other => {
+                anyhow::bail!("unknown scene key {other:?} (views, sfm_iters, sfm_noise, below)")
+            }
         }
     }
     let materials = load_dir(&default_dir())?;
@@ -147,6 +152,7 @@ fn main() -> anyhow::Result<()> {
     };
     let spec = SceneSpec {
         views,
+        light_from_below: below,
         width: w.parse()?,
         height: h.parse()?,
         ..base

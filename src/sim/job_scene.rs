@@ -48,6 +48,10 @@ pub struct SceneSpec {
     /// light fixed beside the camera of a turntable rig: a single theta_d). Otherwise it comes
     /// alternately from the upper left and the upper right.
     pub fixed_light: bool,
+    /// Without `fixed_light`: the light also comes from below (upper left, upper right, lower
+    /// left, lower right in turn) instead of from above only. A study of how well the light
+    /// images pin the normals (docs/normal-refinement.md, "Session 41").
+    pub light_from_below: bool,
 }
 
 impl SceneSpec {
@@ -71,6 +75,7 @@ impl Default for SceneSpec {
             light_angle_deg: (10.0, 150.0),
             irradiance: [3.0, 3.0, 3.0],
             fixed_light: false,
+            light_from_below: false,
         }
     }
 }
@@ -108,7 +113,9 @@ pub fn view_geometry(mesh: &Mesh, spec: &SceneSpec, i: usize) -> (Intrinsics, Po
     } else {
         -40.0
     };
-    let phi = (-90.0f64 + side).to_radians();
+    // from below every other pair of views, when asked
+    let above = spec.fixed_light || !spec.light_from_below || (i / 2).is_multiple_of(2);
+    let phi = if above { -90.0f64 + side } else { 90.0 - side }.to_radians();
     let l_cam = Vector3::new(
         alpha.sin() * phi.cos(),
         alpha.sin() * phi.sin(),
@@ -239,4 +246,56 @@ pub fn write_scene_materials(
     let text = job.to_toml(dir).map_err(std::io::Error::other)?;
     crate::atomic::write_atomic(&job.source, text.as_bytes())?;
     Ok(job)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::mesh::Mesh;
+
+    fn cube() -> Mesh {
+        let p = |x: f64, y: f64, z: f64| Point3::new(x, y, z);
+        let positions = vec![
+            p(0.0, 0.0, 0.0),
+            p(1.0, 0.0, 0.0),
+            p(1.0, 1.0, 0.0),
+            p(0.0, 1.0, 0.0),
+            p(0.0, 0.0, 1.0),
+            p(1.0, 0.0, 1.0),
+            p(1.0, 1.0, 1.0),
+            p(0.0, 1.0, 1.0),
+        ];
+        let faces = vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]];
+        Mesh::new(positions, faces, "two squares")
+            .expect("a mesh")
+            .0
+    }
+
+    /// Camera y points down in the image, so a light from above has a negative y in camera
+    /// axes: from above in every view by default, from below in every other pair of views with
+    /// `light_from_below`, and never from below with one light fixed to the camera.
+    #[test]
+    fn the_light_comes_from_below_only_when_asked() {
+        let mesh = cube();
+        let y = |spec: &SceneSpec| -> Vec<f64> {
+            (0..8).map(|i| view_geometry(&mesh, spec, i).2.y).collect()
+        };
+        let above = y(&SceneSpec::default());
+        assert!(above.iter().all(|v| *v < 0.0), "{above:?}");
+        let spread = y(&SceneSpec {
+            light_from_below: true,
+            ..SceneSpec::default()
+        });
+        let signs: Vec<bool> = spread.iter().map(|v| *v < 0.0).collect();
+        assert_eq!(
+            signs,
+            [true, true, false, false, true, true, false, false],
+            "{spread:?}"
+        );
+        let fixed = y(&SceneSpec {
+            light_from_below: true,
+            ..SceneSpec::one_light(30.0)
+        });
+        assert!(fixed.iter().all(|v| *v < 0.0), "{fixed:?}");
+    }
 }
