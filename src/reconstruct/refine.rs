@@ -1999,14 +1999,7 @@ mod tests {
             },
             ..defaults
         };
-        let r = run(&mesh, &start, &px, &flat);
-        assert!(!r.report.accepted);
-        assert!(
-            r.report.reason.contains("48 x 1 x 8"),
-            "{}",
-            r.report.reason
-        );
-        assert_eq!(r.normals, start);
+        assert_refused(&run(&mesh, &start, &px, &flat), &start, "48 x 1 x 8");
     }
 
     #[test]
@@ -2346,12 +2339,13 @@ mod tests {
             .filter(|p| p.image < 2)
             .collect();
         let r = run(&mesh, &start, &px, &RefineSettings::default());
+        assert_refused(&r, &start, "at least 3");
+    }
+
+    /// A refusal: not accepted, its reason names `why`, and the mesh's normals come back.
+    fn assert_refused(r: &Refinement, start: &[Vector3<f64>], why: &str) {
         assert!(!r.report.accepted);
-        assert!(
-            r.report.reason.contains("at least 3"),
-            "{}",
-            r.report.reason
-        );
+        assert!(r.report.reason.contains(why), "{}", r.report.reason);
         assert_eq!(r.normals, start);
     }
 
