@@ -116,14 +116,27 @@ fn lock_folder(dir: &Path) -> Result<File, CaptureError> {
         .write(true)
         .open(&path)
         .map_err(|e| CaptureError::io("opening the lock file", &path, e))?;
-    match fs4::FileExt::try_lock(&f) {
-        Ok(()) => Ok(f),
-        Err(_) => Err(CaptureError::Session {
-            path: dir.to_path_buf(),
-            reason: "another capture is writing to this folder (its lock is held)".into(),
-        }),
+    // A lock can be held for a moment after its owner let it go: a process that another
+    // thread is starting shares the lock's open file until it execs (the file is close-on-exec,
+    // but the fork copies it first). So a held lock is tried again for up to half a second
+    // before the folder counts as in use; a capture that is really writing holds it far longer.
+    for attempt in 0..=LOCK_RETRIES {
+        if fs4::FileExt::try_lock(&f).is_ok() {
+            return Ok(f);
+        }
+        if attempt < LOCK_RETRIES {
+            std::thread::sleep(LOCK_RETRY_PAUSE);
+        }
     }
+    Err(CaptureError::Session {
+        path: dir.to_path_buf(),
+        reason: "another capture is writing to this folder (its lock is held)".into(),
+    })
 }
+
+/// Tries of a held lock after the first, and the pause between them (see [`lock_folder`]).
+const LOCK_RETRIES: u32 = 20;
+const LOCK_RETRY_PAUSE: std::time::Duration = std::time::Duration::from_millis(25);
 
 /// Removes folders a killed `create` of `name` left in `parent` (their process is gone).
 fn remove_stale_staging(parent: &Path, name: &str) {
