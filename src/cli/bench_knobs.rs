@@ -1,7 +1,8 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
 //! ridge weights, the hedge's strength, the peak average's weight, the carry of pixels to
-//! their row's centre, the grazing peak's transfer and how the trials make the written fit.
+//! their row's centre, the grazing peak's transfer, how the trials make the written fit and which basis rung
+//! is written.
 //! Their parsing, the
 //! library's overrides they make (`reconstruct::overrides`), and the words that type them
 //! again for a page's "command" line.
@@ -9,6 +10,7 @@
 
 use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::core::TrialChoice;
+use brdf_rig::reconstruct::ladder::BasisRung;
 use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
@@ -41,7 +43,7 @@ pub struct FitKnobs {
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub peak_average: Option<f64>,
     /// Whether the written basis fit sees pixels carried to their row's centre, as
-    /// `reconstruct --carry` (`off`, the default, or `difference`).
+    /// `reconstruct --carry` (`difference`, the default, or `off`).
     #[arg(long, value_parser = super::reconstruct::parse_carry)]
     pub carry: Option<Carry>,
     /// Study knob: deblur the written basis fit for normals off by this RMS tilt in degrees,
@@ -64,6 +66,11 @@ pub struct FitKnobs {
     /// --choose`: `similarity` (the default), `pixel-error`, `mean` or `median`.
     #[arg(long, value_parser = super::reconstruct::parse_choice)]
     pub choose: Option<TrialChoice>,
+    /// Which basis rung is written once the ladder took the basis family, as `reconstruct
+    /// --basis-rung`: `lowest` (held-out error, the default) or `simplest` (within noise of
+    /// the best).
+    #[arg(long, value_parser = super::reconstruct::parse_basis_rung)]
+    pub basis_rung: Option<BasisRung>,
 }
 
 impl FitKnobs {
@@ -82,6 +89,7 @@ impl FitKnobs {
             analytic_margin: self.analytic_margin,
             grazing_transfer: self.grazing_transfer,
             choose: self.choose,
+            basis_rung: self.basis_rung,
         }
     }
 
@@ -126,6 +134,9 @@ impl FitKnobs {
         if let Some(c) = self.choose {
             s += &format!(" --choose {}", super::reconstruct::choice_name(c));
         }
+        if let Some(b) = self.basis_rung {
+            s += &format!(" --basis-rung {}", b.name());
+        }
         s
     }
 }
@@ -152,6 +163,7 @@ mod tests {
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
             choose: Some(TrialChoice::Median),
+            basis_rung: Some(BasisRung::Simplest),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -166,9 +178,10 @@ mod tests {
         assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(o.grazing_transfer, Some(0.75));
         assert_eq!(o.choose, Some(TrialChoice::Median));
+        assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --choose median"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --choose median --basis-rung simplest"
         );
     }
 }

@@ -6,7 +6,7 @@ use anyhow::Context;
 use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
-use brdf_rig::reconstruct::ladder::Family;
+use brdf_rig::reconstruct::ladder::{BasisRung, Family};
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
 use brdf_rig::reconstruct::{self, Job, Settings};
@@ -123,13 +123,18 @@ pub struct Args {
     /// the basis + peak (0 to 1; 0: the basis alone). docs/reconstruction.md, stage 6.
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub peak_average: f64,
-    /// Study knob: carry each pixel to its basis row's centre before the written basis fit,
-    /// its value times Lambert + GGX's ratio between the row's theta_d and phi_d and its own
-    /// (`difference`), or leave the pixels as they are (`off`, the default). The model ladder
-    /// decides on the pixels as they are either way. Measured, not adopted: docs/evaluation.md
-    /// section 1s.
-    #[arg(long, value_parser = parse_carry, default_value = "off")]
+    /// Carry each pixel to its basis row's centre before the written basis fit, its value
+    /// times Lambert + GGX's ratio between the row's theta_d and phi_d and its own
+    /// (`difference`, the default), or leave the pixels as they are (`off`). The model ladder
+    /// decides on the pixels as they are either way. docs/reconstruction.md, stage 4;
+    /// docs/evaluation.md sections 1s and 1ae.
+    #[arg(long, value_parser = parse_carry, default_value = "difference")]
     pub carry: Carry,
+    /// Which basis rung (k, eta) is written once the model ladder took the basis family:
+    /// `simplest` (the simplest within noise of the best, the rule among the families) or
+    /// `lowest` (the lowest held-out error, the default). docs/reconstruction.md, stage 3.
+    #[arg(long, value_parser = parse_basis_rung, default_value = "lowest")]
+    pub basis_rung: BasisRung,
     /// Study knob: deblur the written basis fit for normals off by this RMS tilt (degrees; one
     /// Van Cittert step, `reconstruct::deblur`); 0, the default, leaves it as fitted. The
     /// model ladder decides on the pixels as they are either way. docs/evaluation.md 1v.
@@ -268,6 +273,10 @@ pub(crate) fn parse_carry(s: &str) -> Result<Carry, String> {
     Carry::parse(s).ok_or_else(|| format!("{s:?}: expected difference or off"))
 }
 
+pub(crate) fn parse_basis_rung(s: &str) -> Result<BasisRung, String> {
+    BasisRung::parse(s).ok_or_else(|| format!("{s:?}: expected simplest or lowest"))
+}
+
 fn parse_model(s: &str) -> Result<ModelSelection, String> {
     match s {
         "auto" => Ok(ModelSelection::Auto),
@@ -317,6 +326,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.hedge.strength = args.hedge;
     settings.core.peak_average = args.peak_average;
     settings.core.carry = args.carry;
+    settings.core.ladder.basis_rung = args.basis_rung;
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;
     let r = &mut settings.core.reliable;

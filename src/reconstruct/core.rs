@@ -106,7 +106,9 @@ pub struct CoreSettings {
     pub keep_trial_fits: bool,
     /// Whether the written basis fit (the trials) sees pixels carried to their basis row's
     /// centre along theta_d and phi_d (`reconstruct::carry`); the ladder always decides on the
-    /// pixels as they are. Off by default: measured, not adopted (docs/evaluation.md 1s).
+    /// pixels as they are. `Difference` by default since session 42, with the ladder's lowest
+    /// basis rung (docs/evaluation.md 1ae; measured alone in 1s); off in reports written
+    /// before.
     #[serde(default)]
     pub carry: Carry,
     /// The RMS normal tilt (degrees) the written basis fit is deblurred for
@@ -143,7 +145,7 @@ impl Default for CoreSettings {
             peak_average: 0.5,
             keep_alternatives: false,
             keep_trial_fits: false,
-            carry: Carry::Off,
+            carry: Carry::Difference,
             deblur_deg: 0.0,
             grazing_transfer: 0.0,
             extrapolation: ExtrapolationSettings::off(),

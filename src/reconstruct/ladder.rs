@@ -47,7 +47,10 @@
 //! The choice, in two stages: (1) among the analytic and basis rungs, the simplest (fewest
 //! parameters, then the most regularised) whose fold-by-fold excess over the best is within one
 //! standard error of that paired difference (with `analytic_margin`, a study knob off by
-//! default, a basis rung not that fraction below Lambert + GGX gives way to it); (2) a chosen
+//! default, a basis rung not that fraction below Lambert + GGX gives way to it); once that
+//! took the basis family, the basis rung written is the family's lowest held-out error
+//! ([`LadderSettings::basis_rung`], since session 42 with the written fit's pixels carried to
+//! their rows' centres; the simplest within noise before: docs/evaluation.md 1ae); (2) a chosen
 //! basis rung gets the GGX peak (the
 //! hybrid) only when that lowers the held-out error beyond noise (the peak adds parameters, so
 //! the plain basis wins a tie); (3, in `core`, after the
@@ -149,6 +152,41 @@ pub struct LadderSettings {
     /// study knob, measured and not adopted (section 1u): 0.25 meets issue #11's bar on the
     /// grid and gives away the basis's wins on the independent renderer's measured kind.
     pub analytic_margin: f64,
+    /// Which basis rung is written once the choice took the basis family: the simplest
+    /// within noise of the best, as among the families, or the one with the lowest held-out
+    /// error ([`BasisRung`]).
+    pub basis_rung: BasisRung,
+}
+
+/// Which basis rung (k, eta) is written once the choice took the basis family.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BasisRung {
+    /// The simplest within noise of the best, the rule among the families (until session 42;
+    /// reports written before this existed).
+    #[default]
+    Simplest,
+    /// The lowest held-out error among the basis rungs (the default since session 42, with
+    /// pixels carried to their rows' centres: docs/evaluation.md 1ae).
+    Lowest,
+}
+
+impl BasisRung {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Simplest => "simplest",
+            Self::Lowest => "lowest",
+        }
+    }
+
+    /// Reads a name of [`BasisRung::name`].
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "simplest" => Some(Self::Simplest),
+            "lowest" => Some(Self::Lowest),
+            _ => None,
+        }
+    }
 }
 
 impl LadderSettings {
@@ -243,6 +281,7 @@ impl Default for LadderSettings {
             max_trial_disagreement: 0.3,
             min_gain: 0.0,
             analytic_margin: 0.0,
+            basis_rung: BasisRung::Lowest,
         }
     }
 }
@@ -931,6 +970,11 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         chosen = i;
         reason = why;
     }
+    // Stage 1c: within the basis family, the rung with the lowest held-out error when asked.
+    if let Some((i, why)) = lowest_basis(&rungs, chosen, settings) {
+        chosen = i;
+        reason += &why;
+    }
 
     // Stage 2: a basis rung gets a GGX peak fitted to what it leaves of the pixels, at the same
     // (k, eta), kept only when it lowers the held-out error beyond noise: the basis fit (80
@@ -1043,6 +1087,35 @@ fn analytic_by_margin(
                  smaller gain there does not carry to a rendered sphere",
                 rungs[chosen].label(),
                 100.0 * margin
+            ),
+        )
+    })
+}
+
+/// The basis rung with the lowest held-out error (in the space the choice reads) and why, when
+/// `chosen` is a simpler basis rung and [`LadderSettings::basis_rung`] asks for the lowest.
+fn lowest_basis(
+    rungs: &[Rung],
+    chosen: usize,
+    settings: &LadderSettings,
+) -> Option<(usize, String)> {
+    if settings.basis_rung != BasisRung::Lowest || rungs[chosen].family != Family::Basis {
+        return None;
+    }
+    let (i, e) = rungs
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.family == Family::Basis)
+        .filter_map(|(i, r)| Some((i, metric_error(r, settings.metric)?)))
+        .filter(|(_, e)| e.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    (i != chosen).then(|| {
+        (
+            i,
+            format!(
+                "; written instead: {}, the basis family's lowest held-out error ({e:.4}): \
+                 within the family the lowest is written (docs/evaluation.md 1ae)",
+                rungs[i].label()
             ),
         )
     })
@@ -1589,6 +1662,48 @@ mod tests {
         assert_eq!(analytic_by_margin(&rungs, 1, &linear), None);
         // Only a chosen basis rung is held to it.
         assert_eq!(analytic_by_margin(&rungs, 0, &margin(0.25)), None);
+    }
+
+    #[test]
+    fn the_lowest_basis_rung_is_written_only_when_asked_and_only_within_the_basis() {
+        let basis = |k: usize, eta: f64, log: &[f64]| Rung {
+            k: Some(k),
+            eta: Some(eta),
+            ..scored(Family::Basis, 3 * k, &[0.05; 5], log)
+        };
+        // k = 5 within noise of k = 64 (a gain on some folds, a loss on one).
+        // Fold errors of the grid's fruitwood-241 on Spot with spread lights, seed 1.
+        let ggx = scored(
+            Family::LambertGgx,
+            8,
+            &[0.05; 5],
+            &[0.080, 0.059, 0.092, 0.084, 0.079],
+        );
+        let rungs = vec![
+            ggx,
+            basis(5, 1.0, &[0.068, 0.041, 0.066, 0.089, 0.048]),
+            basis(64, 1.0, &[0.066, 0.035, 0.075, 0.087, 0.037]),
+            basis(64, 40.0, &[0.085, 0.048, 0.091, 0.073, 0.048]),
+        ];
+        let simplest = LadderSettings {
+            basis_rung: BasisRung::Simplest,
+            ..with(HeldOutMetric::Log)
+        };
+        let (chosen, _) = choose_by(&rungs, &simplest).expect("a choice");
+        assert_eq!(chosen, 1, "the simplest within noise");
+        assert_eq!(lowest_basis(&rungs, chosen, &simplest), None);
+        let lowest = LadderSettings {
+            basis_rung: BasisRung::Lowest,
+            ..simplest.clone()
+        };
+        assert_eq!(LadderSettings::default().basis_rung, BasisRung::Lowest);
+        let (i, why) = lowest_basis(&rungs, chosen, &lowest).expect("the lowest basis rung");
+        assert_eq!(i, 2, "{why}");
+        assert!(why.contains("k = 64"), "{why}");
+        // Already the lowest: nothing to say.
+        assert_eq!(lowest_basis(&rungs, 2, &lowest), None);
+        // The family choice is not the rule's: a chosen analytic rung stays.
+        assert_eq!(lowest_basis(&rungs, 0, &lowest), None);
     }
 
     /// Default ladder settings choosing by `metric`.

@@ -1,13 +1,15 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
 //! hedge's strength, the peak average's weight and whether pixels are carried to their row's
-//! centre, the grazing peak's transfer, and how the written basis fit comes from the trials.
+//! centre, the grazing peak's transfer, how the written basis fit comes from the trials, and which
+//! basis rung the ladder writes.
 //! Each
 //! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
 use super::carry::Carry;
 use super::core::{CoreSettings, TrialChoice};
+use super::ladder::BasisRung;
 use super::plausible::ThetaDShape;
 use super::trials::BasisFit;
 
@@ -30,6 +32,8 @@ pub struct CoreOverrides {
     pub grazing_transfer: Option<f64>,
     /// How the reported trial is chosen and the written basis fit made (`CoreSettings::choose`).
     pub choose: Option<TrialChoice>,
+    /// Which basis rung the ladder writes once it took the basis family.
+    pub basis_rung: Option<BasisRung>,
 }
 
 impl CoreOverrides {
@@ -71,6 +75,9 @@ impl CoreOverrides {
         if let Some(c) = self.choose {
             core.choose = c;
         }
+        if let Some(b) = self.basis_rung {
+            core.ladder.basis_rung = b;
+        }
     }
 }
 
@@ -90,12 +97,13 @@ mod tests {
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.0),
             peak_average: Some(0.25),
-            carry: Some(Carry::Difference),
+            carry: Some(Carry::Off),
             deblur_deg: Some(3.0),
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
             choose: Some(TrialChoice::Median),
+            basis_rung: Some(BasisRung::Simplest),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -104,12 +112,13 @@ mod tests {
         assert_eq!(core.components.etas, vec![0.01, 1.0]);
         assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.peak_average, 0.25);
-        assert_eq!(core.carry, Carry::Difference);
+        assert_eq!(core.carry, Carry::Off);
         assert_eq!(core.deblur_deg, 3.0);
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.grazing_transfer, 0.75);
         assert_eq!(core.choose, TrialChoice::Median);
+        assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -11,7 +11,9 @@
 //!
 //! Pure: no I/O.
 
-use super::ladder::{ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung};
+use super::ladder::{
+    BasisRung, ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung,
+};
 use super::refine::{IterationReport, RefineReport, RefineSettings, StartReport, TableBins};
 use serde::{Deserialize, Deserializer};
 
@@ -112,6 +114,9 @@ struct LadderSettingsMirror {
     min_gain: f64,
     #[serde(default)]
     analytic_margin: f64,
+    /// Absent in reports written before it existed (the simplest basis rung within noise).
+    #[serde(default)]
+    basis_rung: BasisRung,
 }
 
 #[derive(Deserialize)]
@@ -336,6 +341,7 @@ mod tests {
             rule: ChoiceRule::OneStandardError,
             metric: HeldOutMetric::Linear,
             analytic_margin: 0.25,
+            basis_rung: BasisRung::Lowest,
             ..LadderSettings::default()
         });
         round_trip(&RefineReport {
