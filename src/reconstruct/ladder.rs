@@ -413,8 +413,9 @@ impl Ladder {
         )
     }
 
-    /// Chooses again among the rungs of the `allowed` families only (same rule), saying `why`
-    /// and `among`; false (nothing changed) when none of them has an error.
+    /// Chooses again among the rungs of the `allowed` families only (same rule, and the same
+    /// basis rung within the basis family), saying `why` and `among`; false (nothing changed)
+    /// when none of them has an error.
     pub fn choose_among(
         &mut self,
         settings: &LadderSettings,
@@ -426,9 +427,13 @@ impl Ladder {
             .filter(|&i| allowed.contains(&self.rungs[i].family) && self.rungs[i].error.is_some())
             .collect();
         let view: Vec<Rung> = idx.iter().map(|&i| self.rungs[i].clone()).collect();
-        let Some((c, reason)) = choose_by(&view, settings) else {
+        let Some((mut c, mut reason)) = choose_by(&view, settings) else {
             return false;
         };
+        if let Some((i, why)) = lowest_basis(&view, c, settings) {
+            c = i;
+            reason += &why;
+        }
         self.chosen = idx[c];
         self.reason = format!("{why}; {among}, {reason}");
         true
@@ -1704,6 +1709,18 @@ mod tests {
         assert_eq!(lowest_basis(&rungs, 2, &lowest), None);
         // The family choice is not the rule's: a chosen analytic rung stays.
         assert_eq!(lowest_basis(&rungs, 0, &lowest), None);
+        // A choice made again without Lambert + GGX (its halves disagreed) keeps the rule.
+        let mut ladder = Ladder {
+            scheme: FoldScheme::Images { folds: 5 },
+            held_out_pixels: 100,
+            rungs: rungs.clone(),
+            chosen: 0,
+            reason: String::new(),
+        };
+        assert!(ladder.choose_among(&lowest, &[Family::Lambert, Family::Basis], "why", "among"));
+        assert_eq!(ladder.chosen, 2, "{}", ladder.reason);
+        assert!(ladder.choose_among(&simplest, &[Family::Basis], "why", "among"));
+        assert_eq!(ladder.chosen, 1, "{}", ladder.reason);
     }
 
     /// Default ladder settings choosing by `metric`.
