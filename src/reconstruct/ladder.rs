@@ -44,7 +44,7 @@
 //! errors instead (section 1f); the patch errors are reported. Sections 1c, 1e, 1f and 1i have
 //! the measurements.
 //!
-//! The choice, in two stages: (1) among the analytic and basis rungs, the simplest (fewest
+//! The choice, in stages: (1) among the analytic and basis rungs, the simplest (fewest
 //! parameters, then the most regularised) whose fold-by-fold excess over the best is within one
 //! standard error of that paired difference (with `analytic_margin`, a study knob off by
 //! default, a basis rung not that fraction below Lambert + GGX gives way to it); once that
