@@ -1,11 +1,10 @@
 //! The reconstruction study knobs that `bench accuracy` and `bench external` share: what a
 //! basis fit is given, where an unobserved cell starts from, the ladder's smallest gain,
 //! ridge weights, the hedge's strength, the peak average's weight, the carry of pixels to
-//! their row's centre, the grazing peak's transfer, how the trials make the written fit and which basis rung
-//! is written.
-//! Their parsing, the
-//! library's overrides they make (`reconstruct::overrides`), and the words that type them
-//! again for a page's "command" line.
+//! their row's centre, the grazing peak's transfer, how the trials make the written fit and
+//! which basis rung is written. Their parsing, the library's overrides they make
+//! (`reconstruct::overrides`), and the words that type them again for a page's "command"
+//! line.
 //! No I/O.
 
 use brdf_rig::reconstruct::carry::Carry;

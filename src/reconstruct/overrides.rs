@@ -1,10 +1,8 @@
 //! Study overrides of the core's settings that the benches share: what a basis fit is given,
 //! where an unobserved cell starts from, the ladder's smallest gain, its ridge weights and the
 //! hedge's strength, the peak average's weight and whether pixels are carried to their row's
-//! centre, the grazing peak's transfer, how the written basis fit comes from the trials, and which
-//! basis rung the ladder writes.
-//! Each
-//! `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
+//! centre, the grazing peak's transfer, how the written basis fit comes from the trials, and
+//! which basis rung the ladder writes. Each `None` keeps the library's default. Pure data; no I/O, no parsing (the command line's words
 //! live in `cli`).
 
 use super::carry::Carry;

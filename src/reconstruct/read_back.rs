@@ -341,7 +341,7 @@ mod tests {
             rule: ChoiceRule::OneStandardError,
             metric: HeldOutMetric::Linear,
             analytic_margin: 0.25,
-            basis_rung: BasisRung::Lowest,
+            basis_rung: BasisRung::Simplest,
             ..LadderSettings::default()
         });
         round_trip(&RefineReport {
@@ -374,6 +374,28 @@ mod tests {
             table_bins: table_bins_before_session_40(),
             table_samples_per_cell: Some(1.3),
         });
+    }
+
+    /// Settings written before session 42 read back as those runs were made: the simplest
+    /// basis rung within noise, and the pixels not carried (today's defaults are the others).
+    #[test]
+    fn older_settings_read_back_with_the_simplest_rung_and_no_carry() {
+        use crate::reconstruct::carry::Carry;
+        use crate::reconstruct::core::CoreSettings;
+        let now = CoreSettings::default();
+        assert_eq!(
+            (now.ladder.basis_rung, now.carry),
+            (BasisRung::Lowest, Carry::Difference)
+        );
+        let mut json = serde_json::to_value(&now).unwrap();
+        let o = json.as_object_mut().unwrap();
+        o.remove("carry");
+        o["ladder"].as_object_mut().unwrap().remove("basis_rung");
+        let old: CoreSettings = serde_json::from_value(json).unwrap();
+        assert_eq!(
+            (old.ladder.basis_rung, old.carry),
+            (BasisRung::Simplest, Carry::Off)
+        );
     }
 
     /// A report written before the table's shape was a choice reads back with the one shape
