@@ -104,7 +104,7 @@ def main():
     files = [a for a in sys.argv[1:] if not a.startswith('--')]
     if not files:
         sys.exit(__doc__)
-    gs = [0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4]
+    gs = [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4]
     print('| file | scenes | rank correlation of gain and ratio | '
           + ' | '.join('G = %.2f' % g for g in gs) + ' |')
     print('|---|---|---|' + '---|' * len(gs))
