@@ -25,8 +25,9 @@ pub struct FitKnobs {
     /// `transfer-basis`, as `reconstruct --unobserved`.
     #[arg(long, value_parser = super::reconstruct::parse_unobserved)]
     pub unobserved: Option<ThetaDShape>,
-    /// Study knob: a simpler rung within this fraction of the best rung's mean held-out error
-    /// counts as within noise too (`LadderSettings::min_gain`; default: the library's).
+    /// A simpler rung within this fraction of the best rung's mean held-out error counts as
+    /// within noise too (`LadderSettings::min_gain`; default: the library's 0.01; 0: the
+    /// paired standard error alone).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub min_gain: Option<f64>,
     /// Study knob: the ridge weights the ladder tries for each k, before the scaling of a fit

@@ -46,8 +46,8 @@
 //!
 //! The choice, in stages: (1) among the analytic and basis rungs, the simplest (fewest
 //! parameters, then the most regularised) whose fold-by-fold excess over the best is within one
-//! standard error of that paired difference or within `min_gain` (1 %) of the best's mean
-//! error (since session 43: docs/evaluation.md 1af) (with `analytic_margin`, a study knob off by
+//! standard error of that paired difference or within `min_gain` of the best's mean error (1 %
+//! since session 43, docs/evaluation.md 1af; with `analytic_margin`, a study knob off by
 //! default, a basis rung not that fraction below Lambert + GGX gives way to it); once that
 //! took the basis family, the basis rung written is the family's lowest held-out error
 //! ([`LadderSettings::basis_rung`], since session 42 with the written fit's pixels carried to
