@@ -1946,22 +1946,8 @@ mod tests {
 
     #[test]
     fn choose_prefers_the_simplest_within_one_standard_error() {
-        let rung = |family, parameters, error: f64, se: f64| Rung {
-            family,
-            k: None,
-            eta: None,
-            parameters,
-            fold_errors: vec![],
-            error: Some(error),
-            standard_error: Some(se),
-            fold_errors_log: vec![],
-            error_log: None,
-            standard_error_log: None,
-            fold_errors_patch: Vec::new(),
-            error_patch: None,
-            standard_error_patch: None,
-            image_errors: vec![],
-        };
+        let rung =
+            |family, parameters, error: f64, se: f64| test_rung(family, parameters, &[], error, se);
         let rungs = vec![
             rung(Family::Lambert, 3, 0.30, 0.01),
             rung(Family::LambertGgx, 8, 0.205, 0.01),
@@ -1977,19 +1963,17 @@ mod tests {
         assert_eq!(choose(&rungs, ChoiceRule::OneStandardError).unwrap().0, 1);
     }
 
-    /// A rung of `family` whose (linear) held-out errors are `folds`.
-    fn rung_of_folds(family: Family, parameters: usize, folds: &[f64]) -> Rung {
-        let n = folds.len() as f64;
-        let m = folds.iter().sum::<f64>() / n;
-        let sd = (folds.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    /// A rung of `family` with (linear) held-out errors `folds`, mean `error` and standard
+    /// error `se`, and no log or patch errors.
+    fn test_rung(family: Family, parameters: usize, folds: &[f64], error: f64, se: f64) -> Rung {
         Rung {
             family,
             k: None,
             eta: None,
             parameters,
             fold_errors: folds.iter().map(|x| Some(*x)).collect(),
-            error: Some(m),
-            standard_error: Some(sd / n.sqrt()),
+            error: Some(error),
+            standard_error: Some(se),
             fold_errors_log: vec![],
             error_log: None,
             standard_error_log: None,
@@ -1998,6 +1982,14 @@ mod tests {
             standard_error_patch: None,
             image_errors: vec![],
         }
+    }
+
+    /// A rung of `family` whose (linear) held-out errors are `folds`.
+    fn rung_of_folds(family: Family, parameters: usize, folds: &[f64]) -> Rung {
+        let n = folds.len() as f64;
+        let m = folds.iter().sum::<f64>() / n;
+        let sd = (folds.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        test_rung(family, parameters, folds, m, sd / n.sqrt())
     }
 
     #[test]
