@@ -156,6 +156,7 @@ mod tests {
     fn basis_fit_and_unobserved_take_their_words_and_name_a_wrong_one() {
         for args in [
             "reconstruct j.toml --out o --basis-fit samples --unobserved transfer-basis",
+            "reconstruct j.toml --out o --min-gain 0",
             "bench accuracy --basis-fit rows --unobserved transfer --min-gain 0.05",
             "bench external --scenes s --unobserved model --min-gain 0",
             "bench reconstruct --basis-fit samples",
@@ -175,6 +176,7 @@ mod tests {
                 "model, transfer or transfer-basis",
             ),
             ("bench external --scenes s --min-gain 2", "in [0, 1]"),
+            ("reconstruct j.toml --out o --min-gain 1.5", "in [0, 1]"),
         ] {
             let argv = std::iter::once("brdf-rig").chain(args.split(' '));
             let e = Cli::try_parse_from(argv).err().unwrap().to_string();

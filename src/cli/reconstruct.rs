@@ -135,6 +135,12 @@ pub struct Args {
     /// `lowest` (the lowest held-out error, the default). docs/reconstruction.md, stage 3.
     #[arg(long, value_parser = parse_basis_rung, default_value = "lowest")]
     pub basis_rung: BasisRung,
+    /// A simpler model family whose held-out error is within this fraction of the best's
+    /// counts as within noise, besides one paired standard error (0 to 1; 0: the standard
+    /// error alone, the rule before session 43). docs/reconstruction.md, stage 3;
+    /// docs/evaluation.md 1af.
+    #[arg(long, default_value_t = 0.01, value_parser = real_in(Closed(0.0), Closed(1.0)))]
+    pub min_gain: f64,
     /// Study knob: deblur the written basis fit for normals off by this RMS tilt (degrees; one
     /// Van Cittert step, `reconstruct::deblur`); 0, the default, leaves it as fitted. The
     /// model ladder decides on the pixels as they are either way. docs/evaluation.md 1v.
@@ -327,6 +333,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.peak_average = args.peak_average;
     settings.core.carry = args.carry;
     settings.core.ladder.basis_rung = args.basis_rung;
+    settings.core.ladder.min_gain = args.min_gain;
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;
     let r = &mut settings.core.reliable;
