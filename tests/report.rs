@@ -261,6 +261,7 @@ fn example_report(job: PathBuf) -> Report {
             }),
             peak_average: None,
             grazing_transfer: None,
+            peak_energy: None,
             extrapolation: Vec::new(),
         },
         comparisons: Vec::new(),

@@ -62,6 +62,10 @@ pub struct FitKnobs {
     /// --grazing-transfer` (default 0, off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub grazing_transfer: Option<f64>,
+    /// The written basis's peak cells (theta_h below this many degrees) scaled to the images'
+    /// patch sums, as `reconstruct --peak-energy` (default 1; 0 turns it off).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(10.0)))]
+    pub peak_energy: Option<f64>,
     /// How the reported trial is chosen and the written basis fit made, as `reconstruct
     /// --choose`: `similarity` (the default), `pixel-error`, `mean` or `median`.
     #[arg(long, value_parser = super::reconstruct::parse_choice)]
@@ -88,6 +92,7 @@ impl FitKnobs {
             extrapolation: self.extrapolation.clone(),
             analytic_margin: self.analytic_margin,
             grazing_transfer: self.grazing_transfer,
+            peak_energy: self.peak_energy,
             choose: self.choose,
             basis_rung: self.basis_rung,
         }
@@ -131,6 +136,9 @@ impl FitKnobs {
         if let Some(w) = self.grazing_transfer {
             s += &format!(" --grazing-transfer {w}");
         }
+        if let Some(d) = self.peak_energy {
+            s += &format!(" --peak-energy {d}");
+        }
         if let Some(c) = self.choose {
             s += &format!(" --choose {}", super::reconstruct::choice_name(c));
         }
@@ -162,6 +170,7 @@ mod tests {
             extrapolation: Some(vec![0.7, 0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
+            peak_energy: Some(1.0),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
         };
@@ -177,11 +186,12 @@ mod tests {
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
         assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(o.grazing_transfer, Some(0.75));
+        assert_eq!(o.peak_energy, Some(1.0));
         assert_eq!(o.choose, Some(TrialChoice::Median));
         assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --choose median --basis-rung simplest"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest"
         );
     }
 }

@@ -157,6 +157,8 @@ mod tests {
         for args in [
             "reconstruct j.toml --out o --basis-fit samples --unobserved transfer-basis",
             "reconstruct j.toml --out o --min-gain 0",
+            "reconstruct j.toml --out o --peak-energy 0",
+            "bench materials --peak-energy 2.5",
             "bench accuracy --basis-fit rows --unobserved transfer --min-gain 0.05",
             "bench external --scenes s --unobserved model --min-gain 0",
             "bench reconstruct --basis-fit samples",
@@ -177,6 +179,8 @@ mod tests {
             ),
             ("bench external --scenes s --min-gain 2", "in [0, 1]"),
             ("reconstruct j.toml --out o --min-gain 1.5", "in [0, 1]"),
+            ("reconstruct j.toml --out o --peak-energy 11", "in [0, 10]"),
+            ("bench accuracy --peak-energy=-1", "in [0, 10]"),
         ] {
             let argv = std::iter::once("brdf-rig").chain(args.split(' '));
             let e = Cli::try_parse_from(argv).err().unwrap().to_string();

@@ -152,6 +152,12 @@ pub struct Args {
     /// 0, the default: off). Measured, not adopted: docs/evaluation.md section 1x.
     #[arg(long, default_value_t = 0.0, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub grazing_transfer: f64,
+    /// Where the written model is the basis's, scale its peak cells (theta_h below this many
+    /// degrees, fading to none at twice it) so that the light images' patch sums match, when
+    /// the images held out one at a time agree (0 to 10; 0 turns it off).
+    /// docs/reconstruction.md, stage 6; docs/evaluation.md section 1ag.
+    #[arg(long, default_value_t = 1.0, value_parser = real_in(Closed(0.0), Closed(10.0)))]
+    pub peak_energy: f64,
     /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
     /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
     /// object's materials are found first, whatever `--materials` says, and each gets its own
@@ -336,6 +342,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.ladder.min_gain = args.min_gain;
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;
+    settings.core.peak_energy_deg = args.peak_energy;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;
@@ -465,6 +472,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         errln!(
             "grazing peak: carried above theta_d 54 deg by Lambert + GGX's shape, weight {w:.2} \
              (--grazing-transfer)"
+        );
+    }
+    if let Some(e) = p.peak_energy {
+        errln!(
+            "peak energy: the cells below theta_h {:.1} deg {} (fitted to the images' patch sums \
+             {:.2}; held out one image at a time, their patch error {:+.4} +- {:.4}; \
+             --peak-energy)",
+            e.theta_deg,
+            if e.scale == 1.0 {
+                "left as fitted".to_string()
+            } else {
+                format!("scaled by {:.2}", e.scale)
+            },
+            e.fitted,
+            e.held_out_change,
+            e.held_out_standard_error
         );
     }
     let confidence = &output.report.confidence;

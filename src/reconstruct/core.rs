@@ -122,6 +122,13 @@ pub struct CoreSettings {
     /// default: off). Study knob, measured and not adopted: docs/evaluation.md section 1x.
     #[serde(default)]
     pub grazing_transfer: f64,
+    /// Where the written model is the basis's (or the basis + peak's), its peak cells (theta_h
+    /// below this many degrees, fading to none at twice it) scaled so that the images' patch
+    /// sums match, when the images held out one at a time agree (`reconstruct::peak_energy`;
+    /// 1 by default since session 44, docs/evaluation.md section 1ag; 0 turns it off). Reports
+    /// written before read back with 0, as they were made.
+    #[serde(default)]
+    pub peak_energy_deg: f64,
     /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written
     /// before it existed.
     #[serde(default = "ExtrapolationSettings::off")]
@@ -148,6 +155,7 @@ impl Default for CoreSettings {
             carry: Carry::Difference,
             deblur_deg: 0.0,
             grazing_transfer: 0.0,
+            peak_energy_deg: 1.0,
             extrapolation: ExtrapolationSettings::off(),
         }
     }
@@ -626,6 +634,27 @@ pub fn reconstruct_observations(
             format!("{reason}; {said}")
         };
     }
+    // The peak's energy from the images' patch sums (reconstruct::peak_energy).
+    if matches!(family, Family::Basis | Family::Hybrid) && settings.peak_energy_deg > 0.0 {
+        // every observed pixel: a patch's sum integrates the table only over all of its pixels
+        let all: Vec<&Observation> = observations.iter().collect();
+        let extent = all.iter().map(|o| o.x.max(o.y)).max().unwrap_or(0) as usize + 1;
+        let patch_px = settings
+            .ladder
+            .patch_px
+            .unwrap_or((extent / 12).max(4))
+            .max(1);
+        if let Some(fit) =
+            super::peak_energy::fit_scale(&table, &all, patch_px, settings.peak_energy_deg)
+        {
+            super::peak_energy::apply(&mut table, &fit, &super::peak_energy::theta_d_weights(&all));
+            let curve = albedo_curve(&table);
+            let (curve, _) =
+                super::plausible::cap_albedo(&mut table, curve, settings.plausible.max_albedo);
+            plausibility.max_albedo_after = curve.into_iter().fold(0.0, f64::max);
+            plausibility.peak_energy = Some(fit);
+        }
+    }
     // Where held-out images cannot judge the extrapolation, average it with Lambert + GGX's.
     if let Some(p) = &prior_model
         && settings.hedge.strength > 0.0
@@ -1020,6 +1049,35 @@ mod tests {
             }
         }
         assert!(moved > 100 && kept > 10_000, "{moved} moved, {kept} kept");
+    }
+
+    /// The peak's energy step (`reconstruct::peak_energy`) runs unless turned off and is
+    /// reported; on a single image no image can be held out to check the factor it
+    /// fits, so the factor is reported and not applied: the table is the same, bin for bin.
+    /// (The module's tests cover the factor applied.)
+    #[test]
+    fn the_peak_energy_step_is_reported_and_needs_images_to_hold_out() {
+        let obs = cap_pixels(|b| 0.04 + 0.01 * ((b % 5) as f64), 400, [1.0, 0.8, 0.6]);
+        let run = |deg: f64| {
+            let mut settings = CoreSettings {
+                fixed_k: Some(3),
+                peak_energy_deg: deg,
+                hedge: HedgeSettings::off(),
+                ..CoreSettings::default()
+            };
+            settings.trials.trials = 3;
+            settings.trials.samples = 6;
+            reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+                .expect("reconstructs")
+        };
+        let (off, on) = (run(0.0), run(CoreSettings::default().peak_energy_deg));
+        assert_eq!(off.plausibility.peak_energy, None);
+        let e = on.plausibility.peak_energy.expect("reported");
+        assert!(e.patches > 0 && e.fitted != 1.0, "{e:?}");
+        assert_eq!((e.images, e.scale), (0, 1.0), "{e:?}");
+        for index in (0..crate::brdf::coords::MERL_BINS).step_by(7) {
+            assert_eq!(off.table.get(index), on.table.get(index));
+        }
     }
 
     #[test]

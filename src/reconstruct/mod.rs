@@ -42,6 +42,7 @@ pub mod observation;
 pub mod observe;
 pub mod output;
 pub mod overrides;
+pub mod peak_energy;
 pub mod plausible;
 pub mod prepare;
 pub mod prior;

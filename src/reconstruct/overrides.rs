@@ -28,6 +28,8 @@ pub struct CoreOverrides {
     pub analytic_margin: Option<f64>,
     /// The carried value's weight in the grazing peak cells (`reconstruct::grazing`).
     pub grazing_transfer: Option<f64>,
+    /// The peak's theta_h extent (degrees) scaled to the patch sums (`reconstruct::peak_energy`).
+    pub peak_energy: Option<f64>,
     /// How the reported trial is chosen and the written basis fit made (`CoreSettings::choose`).
     pub choose: Option<TrialChoice>,
     /// Which basis rung the ladder writes once it took the basis family.
@@ -70,6 +72,9 @@ impl CoreOverrides {
         if let Some(w) = self.grazing_transfer {
             core.grazing_transfer = w;
         }
+        if let Some(d) = self.peak_energy {
+            core.peak_energy_deg = d;
+        }
         if let Some(c) = self.choose {
             core.choose = c;
         }
@@ -100,6 +105,7 @@ mod tests {
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
+            peak_energy: Some(1.5),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
         }
@@ -115,6 +121,7 @@ mod tests {
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.grazing_transfer, 0.75);
+        assert_eq!(core.peak_energy_deg, 1.5);
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);

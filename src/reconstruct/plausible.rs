@@ -129,6 +129,10 @@ pub struct Plausibility {
     /// where it was not done and in reports written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grazing_transfer: Option<f64>,
+    /// The peak's cells scaled to the images' patch sums (`reconstruct::peak_energy`, a study
+    /// knob), when it ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peak_energy: Option<super::peak_energy::PeakEnergy>,
     /// How each family extrapolated from the pixels below a theta_d split to those above it
     /// (`reconstruct::extrapolation`; empty where it was not run, and in reports written
     /// before it existed).
@@ -317,34 +321,7 @@ pub fn make_plausible_shaped(
             (0.0f64, 0usize),
             |acc, (i, &a)| if a > acc.0 { (a, i) } else { acc },
         );
-    let mut curve = before;
-    let mut scaled = vec![false; MERL_BINS];
-    for _ in 0..4 {
-        if curve.iter().all(|&a| a <= settings.max_albedo) {
-            break;
-        }
-        let s: Vec<f64> = curve
-            .iter()
-            .map(|&a| {
-                if a > settings.max_albedo {
-                    settings.max_albedo / a * 0.999
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let now = table.scale_down(|index| {
-            MerlBin::from_index(index).map_or(1.0, |b| {
-                let (wi, wo) = b.centre_directions();
-                s[theta_bin(wi.z.clamp(-1.0, 1.0).acos())]
-                    .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())])
-            })
-        });
-        for (was, now) in scaled.iter_mut().zip(now) {
-            *was |= now;
-        }
-        curve = albedo_curve(&table);
-    }
+    let (curve, scaled) = cap_albedo(&mut table, before, settings.max_albedo);
     let report = Plausibility {
         observed_cells: counts.iter().filter(|&&c| c > 0).count(),
         prior_share: if above > 0 {
@@ -361,9 +338,49 @@ pub fn make_plausible_shaped(
         hedge: None,
         peak_average: None,
         grazing_transfer: None,
+        peak_energy: None,
         extrapolation: Vec::new(),
     };
     (table, report)
+}
+
+/// Scales the table down, per incident and outgoing theta, until its directional albedo is at
+/// most `max_albedo` everywhere (at most four passes; `curve`: its albedo curve now). Returns
+/// the final curve and, per bin, whether it was scaled.
+pub fn cap_albedo(
+    table: &mut MerlTable,
+    curve: Vec<f64>,
+    max_albedo: f64,
+) -> (Vec<f64>, Vec<bool>) {
+    let mut curve = curve;
+    let mut scaled = vec![false; MERL_BINS];
+    for _ in 0..4 {
+        if curve.iter().all(|&a| a <= max_albedo) {
+            break;
+        }
+        let s: Vec<f64> = curve
+            .iter()
+            .map(|&a| {
+                if a > max_albedo {
+                    max_albedo / a * 0.999
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let now = table.scale_down(|index| {
+            MerlBin::from_index(index).map_or(1.0, |b| {
+                let (wi, wo) = b.centre_directions();
+                s[theta_bin(wi.z.clamp(-1.0, 1.0).acos())]
+                    .min(s[theta_bin(wo.z.clamp(-1.0, 1.0).acos())])
+            })
+        });
+        for (was, now) in scaled.iter_mut().zip(now) {
+            *was |= now;
+        }
+        curve = albedo_curve(table);
+    }
+    (curve, scaled)
 }
 
 #[cfg(test)]
