@@ -475,20 +475,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     if let Some(e) = p.peak_energy {
-        errln!(
-            "peak energy: the cells below theta_h {:.1} deg {} (fitted to the images' patch sums \
-             {:.2}; held out one image at a time, their patch error {:+.4} +- {:.4}; \
-             --peak-energy)",
-            e.theta_deg,
-            if e.scale == 1.0 {
-                "left as fitted".to_string()
-            } else {
-                format!("scaled by {:.2}", e.scale)
-            },
-            e.fitted,
-            e.held_out_change,
-            e.held_out_standard_error
-        );
+        errln!("peak energy: {} (--peak-energy)", e.describe());
     }
     let confidence = &output.report.confidence;
     errln!("confidence: {}", confidence.level);

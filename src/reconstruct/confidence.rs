@@ -488,8 +488,6 @@ fn percentile(xs: &mut [f64], q: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::coords::HalfDiff;
-    use nalgebra::{Point3, Vector3};
 
     #[test]
     fn a_candidate_at_the_probe_gives_its_own_values_there_and_elsewhere() {
@@ -525,32 +523,7 @@ mod tests {
     }
 
     fn obs(theta_h_deg: f64, theta_d_deg: f64) -> Observation {
-        let angles = HalfDiff {
-            theta_h: theta_h_deg.to_radians(),
-            phi_h: 0.0,
-            theta_d: theta_d_deg.to_radians(),
-            phi_d: 1.0,
-        };
-        let bin = angles.merl_bin().index();
-        Observation {
-            image: 0,
-            x: 0,
-            y: 0,
-            position: Point3::origin(),
-            normal: Vector3::z(),
-            light: Vector3::z(),
-            view: Vector3::z(),
-            mean_curvature: 0.0,
-            face: crate::reconstruct::observation::NO_FACE,
-            radiance: [1.0; 3],
-            irradiance: [1.0; 3],
-            reflectance: [1.0; 3],
-            cos_theta_i: 1.0,
-            cos_theta_o: 1.0,
-            n_dot_h: 1.0,
-            angles,
-            bin,
-        }
+        Observation::at_angles(theta_h_deg.to_radians(), theta_d_deg.to_radians(), [1.0; 3])
     }
 
     /// One pixel per (theta_h, theta_d) degree, theta_h below `h_max`, theta_d over 0-89.

@@ -1006,6 +1006,23 @@ mod tests {
         (out, obs)
     }
 
+    /// A dark cap of one image (no bin scaled for the albedo) reconstructed with 3 components
+    /// and 3 trials of 6 samples, the hedge off (its weight reads the whole render, which the
+    /// steps under test change), after `change` to the settings.
+    fn dark_cap(change: impl Fn(&mut CoreSettings)) -> CoreOutput {
+        let obs = cap_pixels(|b| 0.04 + 0.01 * ((b % 5) as f64), 400, [1.0, 0.8, 0.6]);
+        let mut settings = CoreSettings {
+            fixed_k: Some(3),
+            hedge: HedgeSettings::off(),
+            ..CoreSettings::default()
+        };
+        settings.trials.trials = 3;
+        settings.trials.samples = 6;
+        change(&mut settings);
+        reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+            .expect("reconstructs")
+    }
+
     /// The grazing transfer (`reconstruct::grazing`) changes the written table in the grazing
     /// peak cells only, and the report gives its weight where it was applied. The
     /// scene is dark enough that no bin is scaled for the albedo and the hedge is off (its
@@ -1014,20 +1031,7 @@ mod tests {
     fn the_grazing_transfer_moves_only_the_grazing_peak_cells_and_is_reported() {
         use super::super::grazing::carried;
         use crate::brdf::coords::MerlBin;
-        let obs = cap_pixels(|b| 0.04 + 0.01 * ((b % 5) as f64), 400, [1.0, 0.8, 0.6]);
-        let run = |w: f64| {
-            let mut settings = CoreSettings {
-                fixed_k: Some(3),
-                grazing_transfer: w,
-                // The hedge's weight follows the whole render, which the transfer changes.
-                hedge: HedgeSettings::off(),
-                ..CoreSettings::default()
-            };
-            settings.trials.trials = 3;
-            settings.trials.samples = 6;
-            reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
-                .expect("reconstructs")
-        };
+        let run = |w: f64| dark_cap(|s| s.grazing_transfer = w);
         let (off, on) = (run(0.0), run(0.5));
         assert_eq!(off.model.family, Family::Basis);
         assert_eq!(off.plausibility.grazing_transfer, None);
@@ -1057,19 +1061,7 @@ mod tests {
     /// (The module's tests cover the factor applied.)
     #[test]
     fn the_peak_energy_step_is_reported_and_needs_images_to_hold_out() {
-        let obs = cap_pixels(|b| 0.04 + 0.01 * ((b % 5) as f64), 400, [1.0, 0.8, 0.6]);
-        let run = |deg: f64| {
-            let mut settings = CoreSettings {
-                fixed_k: Some(3),
-                peak_energy_deg: deg,
-                hedge: HedgeSettings::off(),
-                ..CoreSettings::default()
-            };
-            settings.trials.trials = 3;
-            settings.trials.samples = 6;
-            reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
-                .expect("reconstructs")
-        };
+        let run = |deg: f64| dark_cap(|s| s.peak_energy_deg = deg);
         let (off, on) = (run(0.0), run(CoreSettings::default().peak_energy_deg));
         assert_eq!(off.plausibility.peak_energy, None);
         let e = on.plausibility.peak_energy.expect("reported");

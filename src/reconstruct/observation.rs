@@ -168,6 +168,40 @@ impl Observation {
 }
 
 #[cfg(test)]
+impl Observation {
+    /// A test pixel of image 0 at (0, 0): normal, light and view +z, unit irradiance and
+    /// cosines, `radiance` (and the same reflectance), at the given theta_h and theta_d
+    /// (radians; phi_h 0, phi_d 1) and their MERL bin.
+    pub fn at_angles(theta_h: f64, theta_d: f64, radiance: [f64; 3]) -> Self {
+        let angles = HalfDiff {
+            theta_h,
+            phi_h: 0.0,
+            theta_d,
+            phi_d: 1.0,
+        };
+        Self {
+            image: 0,
+            x: 0,
+            y: 0,
+            position: Point3::origin(),
+            normal: Vector3::z(),
+            light: Vector3::z(),
+            view: Vector3::z(),
+            mean_curvature: 0.0,
+            face: NO_FACE,
+            radiance,
+            irradiance: [1.0; 3],
+            reflectance: radiance,
+            cos_theta_i: 1.0,
+            cos_theta_o: 1.0,
+            n_dot_h: 1.0,
+            angles,
+            bin: angles.merl_bin().index(),
+        }
+    }
+}
+
+#[cfg(test)]
 #[allow(clippy::unwrap_used)] // tests: a panic is the failure report
 mod tests {
     use super::*;

@@ -54,6 +54,25 @@ pub struct PeakEnergy {
     pub images: usize,
 }
 
+impl PeakEnergy {
+    /// What the step did, in words (the command line and the HTML report).
+    pub fn describe(&self) -> String {
+        format!(
+            "peak cells below theta_h {:.1} deg {}; fitted to the images' patch sums {:.2}, \
+             held out one image at a time their patch error {:+.4} +- {:.4}",
+            self.theta_deg,
+            if self.scale == 1.0 {
+                "left as fitted".to_string()
+            } else {
+                format!("scaled by {:.2}", self.scale)
+            },
+            self.fitted,
+            self.held_out_change,
+            self.held_out_standard_error
+        )
+    }
+}
+
 /// The smallest and largest factor the step applies. Never below 1: the normals' error only
 /// spreads a peak's energy over the shoulder, where a per-pixel fit loses it; patch sums that
 /// want less peak read something else (measured: docs/evaluation.md 1ag).
@@ -239,8 +258,6 @@ pub fn apply(table: &mut MerlTable, fit: &PeakEnergy, theta_d_weight: &[f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::brdf::coords::HalfDiff;
-    use nalgebra::{Point3, Vector3};
 
     fn table(peak: f64) -> MerlTable {
         MerlTable::from_fn(|b| {
@@ -250,31 +267,10 @@ mod tests {
     }
 
     fn pixel(image: usize, x: u32, theta_h_deg: f64, radiance: f64) -> Observation {
-        let angles = HalfDiff {
-            theta_h: theta_h_deg.to_radians(),
-            phi_h: 0.0,
-            theta_d: 0.3,
-            phi_d: 1.0,
-        };
-        Observation {
-            image,
-            x,
-            y: 0,
-            position: Point3::origin(),
-            normal: Vector3::z(),
-            light: Vector3::z(),
-            view: Vector3::z(),
-            mean_curvature: 0.0,
-            face: crate::reconstruct::observation::NO_FACE,
-            radiance: [radiance; 3],
-            irradiance: [1.0; 3],
-            reflectance: [radiance; 3],
-            cos_theta_i: 1.0,
-            cos_theta_o: 1.0,
-            n_dot_h: 1.0,
-            angles,
-            bin: angles.merl_bin().index(),
-        }
+        let mut o = Observation::at_angles(theta_h_deg.to_radians(), 0.3, [radiance; 3]);
+        o.image = image;
+        o.x = x;
+        o
     }
 
     /// Images 0..n, each with a patch holding the table's peak bin (seen dark) and the

@@ -423,19 +423,7 @@ pub fn plausibility_rows(p: &Plausibility) -> Vec<(String, String)> {
             ("peak_energy", _) => match &p.peak_energy {
                 Some(e) => (
                     "peak energy (from the images' patch sums)".to_string(),
-                    format!(
-                        "peak cells below theta_h {:.1} deg {}; fitted factor {:.2}, held-out \
-                         images' patch error {:+.4} +- {:.4} (docs/reconstruction.md, stage 6)",
-                        e.theta_deg,
-                        if e.scale == 1.0 {
-                            "left as fitted".to_string()
-                        } else {
-                            format!("scaled by {:.2}", e.scale)
-                        },
-                        e.fitted,
-                        e.held_out_change,
-                        e.held_out_standard_error
-                    ),
+                    format!("{} (docs/reconstruction.md, stage 6)", e.describe()),
                 ),
                 None => (k.replace('_', " "), v),
             },
