@@ -19,7 +19,9 @@
 //! each image in turn is held out, the factor fitted to the others' patches, and the held-out
 //! image's relative patch error must fall, on average over the images, by more than one
 //! standard error (where a peak is narrower than a pixel's step in normal, which pixel hits it
-//! is luck, and the images disagree).
+//! is luck, and the images disagree). The factor is at least 1 and fades along theta_d over
+//! [`THETA_D_SHRINK_BINS`] degrees away from every theta_d a pixel reached, so a peak that no
+//! image saw (grazing theta_d with one light by the camera) is not multiplied.
 //!
 //! Pure: no I/O. Must not refit the model: it only rescales the written table's peak cells.
 
