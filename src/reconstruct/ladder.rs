@@ -5,9 +5,10 @@
 //! Rungs, simplest first (parameter count per the whole RGB model):
 //! - **Lambert** (3): image-space least squares (`brdf::analytic`, weight `cos theta_i`);
 //! - **Lambert + GGX** (8): the same, with one GGX lobe and Schlick Fresnel;
-//! - **basis** at each `(k, eta)` of the component grid (3k): the paper's fit, samples chosen
-//!   exactly as a trial chooses them (brightest pixel first, eq. 1, conditioning), ridge on the
-//!   first k components of the Nielsen basis;
+//! - **basis** at each `(k, eta)` of the component grid (3k): ridge on the first k components
+//!   of the Nielsen basis, given what a trial's fit is given (`BasisFit`: one median sample per
+//!   basis row of every training pixel by default, or the paper's samples: brightest pixel
+//!   first, eq. 1, conditioning);
 //! - **hybrid** (3k + 5): the chosen basis rung plus a GGX lobe fitted to what the basis leaves
 //!   of the pixels: the basis carries the broad part, the lobe the peak, and the lobe's width
 //!   is what the pixels show (the true peak blurred by the normals' error). Its Schlick `F0`
