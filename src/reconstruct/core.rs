@@ -638,12 +638,7 @@ pub fn reconstruct_observations(
     if matches!(family, Family::Basis | Family::Hybrid) && settings.peak_energy_deg > 0.0 {
         // every observed pixel: a patch's sum integrates the table only over all of its pixels
         let all: Vec<&Observation> = observations.iter().collect();
-        let extent = all.iter().map(|o| o.x.max(o.y)).max().unwrap_or(0) as usize + 1;
-        let patch_px = settings
-            .ladder
-            .patch_px
-            .unwrap_or((extent / 12).max(4))
-            .max(1);
+        let patch_px = super::ladder::patch_size(observations.iter(), &settings.ladder);
         if let Some(fit) =
             super::peak_energy::fit_scale(&table, &all, patch_px, settings.peak_energy_deg)
         {

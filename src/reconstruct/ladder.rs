@@ -695,6 +695,16 @@ fn patch_residual(c: &dyn Candidate, held: &[Observation], patch_px: usize) -> O
     (den > 0.0 && num.is_finite()).then_some((num, den))
 }
 
+/// The side of the patches of [`HeldOutMetric::Patches`] (and of `reconstruct::peak_energy`),
+/// pixels: [`LadderSettings::patch_px`], else a twelfth of the images' extent (at least 4).
+pub fn patch_size<'a>(
+    obs: impl Iterator<Item = &'a Observation>,
+    settings: &LadderSettings,
+) -> usize {
+    let extent = obs.map(|o| o.x.max(o.y)).max().unwrap_or(0) as usize + 1;
+    settings.patch_px.unwrap_or((extent / 12).max(4)).max(1)
+}
+
 /// The median pixel value of a set of observations (mean over channels): the scale of the
 /// log-space error.
 fn median_radiance(obs: &[Observation]) -> f64 {
@@ -848,8 +858,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
         return None;
     }
     let fold_of: Vec<usize> = pool.iter().map(|o| split.fold_of(o)).collect();
-    let extent = pool.iter().map(|o| o.x.max(o.y)).max().unwrap_or(0) as usize + 1;
-    let patch_px = settings.patch_px.unwrap_or((extent / 12).max(4)).max(1);
+    let patch_px = patch_size(pool.iter(), settings);
     let brightest_fold = reliable.brightest.as_ref().map(|b| split.fold_of(b));
     let max_k = prior.max_components();
     let fallback = components.fallback.min(max_k).max(1);
