@@ -258,6 +258,8 @@ fn example_report(job: PathBuf) -> Report {
             hedge: Some(brdf_rig::reconstruct::hedge::Hedge {
                 unseen_share: 0.25,
                 analytic_weight: 0.125,
+                f0: Some(0.04),
+                f0_held: true,
             }),
             peak_average: None,
             grazing_transfer: None,
@@ -422,7 +424,7 @@ fn report_renders_in_headless_chromium() {
         "channel 1: 1 shots",
         "rasterise",
         "25 % of the rendered sphere from cells no pixel observed; Lambert + GGX's weight in the \
-         written table 0.12",
+         written table 0.12 (its F0 0.040: one theta_d cannot tell it",
     ] {
         assert!(dom.contains(text), "page lacks {text:?}");
     }

@@ -265,6 +265,18 @@ impl LambertGgx {
         Self::fit_impl(samples, weight, true, [0.0, 1.0])
     }
 
+    /// [`LambertGgx::fit_weighted`] with Schlick's `F0` kept within `[lo, hi]` (each clamped to
+    /// [0, 1]).
+    pub fn fit_weighted_f0(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+        lo: f64,
+        hi: f64,
+    ) -> Result<Self, FitError> {
+        let lo = lo.clamp(0.0, 1.0);
+        Self::fit_impl(samples, weight, true, [lo, hi.clamp(lo, 1.0)])
+    }
+
     /// A specular lobe alone (`kd` = 0), fitted the same way: what a residual peak on top of
     /// another model needs (the hybrid rung of `reconstruct::ladder`). Residuals may be
     /// negative; `ks` stays non-negative.

@@ -9,6 +9,7 @@
 
 use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::core::TrialChoice;
+use brdf_rig::reconstruct::fresnel::F0Rule;
 use brdf_rig::reconstruct::ladder::BasisRung;
 use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
@@ -75,6 +76,11 @@ pub struct FitKnobs {
     /// the best).
     #[arg(long, value_parser = super::reconstruct::parse_basis_rung)]
     pub basis_rung: Option<BasisRung>,
+    /// How the reconstruction's Lambert + GGX sets F0 where the pixels cannot tell it, as
+    /// `reconstruct --lambert-ggx-f0`: `physical` (the default) or `free`. The baselines the
+    /// bench compares against are the plain least-squares fits either way.
+    #[arg(long = "lambert-ggx-f0", value_parser = super::reconstruct::parse_f0_rule)]
+    pub lambert_ggx_f0: Option<F0Rule>,
 }
 
 impl FitKnobs {
@@ -95,6 +101,7 @@ impl FitKnobs {
             peak_energy: self.peak_energy,
             choose: self.choose,
             basis_rung: self.basis_rung,
+            lambert_ggx_f0: self.lambert_ggx_f0,
         }
     }
 
@@ -145,6 +152,9 @@ impl FitKnobs {
         if let Some(b) = self.basis_rung {
             s += &format!(" --basis-rung {}", b.name());
         }
+        if let Some(f) = self.lambert_ggx_f0 {
+            s += &format!(" --lambert-ggx-f0 {}", f.name());
+        }
         s
     }
 }
@@ -173,6 +183,7 @@ mod tests {
             peak_energy: Some(1.0),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
+            lambert_ggx_f0: Some(F0Rule::Free),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -189,9 +200,10 @@ mod tests {
         assert_eq!(o.peak_energy, Some(1.0));
         assert_eq!(o.choose, Some(TrialChoice::Median));
         assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
+        assert_eq!(o.lambert_ggx_f0, Some(F0Rule::Free));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free"
         );
     }
 }

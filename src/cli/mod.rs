@@ -159,6 +159,8 @@ mod tests {
             "reconstruct j.toml --out o --min-gain 0",
             "reconstruct j.toml --out o --peak-energy 0",
             "bench materials --peak-energy 2.5",
+            "reconstruct j.toml --out o --lambert-ggx-f0 free",
+            "bench external --scenes s --lambert-ggx-f0 physical",
             "bench accuracy --basis-fit rows --unobserved transfer --min-gain 0.05",
             "bench external --scenes s --unobserved model --min-gain 0",
             "bench reconstruct --basis-fit samples",
@@ -181,6 +183,10 @@ mod tests {
             ("reconstruct j.toml --out o --min-gain 1.5", "in [0, 1]"),
             ("reconstruct j.toml --out o --peak-energy 11", "in [0, 10]"),
             ("bench accuracy --peak-energy=-1", "in [0, 10]"),
+            (
+                "reconstruct j.toml --out o --lambert-ggx-f0 dielectric",
+                "physical or free",
+            ),
         ] {
             let argv = std::iter::once("brdf-rig").chain(args.split(' '));
             let e = Cli::try_parse_from(argv).err().unwrap().to_string();

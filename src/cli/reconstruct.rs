@@ -6,6 +6,7 @@ use anyhow::Context;
 use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
+use brdf_rig::reconstruct::fresnel::F0Rule;
 use brdf_rig::reconstruct::ladder::{BasisRung, Family};
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
@@ -135,6 +136,13 @@ pub struct Args {
     /// `lowest` (the lowest held-out error, the default). docs/reconstruction.md, stage 3.
     #[arg(long, value_parser = parse_basis_rung, default_value = "lowest")]
     pub basis_rung: BasisRung,
+    /// How the reconstruction's Lambert + GGX (its ladder rung, the prior of unobserved cells,
+    /// the hedge) sets Schlick's F0 where the pixels cannot tell it (one light beside the
+    /// camera): `physical` (a dielectric's 0.04, raised to keep the lobe's weight at most 1,
+    /// or 1 for a lobe as broad as a body's reflection; the default) or `free` (wherever the least-squares search stops, the rule before
+    /// session 45). docs/reconstruction.md, stage 3; docs/evaluation.md section 1ah.
+    #[arg(long = "lambert-ggx-f0", value_parser = parse_f0_rule, default_value = "physical")]
+    pub lambert_ggx_f0: F0Rule,
     /// A simpler model family whose held-out error is within this fraction of the best's
     /// counts as within noise, besides one paired standard error (0 to 1; 0: the standard
     /// error alone, the rule before session 43). docs/reconstruction.md, stage 3;
@@ -289,6 +297,10 @@ pub(crate) fn parse_basis_rung(s: &str) -> Result<BasisRung, String> {
     BasisRung::parse(s).ok_or_else(|| format!("{s:?}: expected simplest or lowest"))
 }
 
+pub(crate) fn parse_f0_rule(s: &str) -> Result<F0Rule, String> {
+    F0Rule::parse(s).ok_or_else(|| format!("{s:?}: expected physical or free"))
+}
+
 fn parse_model(s: &str) -> Result<ModelSelection, String> {
     match s {
         "auto" => Ok(ModelSelection::Auto),
@@ -339,6 +351,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.peak_average = args.peak_average;
     settings.core.carry = args.carry;
     settings.core.ladder.basis_rung = args.basis_rung;
+    settings.core.ladder.lambert_ggx_f0 = args.lambert_ggx_f0;
     settings.core.ladder.min_gain = args.min_gain;
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;
@@ -461,12 +474,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         p.max_albedo_before
     );
     if let Some(h) = &p.hedge {
-        errln!(
-            "hedge: {:.0} % of the rendered sphere from unobserved cells; Lambert + GGX's weight \
-             in the written table {:.2}",
-            100.0 * h.unseen_share,
-            h.analytic_weight
-        );
+        errln!("hedge: {}", h.describe());
     }
     if let Some(w) = p.grazing_transfer {
         errln!(

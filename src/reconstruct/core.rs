@@ -3,7 +3,7 @@
 //!
 //! Pure: no I/O; the caller supplies the observations and the prior.
 
-use super::baselines::{fit_lambert, fit_lambert_ggx};
+use super::baselines::fit_lambert;
 use super::carry::{CarriedPrior, Carry};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
 use super::confidence::{
@@ -14,6 +14,7 @@ use super::deblur::DeblurredPrior;
 use super::extrapolation::{
     ExtrapolationInput, ExtrapolationSettings, check as check_extrapolation,
 };
+use super::fresnel::{F0Rule, fit_lambert_ggx_held};
 use super::grazing::GrazingTransfer;
 use super::hedge::{Hedge, HedgeSettings, blend_into};
 use super::ladder::{
@@ -271,7 +272,7 @@ pub fn reconstruct_observations(
     // The written fit (the trials) may see the pixels carried to their row's centre
     // (`reconstruct::carry`), by the Lambert + GGX of the analytic rungs' pixels.
     let carrier = (settings.carry == Carry::Difference)
-        .then(|| fit_lambert_ggx(&analytic_pixels))
+        .then(|| fit_lambert_ggx_held(&analytic_pixels, settings.ladder.lambert_ggx_f0))
         .flatten()
         .map(|model| CarriedPrior {
             inner: prior,
@@ -451,12 +452,17 @@ pub fn reconstruct_observations(
     // agree as a rendered sphere sees them? A narrow highlight seen by a few pixels lets
     // which pixels were drawn set the lobe's width and height, and the sphere then shows a
     // peak no image did; the basis (when its trials agree) or Lambert is chosen instead.
-    let lambert_ggx = fit_lambert_ggx(&analytic_pixels);
+    let lambert_ggx = fit_lambert_ggx_held(&analytic_pixels, settings.ladder.lambert_ggx_f0);
     if matches!(settings.model, ModelSelection::Auto)
         && family == Family::LambertGgx
         && let Some(l) = ladder.as_mut()
         && let Some(m) = lambert_ggx
-        && let Some(d) = half_disagreement(&m, &analytic_pixels, settings.trials.seed)
+        && let Some(d) = half_disagreement(
+            &m,
+            &analytic_pixels,
+            settings.trials.seed,
+            settings.ladder.lambert_ggx_f0,
+        )
         && d > settings.ladder.max_trial_disagreement
     {
         let why = format!(
@@ -664,6 +670,9 @@ pub fn reconstruct_observations(
         plausibility.hedge = Some(Hedge {
             unseen_share,
             analytic_weight,
+            f0: lambert_ggx.map(|m| m.f0),
+            f0_held: settings.ladder.lambert_ggx_f0 == F0Rule::Physical
+                && !super::fresnel::fresnel_identifiable(&analytic_pixels),
         });
     }
     plausibility.extrapolation = extrapolation;
@@ -870,7 +879,12 @@ fn component_choice(
 /// them all) as a rendered sphere sees them (`confidence::render_disagreement`): two seeded
 /// splits of the images in two halves each, whole images apart (neighbouring pixels of one
 /// image would agree for nothing). `None` with fewer than two images or no fit.
-pub fn half_disagreement(full: &LambertGgx, pixels: &[Observation], seed: u64) -> Option<f64> {
+pub fn half_disagreement(
+    full: &LambertGgx,
+    pixels: &[Observation],
+    seed: u64,
+    f0: F0Rule,
+) -> Option<f64> {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;
     let mut images: Vec<usize> = pixels.iter().map(|o| o.image).collect();
@@ -893,7 +907,7 @@ pub fn half_disagreement(full: &LambertGgx, pixels: &[Observation], seed: u64) -
                 .filter(|o| first.contains(&o.image) == side)
                 .copied()
                 .collect();
-            if let Some(m) = fit_lambert_ggx(&half) {
+            if let Some(m) = fit_lambert_ggx_held(&half, f0) {
                 fits.push(AnalyticCandidate(m));
             }
         }
@@ -913,6 +927,7 @@ impl Candidate for Borrowed<'_> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::baselines::fit_lambert_ggx;
     use super::super::components::held_out_error;
     use super::super::prior::synthetic::{CosinePrior, cap_pixels};
     use super::*;
@@ -971,7 +986,7 @@ mod tests {
     fn a_peak_every_image_sees_fits_alike_from_either_half_of_the_images() {
         let obs = peak_scene(|i| i % 6);
         let full = fit_lambert_ggx(&obs).expect("fits");
-        let d = half_disagreement(&full, &obs, 1).expect("six images");
+        let d = half_disagreement(&full, &obs, 1, F0Rule::Free).expect("six images");
         assert!(d < 0.1, "{d}");
     }
 
@@ -979,11 +994,11 @@ mod tests {
     fn a_peak_only_one_image_sees_makes_the_halves_disagree() {
         let obs = peak_scene(|_| 0);
         let full = fit_lambert_ggx(&obs).expect("fits");
-        let d = half_disagreement(&full, &obs, 1).expect("six images");
+        let d = half_disagreement(&full, &obs, 1, F0Rule::Free).expect("six images");
         assert!(d > 0.3, "{d}");
         // one image: nothing to split
         let one: Vec<Observation> = obs.iter().map(|o| Observation { image: 0, ..*o }).collect();
-        assert_eq!(half_disagreement(&full, &one, 1), None);
+        assert_eq!(half_disagreement(&full, &one, 1, F0Rule::Free), None);
     }
 
     fn run(choose: TrialChoice) -> (CoreOutput, Vec<Observation>) {

@@ -60,6 +60,34 @@ pub struct Hedge {
     pub unseen_share: f64,
     /// The weight given to Lambert + GGX (the exponent of its table in the geometric blend).
     pub analytic_weight: f64,
+    /// Lambert + GGX's Schlick `F0`, and whether it was set by `reconstruct::fresnel`'s
+    /// physical rule (one theta_d cannot tell it) rather than fitted. Absent in reports
+    /// written before session 45.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub f0: Option<f64>,
+    #[serde(default)]
+    pub f0_held: bool,
+}
+
+impl Hedge {
+    /// What the hedge did, in words (the command line and the HTML report).
+    pub fn describe(&self) -> String {
+        let f0 = match self.f0 {
+            Some(f) if self.f0_held => format!(
+                " (its F0 {f:.3}: one theta_d cannot tell it, so a dielectric's 0.04, raised to \
+                 keep the lobe's weight at most 1, or 1 for a lobe as broad as a body's; \
+                 --lambert-ggx-f0)"
+            ),
+            Some(f) => format!(" (its F0 {f:.3}, fitted)"),
+            None => String::new(),
+        };
+        format!(
+            "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + GGX's weight \
+             in the written table {:.2}{f0}",
+            100.0 * self.unseen_share,
+            self.analytic_weight
+        )
+    }
 }
 
 /// `table^(1 - w) * analytic^w`, bin by bin and channel by channel. A bin missing from either

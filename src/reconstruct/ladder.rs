@@ -4,7 +4,8 @@
 //!
 //! Rungs, simplest first (parameter count per the whole RGB model):
 //! - **Lambert** (3): image-space least squares (`brdf::analytic`, weight `cos theta_i`);
-//! - **Lambert + GGX** (8): the same, with one GGX lobe and Schlick Fresnel;
+//! - **Lambert + GGX** (8): the same, with one GGX lobe and Schlick Fresnel (its `F0` set by
+//!   `reconstruct::fresnel` where the pixels cannot tell it, [`LadderSettings::lambert_ggx_f0`]);
 //! - **basis** at each `(k, eta)` of the component grid (3k): ridge on the first k components
 //!   of the Nielsen basis, given what a trial's fit is given (`BasisFit`: one median sample per
 //!   basis row of every training pixel by default, or the paper's samples: brightest pixel
@@ -12,8 +13,8 @@
 //! - **hybrid** (3k + 5): the chosen basis rung plus a GGX lobe fitted to what the basis leaves
 //!   of the pixels: the basis carries the broad part, the lobe the peak, and the lobe's width
 //!   is what the pixels show (the true peak blurred by the normals' error). Its Schlick `F0`
-//!   stays at or above [`MIN_HELD_F0`] when fewer than [`FRESNEL_MIN_SHARE`] of the pixels
-//!   reach [`FRESNEL_THETA_D_DEG`] (one light beside the camera: every pixel near one theta_d,
+//!   stays at or above [`MIN_HELD_F0`] when the pixels cannot tell it
+//!   ([`fresnel_identifiable`]: one light beside the camera, every pixel near one theta_d,
 //!   where `F0` and the lobe's height are one number, and a free `F0` set the grazing rise at
 //!   random, up to ten thousand times the peak the images show; docs/evaluation.md 1w).
 //!
@@ -66,8 +67,9 @@
 //!
 //! Pure: no I/O. Deterministic for a seed.
 
-use super::baselines::{fit_lambert, fit_lambert_ggx};
+use super::baselines::fit_lambert;
 use super::components::ComponentSettings;
+use super::fresnel::{F0Rule, MIN_HELD_F0, fit_lambert_ggx_held, fresnel_identifiable};
 use super::observe::Observation;
 use super::prior::{Candidate, Prior};
 use super::reliable::{Reliable, ReliableSettings, as_peak, brightest_index};
@@ -163,6 +165,9 @@ pub struct LadderSettings {
     /// within noise of the best, as among the families, or the one with the lowest held-out
     /// error ([`BasisRung`]).
     pub basis_rung: BasisRung,
+    /// How the Lambert + GGX rung (and every use of Lambert + GGX in the reconstruction) sets
+    /// Schlick's `F0` where the pixels cannot tell it (`reconstruct::fresnel`).
+    pub lambert_ggx_f0: F0Rule,
 }
 
 /// Which basis rung (k, eta) is written once the choice took the basis family.
@@ -289,6 +294,7 @@ impl Default for LadderSettings {
             min_gain: 0.01,
             analytic_margin: 0.0,
             basis_rung: BasisRung::Lowest,
+            lambert_ggx_f0: F0Rule::Physical,
         }
     }
 }
@@ -532,27 +538,6 @@ pub fn subset(obs: &[Observation], max: usize, seed: u64) -> Vec<Observation> {
     v.shuffle(&mut ChaCha8Rng::seed_from_u64(seed));
     v.truncate(max);
     v
-}
-
-/// A peak's pixels that all lie below this theta_d (degrees; but for [`FRESNEL_MIN_SHARE`] of
-/// them) cannot tell its `F0` from its height: Schlick's factor `(1 - cos theta_d)^5` is below
-/// 4e-4 there, so the Fresnel factor is one constant. (It reaches a typical `F0` of 0.02 only
-/// at 57 degrees; a rule at 55 degrees, measured in docs/evaluation.md section 1w, also moved
-/// materials of spread rigs whose pixels stop short of that, some either way.)
-pub const FRESNEL_THETA_D_DEG: f64 = 35.0;
-
-/// The share of pixels at or beyond [`FRESNEL_THETA_D_DEG`] a peak's `F0` needs to be fitted.
-pub const FRESNEL_MIN_SHARE: f64 = 0.01;
-
-/// The least `F0` a peak may take when its pixels cannot tell it (a dielectric's, index 1.5):
-/// its rise towards grazing theta_d is then at most 1 / 0.04 = 25 times what the images show.
-pub const MIN_HELD_F0: f64 = 0.04;
-
-/// Whether the pixels reach far enough in theta_d to tell a lobe's `F0` from its height.
-pub fn fresnel_identifiable(obs: &[Observation]) -> bool {
-    let limit = FRESNEL_THETA_D_DEG.to_radians();
-    let far = obs.iter().filter(|o| o.angles.theta_d >= limit).count();
-    far as f64 >= FRESNEL_MIN_SHARE * obs.len() as f64 && far > 0
 }
 
 /// A GGX peak fitted to what `base` leaves of the pixels; its `F0` kept at or above
@@ -963,10 +948,12 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                     Family::Lambert => fit_lambert(&analytic_train).map_or_else(failed, |m| {
                         score(&AnalyticCandidate(m), &data.held, patch_px)
                     }),
-                    Family::LambertGgx => fit_lambert_ggx(&analytic_train)
-                        .map_or_else(failed, |m| {
-                            score(&AnalyticCandidate(m), &data.held, patch_px)
-                        }),
+                    Family::LambertGgx => {
+                        fit_lambert_ggx_held(&analytic_train, settings.lambert_ggx_f0)
+                            .map_or_else(failed, |m| {
+                                score(&AnalyticCandidate(m), &data.held, patch_px)
+                            })
+                    }
                     Family::Basis | Family::Hybrid => match basis_fits.next() {
                         Some(Ok(c)) => score(c.as_ref(), &data.held, patch_px),
                         _ => failed(),
@@ -2070,33 +2057,6 @@ mod tests {
 
     use nalgebra::Vector3;
 
-    /// Pixels of `truth` over a cap of normals, seen from `v` and lit from each of `lights`.
-    fn lobe_pixels(
-        truth: &LambertGgx,
-        v: Vector3<f64>,
-        lights: &[Vector3<f64>],
-    ) -> Vec<Observation> {
-        use crate::reconstruct::observation::Seen;
-        let mut out = Vec::new();
-        for (j, l) in lights.iter().enumerate() {
-            for i in 0..400 {
-                let t = i as f64 * 2.399;
-                let r = 0.4 * ((i as f64 + 0.5) / 400.0).sqrt();
-                let n = Vector3::new(r * t.cos(), r * t.sin(), 1.0).normalize();
-                let Some(mut o) =
-                    Observation::new(Seen::pixel(j, i as u32, 0, n), *l, v, [1.0; 3], [1.0; 3])
-                else {
-                    continue;
-                };
-                let (wi, wo) = super::super::observe::to_local(&n, l, &v);
-                o.reflectance = truth.eval_local(&wi, &wo);
-                o.radiance = o.reflectance.map(|x| x * o.cos_theta_i);
-                out.push(o);
-            }
-        }
-        out
-    }
-
     #[test]
     fn a_peak_seen_at_one_theta_d_holds_its_fresnel_and_one_seen_at_grazing_fits_it() {
         let truth = LambertGgx {
@@ -2111,7 +2071,7 @@ mod tests {
             Vector3::new(a.sin(), 0.0, a.cos())
         };
         // One light 30 degrees from the camera: every pixel near theta_d 15 degrees.
-        let one = lobe_pixels(&truth, Vector3::z(), &[dir(30.0)]);
+        let one = Observation::lobe_pixels(&truth, Vector3::z(), &[dir(30.0)]);
         assert!(!fresnel_identifiable(&one));
         let held = fit_peak(&zero, &one).expect("a peak");
         assert!(held.f0 >= MIN_HELD_F0, "F0 {}", held.f0);
@@ -2130,15 +2090,18 @@ mod tests {
             ks: [0.02; 3],
             ..truth
         };
-        let faint_fit =
-            fit_peak(&zero, &lobe_pixels(&faint, Vector3::z(), &[dir(30.0)])).expect("a peak");
+        let faint_fit = fit_peak(
+            &zero,
+            &Observation::lobe_pixels(&faint, Vector3::z(), &[dir(30.0)]),
+        )
+        .expect("a peak");
         let schlick = |f0: f64, td: f64| f0 + (1.0 - f0) * (1.0 - td.to_radians().cos()).powi(5);
         let rise = schlick(faint_fit.f0, 90.0) / schlick(faint_fit.f0, 15.0);
         assert!(rise <= 1.0 / MIN_HELD_F0 + 1e-9, "grazing rise {rise}");
         // Light and camera 120 degrees apart as well: theta_d near 60 degrees tells F0.
         let mut spread = one.clone();
         spread.extend(
-            lobe_pixels(&truth, dir(-60.0), &[dir(60.0)])
+            Observation::lobe_pixels(&truth, dir(-60.0), &[dir(60.0)])
                 .into_iter()
                 .map(|mut o| {
                     o.image += 1;

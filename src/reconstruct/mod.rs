@@ -31,6 +31,7 @@ pub mod confidence;
 pub mod core;
 pub mod deblur;
 pub mod extrapolation;
+pub mod fresnel;
 pub mod grazing;
 pub mod hedge;
 pub mod job;

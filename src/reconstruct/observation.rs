@@ -199,6 +199,34 @@ impl Observation {
             bin: angles.merl_bin().index(),
         }
     }
+
+    /// Test pixels of `truth` over a cap of normals (within about 22 degrees of +z), seen from
+    /// `v` and lit from each of `lights` (light `j` is image `j`), their reflectance and
+    /// radiance (unit irradiance) `truth`'s.
+    pub fn lobe_pixels(
+        truth: &dyn crate::brdf::Brdf,
+        v: Vector3<f64>,
+        lights: &[Vector3<f64>],
+    ) -> Vec<Self> {
+        let mut out = Vec::new();
+        for (j, l) in lights.iter().enumerate() {
+            for i in 0..400 {
+                let t = i as f64 * 2.399;
+                let r = 0.4 * ((i as f64 + 0.5) / 400.0).sqrt();
+                let n = Vector3::new(r * t.cos(), r * t.sin(), 1.0).normalize();
+                let Some(mut o) =
+                    Self::new(Seen::pixel(j, i as u32, 0, n), *l, v, [1.0; 3], [1.0; 3])
+                else {
+                    continue;
+                };
+                let (wi, wo) = super::observe::to_local(&n, l, &v);
+                o.reflectance = truth.eval_local(&wi, &wo);
+                o.radiance = o.reflectance.map(|x| x * o.cos_theta_i);
+                out.push(o);
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 
 use super::carry::Carry;
 use super::core::{CoreSettings, TrialChoice};
+use super::fresnel::F0Rule;
 use super::ladder::BasisRung;
 use super::plausible::ThetaDShape;
 use super::trials::BasisFit;
@@ -34,6 +35,8 @@ pub struct CoreOverrides {
     pub choose: Option<TrialChoice>,
     /// Which basis rung the ladder writes once it took the basis family.
     pub basis_rung: Option<BasisRung>,
+    /// How the reconstruction's Lambert + GGX sets F0 where the pixels cannot tell it.
+    pub lambert_ggx_f0: Option<F0Rule>,
 }
 
 impl CoreOverrides {
@@ -81,6 +84,9 @@ impl CoreOverrides {
         if let Some(b) = self.basis_rung {
             core.ladder.basis_rung = b;
         }
+        if let Some(f) = self.lambert_ggx_f0 {
+            core.ladder.lambert_ggx_f0 = f;
+        }
     }
 }
 
@@ -108,6 +114,7 @@ mod tests {
             peak_energy: Some(1.5),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
+            lambert_ggx_f0: Some(F0Rule::Free),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -124,6 +131,7 @@ mod tests {
         assert_eq!(core.peak_energy_deg, 1.5);
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
+        assert_eq!(core.ladder.lambert_ggx_f0, F0Rule::Free);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

@@ -11,6 +11,7 @@
 //!
 //! Pure: no I/O.
 
+use super::fresnel::F0Rule;
 use super::ladder::{
     BasisRung, ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung,
 };
@@ -117,6 +118,9 @@ struct LadderSettingsMirror {
     /// Absent in reports written before it existed (the simplest basis rung within noise).
     #[serde(default)]
     basis_rung: BasisRung,
+    /// Absent in reports written before it existed (the free fit's `F0`).
+    #[serde(default)]
+    lambert_ggx_f0: F0Rule,
 }
 
 #[derive(Deserialize)]
@@ -342,6 +346,7 @@ mod tests {
             metric: HeldOutMetric::Linear,
             analytic_margin: 0.25,
             basis_rung: BasisRung::Simplest,
+            lambert_ggx_f0: F0Rule::Free,
             ..LadderSettings::default()
         });
         round_trip(&RefineReport {

@@ -413,12 +413,7 @@ pub fn plausibility_rows(p: &Plausibility) -> Vec<(String, String)> {
         .map(|(k, v)| match (k.as_str(), &p.hedge) {
             ("hedge", Some(h)) => (
                 "hedge (averaged with Lambert + GGX)".to_string(),
-                format!(
-                    "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + \
-                     GGX's weight in the written table {:.2} (docs/reconstruction.md, stage 6)",
-                    100.0 * h.unseen_share,
-                    h.analytic_weight
-                ),
+                format!("{} (docs/reconstruction.md, stage 6)", h.describe()),
             ),
             ("peak_energy", _) => match &p.peak_energy {
                 Some(e) => (
