@@ -219,7 +219,7 @@ impl Observation {
                 else {
                     continue;
                 };
-                let (wi, wo) = super::observe::to_local(&n, l, &v);
+                let (wi, wo) = to_local(&n, l, &v);
                 o.reflectance = truth.eval_local(&wi, &wo);
                 o.radiance = o.reflectance.map(|x| x * o.cos_theta_i);
                 out.push(o);
