@@ -273,8 +273,7 @@ impl LambertGgx {
         lo: f64,
         hi: f64,
     ) -> Result<Self, FitError> {
-        let lo = lo.clamp(0.0, 1.0);
-        Self::fit_impl(samples, weight, true, [lo, hi.clamp(lo, 1.0)])
+        Self::fit_impl(samples, weight, true, f0_range(lo, hi))
     }
 
     /// A specular lobe alone (`kd` = 0), fitted the same way: what a residual peak on top of
@@ -296,8 +295,7 @@ impl LambertGgx {
         lo: f64,
         hi: f64,
     ) -> Result<Self, FitError> {
-        let lo = lo.clamp(0.0, 1.0);
-        Self::fit_impl(samples, weight, false, [lo, hi.clamp(lo, 1.0)])
+        Self::fit_impl(samples, weight, false, f0_range(lo, hi))
     }
 
     fn fit_impl(
@@ -353,6 +351,12 @@ impl LambertGgx {
         let (kd, ks, _) = solve(best);
         Ok(Self { kd, ks, alpha, f0 })
     }
+}
+
+/// `[lo, hi]` as an `F0` range: each clamped to [0, 1], `hi` at least `lo`.
+fn f0_range(lo: f64, hi: f64) -> [f64; 2] {
+    let lo = lo.clamp(0.0, 1.0);
+    [lo, hi.clamp(lo, 1.0)]
 }
 
 /// Minimises `f` over two variables from `x0` with initial steps `step`.
