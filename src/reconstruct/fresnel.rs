@@ -21,7 +21,8 @@
 //!
 //! Used by the reconstruction wherever it leans on Lambert + GGX: the ladder's Lambert + GGX
 //! rung, the analytic prior of unobserved cells (`reconstruct::plausible`), the hedge, the
-//! carry (`reconstruct::carry`). Not by the baselines a user would fit
+//! carry (`reconstruct::carry`) and the halves' check of a chosen Lambert + GGX
+//! (`reconstruct::core::half_disagreement`). Not by the baselines a user would fit
 //! (`reconstruct::baselines::fit_lambert_ggx`, the bar every bench compares against): those
 //! stay the plain least-squares fit. Pure: no I/O.
 
