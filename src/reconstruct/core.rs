@@ -269,11 +269,13 @@ pub fn reconstruct_observations(
         settings.ladder.analytic_max_pixels,
         settings.trials.seed ^ 0xA11A,
     );
+    // Lambert + GGX of the analytic rungs' pixels, fitted once: the carry, the halves' check,
+    // the prior of unobserved cells and the hedge all read it.
+    let lambert_ggx = fit_lambert_ggx_held(&analytic_pixels, settings.ladder.lambert_ggx_f0);
     // The written fit (the trials) may see the pixels carried to their row's centre
-    // (`reconstruct::carry`), by the Lambert + GGX of the analytic rungs' pixels.
-    let carrier = (settings.carry == Carry::Difference)
-        .then(|| fit_lambert_ggx_held(&analytic_pixels, settings.ladder.lambert_ggx_f0))
-        .flatten()
+    // (`reconstruct::carry`), by that Lambert + GGX.
+    let carrier = lambert_ggx
+        .filter(|_| settings.carry == Carry::Difference)
         .map(|model| CarriedPrior {
             inner: prior,
             model,
@@ -452,7 +454,6 @@ pub fn reconstruct_observations(
     // agree as a rendered sphere sees them? A narrow highlight seen by a few pixels lets
     // which pixels were drawn set the lobe's width and height, and the sphere then shows a
     // peak no image did; the basis (when its trials agree) or Lambert is chosen instead.
-    let lambert_ggx = fit_lambert_ggx_held(&analytic_pixels, settings.ladder.lambert_ggx_f0);
     if matches!(settings.model, ModelSelection::Auto)
         && family == Family::LambertGgx
         && let Some(l) = ladder.as_mut()
