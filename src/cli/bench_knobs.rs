@@ -64,7 +64,7 @@ pub struct FitKnobs {
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub grazing_transfer: Option<f64>,
     /// The written basis's peak cells (theta_h below this many degrees) scaled to the images'
-    /// patch sums, as `reconstruct --peak-energy` (default 1; 0 turns it off).
+    /// patch sums, as `reconstruct --peak-energy` (default 1.5; 0 turns it off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(10.0)))]
     pub peak_energy: Option<f64>,
     /// How the reported trial is chosen and the written basis fit made, as `reconstruct

@@ -125,8 +125,9 @@ pub struct CoreSettings {
     pub grazing_transfer: f64,
     /// Where the written model is the basis's (or the basis + peak's), its peak cells (theta_h
     /// below this many degrees, fading to none at twice it) scaled so that the images' patch
-    /// sums match, when the images held out one at a time agree (`reconstruct::peak_energy`;
-    /// 1 by default since session 44, docs/evaluation.md section 1ag; 0 turns it off). Reports
+    /// sums match, unless the images held out one at a time refute it (`reconstruct::peak_energy`;
+    /// 1 by default in session 44, 1.5 since session 46: docs/evaluation.md sections 1ag and 1ai;
+    /// 0 turns it off). Reports
     /// written before read back with 0, as they were made.
     #[serde(default)]
     pub peak_energy_deg: f64,
@@ -156,7 +157,7 @@ impl Default for CoreSettings {
             carry: Carry::Difference,
             deblur_deg: 0.0,
             grazing_transfer: 0.0,
-            peak_energy_deg: 1.0,
+            peak_energy_deg: 1.5,
             extrapolation: ExtrapolationSettings::off(),
         }
     }

@@ -111,7 +111,7 @@ mod tests {
             extrapolation: Some(vec![0.8]),
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
-            peak_energy: Some(1.5),
+            peak_energy: Some(2.0),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
@@ -128,7 +128,7 @@ mod tests {
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.grazing_transfer, 0.75);
-        assert_eq!(core.peak_energy_deg, 1.5);
+        assert_eq!(core.peak_energy_deg, 2.0);
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
         assert_eq!(core.ladder.lambert_ggx_f0, F0Rule::Free);

@@ -14,12 +14,15 @@
 //! it from the peak's cells, `I` the observed sum; the peak's cells are then multiplied by
 //! `s / a` (the rest keeps its fit: `a` only takes up the whole table's level, which a small
 //! misfit of a broad part would otherwise push onto a peak that holds little of the energy).
-//! A peak cell at theta_h below `theta_deg` takes the full factor, fading linearly (in
-//! theta_h) to none at twice that. The factor is applied only when the images agree on it:
-//! each image in turn is held out, the factor fitted to the others' patches, and the held-out
-//! image's relative patch error must fall, on average over the images, by more than one
-//! standard error (where a peak is narrower than a pixel's step in normal, which pixel hits it
-//! is luck, and the images disagree). The factor is at least 1 and fades along theta_d over
+//! A peak cell at theta_h below `theta_deg` (1.5 degrees by default since session 46, 1 before)
+//! takes the full factor, fading linearly (in theta_h) to none at twice that. The factor is applied unless the images refute it: each
+//! image in turn is held out, the factor fitted to the others' patches, and the held-out
+//! image's relative patch error must not rise, on average over the images, by one standard
+//! error or more (where a peak is narrower than a pixel's step in normal, which pixel hits it
+//! is luck, and the images disagree). Session 46 loosened the rule from "must fall by more
+//! than one standard error": the held-out patch error is noisy where one image's highlight
+//! lands on a wrong normal, and asking it to confirm the factor refused factors that rendered
+//! better (docs/evaluation.md 1ai). The factor is at least 1 and fades along theta_d over
 //! [`THETA_D_SHRINK_BINS`] degrees away from every theta_d a pixel reached, so a peak that no
 //! image saw (grazing theta_d with one light by the camera) is not multiplied.
 //!
@@ -36,8 +39,8 @@ use std::collections::BTreeMap;
 pub struct PeakEnergy {
     /// The peak's cells: full factor below this theta_h (degrees), none beyond twice it.
     pub theta_deg: f64,
-    /// The factor applied: `fitted` when the images held out one at a time agree with it,
-    /// else 1.
+    /// The factor applied: `fitted` unless the images held out one at a time refute it
+    /// (`held_out_change` at least `held_out_standard_error`), else 1.
     pub scale: f64,
     /// The fitted factor of the peak relative to the rest of the table (every image), clamped
     /// to `[MIN_SCALE, MAX_SCALE]`.
@@ -230,7 +233,7 @@ pub fn fit_scale(
     let sd =
         (diffs.iter().map(|d| (d - mean) * (d - mean)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
     let standard_error = sd / n.max(1.0).sqrt();
-    let accepted = diffs.len() >= 2 && mean + standard_error < 0.0;
+    let accepted = diffs.len() >= 2 && mean < standard_error;
     Some(PeakEnergy {
         theta_deg,
         fitted: clamp(s / a),
@@ -314,7 +317,8 @@ mod tests {
 
     /// Half the images show the highlight and half do not (a peak narrower than a pixel's
     /// step: which pixel hits it is luck): the factor fitted to all is not applied, since the
-    /// images held out disagree with the others' factor.
+    /// images held out refute the others' factor (their patch error rises by more than a
+    /// standard error).
     #[test]
     fn a_factor_the_held_out_images_disagree_with_is_not_applied() {
         let t = table(10.0);
@@ -322,8 +326,25 @@ mod tests {
         let refs: Vec<&Observation> = obs.iter().collect();
         let fit = fit_scale(&t, &refs, 8, 1.0).expect("fit");
         assert!(fit.fitted > 1.2, "{fit:?}");
-        assert!(fit.held_out_change > 0.0, "{fit:?}");
+        assert!(fit.held_out_change > fit.held_out_standard_error, "{fit:?}");
         assert_eq!(fit.scale, 1.0);
+    }
+
+    /// Three images of four show the highlight and one caught less of it (its normals' luck):
+    /// held out, that image's patch error rises with the factor and the others' falls, so the
+    /// mean change is positive but within a standard error: the images do not refute the
+    /// factor, and it is applied (a rule asking them to confirm it refused such factors where
+    /// they rendered better; docs/evaluation.md 1ai).
+    #[test]
+    fn one_image_that_missed_the_highlight_does_not_veto_the_factor() {
+        let t = table(10.0);
+        let obs = scene(4, |m| if m == 3 { 6.0 } else { 30.0 });
+        let refs: Vec<&Observation> = obs.iter().collect();
+        let fit = fit_scale(&t, &refs, 8, 1.0).expect("fit");
+        assert!(fit.held_out_change > 0.0, "{fit:?}");
+        assert!(fit.held_out_change < fit.held_out_standard_error, "{fit:?}");
+        assert!(fit.fitted > 2.0, "{fit:?}");
+        assert_eq!(fit.scale, fit.fitted);
     }
 
     /// A table whose peak already matches the patches keeps it; no peak pixel, no fit.
