@@ -270,8 +270,10 @@ fn a_shiny_one_material_object_is_not_split_at_the_grids_size() {
 /// Where the ladder chooses the basis and the basis + peak scores within noise of it, the
 /// written table is their geometric mean (`CoreSettings::peak_average`): the model stays the
 /// basis, the table and its rendered error change, the albedo stays at most 1, and the model's
-/// reason says what was done. Measured on this scene (green-latex, spread lights, 96x72): 0.0295
-/// averaged, 0.0304 with the basis alone.
+/// reason says what was done. Measured on this scene (pink-fabric, spread lights, 96x72): 0.0180
+/// averaged, 0.0173 with the basis alone. (green-latex, the scene before session 46, fits a
+/// negligible GGX peak: both tables rendered alike to 12 digits, so comparing them tested
+/// rounding.)
 #[test]
 fn a_peak_the_held_out_images_cannot_judge_is_averaged_in() {
     let materials = load_dir(&util::shared_data().join("merl-nbrdf")).unwrap();
@@ -280,13 +282,16 @@ fn a_peak_the_held_out_images_cannot_judge_is_averaged_in() {
     for weight in [0.5, 0.0] {
         let mut core = small_core();
         core.peak_average = weight;
-        let results = run_small(&small_spec(spot.clone(), Rig::Spread, core), &materials);
+        let mut spec = small_spec(spot.clone(), Rig::Spread, core);
+        spec.materials = vec!["pink-fabric".to_string()];
+        let results = run_small(&spec, &materials);
         let all = results[0].all().expect("all three assumptions ran").clone();
         eprintln!(
-            "peak average {weight}: env ours {:.4} ({}), {:?}; {}",
+            "peak average {weight}: env ours {:.4} ({}), {:?}; {:?}; {}",
             all.chosen.environment,
             all.model.family,
             all.plausibility.peak_average,
+            all.plausibility.peak_energy,
             all.model.reason
         );
         runs.push(all);
@@ -303,7 +308,11 @@ fn a_peak_the_held_out_images_cannot_judge_is_averaged_in() {
     );
     assert!(!alone.model.reason.contains("averaged"));
     assert!(averaged.plausibility.max_albedo_after <= 1.0);
-    assert_ne!(averaged.chosen.environment, alone.chosen.environment);
+    let change = (averaged.chosen.environment / alone.chosen.environment - 1.0).abs();
+    assert!(
+        change > 0.01,
+        "the average changed the render by {change:.2e}"
+    );
 }
 
 /// With one light by the camera (one theta_d) most of a rendered sphere comes from cells no
