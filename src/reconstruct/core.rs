@@ -125,10 +125,10 @@ pub struct CoreSettings {
     pub grazing_transfer: f64,
     /// Where the written model is the basis's (or the basis + peak's), its peak cells (theta_h
     /// below this many degrees, fading to none at twice it) scaled so that the images' patch
-    /// sums match, unless the images held out one at a time refute it (`reconstruct::peak_energy`;
-    /// 1 by default in session 44, 1.5 since session 46: docs/evaluation.md sections 1ag and 1ai;
-    /// 0 turns it off). Reports
-    /// written before read back with 0, as they were made.
+    /// sums match, unless the images held out one at a time refute it
+    /// (`reconstruct::peak_energy`; 1 by default in session 44, 1.5 since session 46:
+    /// docs/evaluation.md sections 1ag and 1ai; 0 turns it off). Reports written before read
+    /// back with 0, as they were made.
     #[serde(default)]
     pub peak_energy_deg: f64,
     /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written

@@ -15,11 +15,11 @@
 //! `s / a` (the rest keeps its fit: `a` only takes up the whole table's level, which a small
 //! misfit of a broad part would otherwise push onto a peak that holds little of the energy).
 //! A peak cell at theta_h below `theta_deg` (1.5 degrees by default since session 46, 1 before)
-//! takes the full factor, fading linearly (in theta_h) to none at twice that. The factor is applied unless the images refute it: each
-//! image in turn is held out, the factor fitted to the others' patches, and the held-out
-//! image's relative patch error must not rise, on average over the images, by one standard
-//! error or more (where a peak is narrower than a pixel's step in normal, which pixel hits it
-//! is luck, and the images disagree). Session 46 loosened the rule from "must fall by more
+//! takes the full factor, fading linearly (in theta_h) to none at twice that. The factor is
+//! applied unless the images refute it: each image in turn is held out, the factor fitted to
+//! the others' patches, and the held-out image's relative patch error must not rise, on
+//! average over the images, by one standard error or more (where a peak is narrower than a
+//! pixel's step in normal, which pixel hits it is luck, and the images disagree). Session 46 loosened the rule from "must fall by more
 //! than one standard error": the held-out patch error is noisy where one image's highlight
 //! lands on a wrong normal, and asking it to confirm the factor refused factors that rendered
 //! better (docs/evaluation.md 1ai). The factor is at least 1 and fades along theta_d over
