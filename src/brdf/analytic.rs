@@ -11,7 +11,8 @@
 //!
 //! Fits minimise the sum of squared differences in f_r over all observations and channels,
 //! optionally weighted per observation (e.g. by the cosine map, to fit what images see).
-//! Lambert: `kd_c = pi mean(r_c)`, closed form. Lambert + GGX: `kd` and `ks` are linear and
+//! Lambert: `kd_c = pi mean(r_c)`, closed form (or a weighted median, robust to outlying
+//! pixels: the reconstruction's own Lambert rung, `reconstruct::lambert_rung`). Lambert + GGX: `kd` and `ks` are linear and
 //! solved in closed form for each `(alpha, F0)`, bounded to `[0, 1]` per channel
 //! ([`MAX_WEIGHT`]: a physical albedo, and what a material editor allows); those two are found
 //! by a grid search followed by Nelder-Mead. Directions as in [`crate::brdf`]: local frame, n = +z.
@@ -182,6 +183,42 @@ impl Lambert {
         let albedo = std::array::from_fn(|c| {
             PI * s.iter().zip(&w2).map(|(x, w)| w * x.rgb[c]).sum::<f64>() / total
         });
+        Ok(Self { albedo })
+    }
+
+    /// Weighted median: `albedo_c = pi m_c`, `m_c` the value of `r_c` below which half the
+    /// observations' weight lies (the lower one at an exact half). Unlike least squares it
+    /// ignores how far an outlier lies: a pixel in a shadow the model does not cast, or one
+    /// mixing the object's edge with the background, moves it by one rank, not by its value.
+    /// Non-finite values and zero or negative weights are skipped.
+    pub fn fit_weighted_median(
+        samples: &[ReflectanceSample],
+        weight: impl Fn(&ReflectanceSample) -> f64,
+    ) -> Result<Self, FitError> {
+        let s = usable(samples)?;
+        let mut albedo = [0.0; 3];
+        for (c, a) in albedo.iter_mut().enumerate() {
+            let mut v: Vec<(f64, f64)> = s
+                .iter()
+                .map(|x| (x.rgb[c], weight(x)))
+                .filter(|(r, w)| r.is_finite() && w.is_finite() && *w > 0.0)
+                .collect();
+            if v.is_empty() {
+                return Err(FitError::Empty);
+            }
+            v.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let half = 0.5 * v.iter().map(|x| x.1).sum::<f64>();
+            let mut below = 0.0;
+            let mut median = v[v.len() - 1].0;
+            for (r, w) in &v {
+                below += w;
+                if below >= half {
+                    median = *r;
+                    break;
+                }
+            }
+            *a = PI * median;
+        }
         Ok(Self { albedo })
     }
 }
@@ -553,6 +590,47 @@ mod tests {
         // Weights do not move an exact fit.
         let w = Lambert::fit_weighted(&samples(&truth, 50, 3), cosine_map_weight).expect("fit");
         assert!((0..3).all(|c| (w.albedo[c] - truth.albedo[c]).abs() < 1e-12));
+    }
+
+    #[test]
+    fn lambert_median_ignores_outliers_that_pull_least_squares() {
+        let truth = Lambert {
+            albedo: [0.2, 0.5, 0.8],
+        };
+        let mut data = samples(&truth, 60, 4);
+        // Exact data: the median is the albedo.
+        let m = Lambert::fit_weighted_median(&data, pixel_weight).expect("fit");
+        assert!((0..3).all(|c| (m.albedo[c] - truth.albedo[c]).abs() < 1e-12));
+        // A tenth of the pixels in an unmodelled shadow (a tenth of their value): least
+        // squares drops by about 9 %, the median stays.
+        for s in data.iter_mut().step_by(10) {
+            s.rgb = s.rgb.map(|r| 0.1 * r);
+        }
+        let ls = Lambert::fit_weighted(&data, pixel_weight).expect("fit");
+        let m = Lambert::fit_weighted_median(&data, pixel_weight).expect("fit");
+        for c in 0..3 {
+            assert!(ls.albedo[c] < 0.95 * truth.albedo[c], "{ls:?}");
+            assert!((m.albedo[c] - truth.albedo[c]).abs() < 1e-12, "{m:?}");
+        }
+        // The weights decide where the half lies: all weight on the shadowed ones.
+        let shadowed = Lambert::fit_weighted_median(&data, |s| {
+            if s.rgb[0] < 0.5 * truth.albedo[0] / PI {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .expect("fit");
+        assert!((shadowed.albedo[1] - 0.1 * truth.albedo[1]).abs() < 1e-12);
+        // Nothing usable: an error, not a panic.
+        assert_eq!(
+            Lambert::fit_weighted_median(&data, |_| 0.0),
+            Err(FitError::Empty)
+        );
+        assert_eq!(
+            Lambert::fit_weighted_median(&[], pixel_weight),
+            Err(FitError::Empty)
+        );
     }
 
     #[test]

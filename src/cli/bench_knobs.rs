@@ -11,6 +11,7 @@ use brdf_rig::reconstruct::carry::Carry;
 use brdf_rig::reconstruct::core::TrialChoice;
 use brdf_rig::reconstruct::fresnel::F0Rule;
 use brdf_rig::reconstruct::ladder::BasisRung;
+use brdf_rig::reconstruct::lambert_rung::LambertFit;
 use brdf_rig::reconstruct::overrides::CoreOverrides;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
@@ -81,6 +82,11 @@ pub struct FitKnobs {
     /// bench compares against are the plain least-squares fits either way.
     #[arg(long = "lambert-ggx-f0", value_parser = super::reconstruct::parse_f0_rule)]
     pub lambert_ggx_f0: Option<F0Rule>,
+    /// How the reconstruction's Lambert (its ladder rung, a written Lambert) fits its
+    /// albedo, as `reconstruct --lambert-fit`: `median` (the default) or `least-squares`. The
+    /// bench's Lambert baseline is least squares either way.
+    #[arg(long = "lambert-fit", value_parser = super::reconstruct::parse_lambert_fit)]
+    pub lambert_fit: Option<LambertFit>,
 }
 
 impl FitKnobs {
@@ -102,6 +108,7 @@ impl FitKnobs {
             choose: self.choose,
             basis_rung: self.basis_rung,
             lambert_ggx_f0: self.lambert_ggx_f0,
+            lambert_fit: self.lambert_fit,
         }
     }
 
@@ -155,6 +162,9 @@ impl FitKnobs {
         if let Some(f) = self.lambert_ggx_f0 {
             s += &format!(" --lambert-ggx-f0 {}", f.name());
         }
+        if let Some(f) = self.lambert_fit {
+            s += &format!(" --lambert-fit {}", f.name());
+        }
         s
     }
 }
@@ -184,6 +194,7 @@ mod tests {
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
+            lambert_fit: Some(LambertFit::LeastSquares),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));

@@ -8,6 +8,7 @@ use brdf_rig::reconstruct::confidence::Level;
 use brdf_rig::reconstruct::core::{ModelSelection, TrialChoice};
 use brdf_rig::reconstruct::fresnel::F0Rule;
 use brdf_rig::reconstruct::ladder::{BasisRung, Family};
+use brdf_rig::reconstruct::lambert_rung::LambertFit;
 use brdf_rig::reconstruct::plausible::ThetaDShape;
 use brdf_rig::reconstruct::trials::BasisFit;
 use brdf_rig::reconstruct::{self, Job, Settings};
@@ -143,6 +144,13 @@ pub struct Args {
     /// session 45). docs/reconstruction.md, stage 3; docs/evaluation.md section 1ah.
     #[arg(long = "lambert-ggx-f0", value_parser = parse_f0_rule, default_value = "physical")]
     pub lambert_ggx_f0: F0Rule,
+    /// How the reconstruction's Lambert (its ladder rung, a written Lambert) fits its albedo:
+    /// `median` (the pixels' reflectance's median, each weighted by cos theta_i: a pixel in a
+    /// shadow the mesh does not cast moves it by one rank, not by its value; the default) or
+    /// `least-squares` (the rule before session 47, and the baselines' fit).
+    /// docs/reconstruction.md, stage 3; docs/evaluation.md section 1aj.
+    #[arg(long = "lambert-fit", value_parser = parse_lambert_fit, default_value = "median")]
+    pub lambert_fit: LambertFit,
     /// A simpler model family whose held-out error is within this fraction of the best's
     /// counts as within noise, besides one paired standard error (0 to 1; 0: the standard
     /// error alone, the rule before session 43). docs/reconstruction.md, stage 3;
@@ -301,6 +309,10 @@ pub(crate) fn parse_f0_rule(s: &str) -> Result<F0Rule, String> {
     F0Rule::parse(s).ok_or_else(|| format!("{s:?}: expected physical or free"))
 }
 
+pub(crate) fn parse_lambert_fit(s: &str) -> Result<LambertFit, String> {
+    LambertFit::parse(s).ok_or_else(|| format!("{s:?}: expected median or least-squares"))
+}
+
 fn parse_model(s: &str) -> Result<ModelSelection, String> {
     match s {
         "auto" => Ok(ModelSelection::Auto),
@@ -352,6 +364,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.carry = args.carry;
     settings.core.ladder.basis_rung = args.basis_rung;
     settings.core.ladder.lambert_ggx_f0 = args.lambert_ggx_f0;
+    settings.core.ladder.lambert_fit = args.lambert_fit;
     settings.core.ladder.min_gain = args.min_gain;
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;

@@ -3,7 +3,6 @@
 //!
 //! Pure: no I/O; the caller supplies the observations and the prior.
 
-use super::baselines::fit_lambert;
 use super::carry::{CarriedPrior, Carry};
 use super::components::{ComponentChoice, ComponentSettings, ValidationPoint, choose_components};
 use super::confidence::{
@@ -21,6 +20,7 @@ use super::ladder::{
     AnalyticCandidate, Family, Ladder, LadderInput, LadderSettings, NO_PEAK, WithPeak, climb,
     fit_peak, subset,
 };
+use super::lambert_rung::fit_lambert_rung;
 use super::observe::Observation;
 use super::plausible::{
     Plausibility, PlausibleSettings, albedo_curve, make_plausible, make_plausible_shaped,
@@ -523,7 +523,7 @@ pub fn reconstruct_observations(
     let mut alternatives: Vec<(Family, Box<dyn Candidate>)> = Vec::new();
     if settings.keep_alternatives {
         if family != Family::Lambert
-            && let Some(m) = fit_lambert(&analytic_pixels)
+            && let Some(m) = fit_lambert_rung(&analytic_pixels, settings.ladder.lambert_fit)
         {
             alternatives.push((Family::Lambert, Box::new(AnalyticCandidate(m))));
         }
@@ -547,7 +547,7 @@ pub fn reconstruct_observations(
     let basis_alternative = (settings.keep_alternatives && family != Family::Basis)
         .then(|| TableCandidate(basis_fit.to_merl_table()));
     let (brdf, analytic): (Box<dyn Candidate>, Option<AnalyticParams>) = match family {
-        Family::Lambert => match fit_lambert(&analytic_pixels) {
+        Family::Lambert => match fit_lambert_rung(&analytic_pixels, settings.ladder.lambert_fit) {
             Some(m) => (
                 Box::new(AnalyticCandidate(m)),
                 Some(AnalyticParams {

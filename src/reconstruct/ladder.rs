@@ -3,8 +3,11 @@
 //! held-out error is within one standard error of the best is chosen.
 //!
 //! Rungs, simplest first (parameter count per the whole RGB model):
-//! - **Lambert** (3): image-space least squares (`brdf::analytic`, weight `cos theta_i`);
-//! - **Lambert + GGX** (8): the same, with one GGX lobe and Schlick Fresnel (its `F0` set by
+//! - **Lambert** (3): the `cos theta_i`-weighted median of the pixels' reflectance
+//!   (`reconstruct::lambert_rung`, [`LadderSettings::lambert_fit`]; image-space least squares
+//!   before session 47);
+//! - **Lambert + GGX** (8): image-space least squares (`brdf::analytic`, weight
+//!   `cos theta_i`), with one GGX lobe and Schlick Fresnel (its `F0` set by
 //!   `reconstruct::fresnel` where the pixels cannot tell it, [`LadderSettings::lambert_ggx_f0`]);
 //! - **basis** at each `(k, eta)` of the component grid (3k): ridge on the first k components
 //!   of the Nielsen basis, given what a trial's fit is given (`BasisFit`: one median sample per
@@ -67,9 +70,9 @@
 //!
 //! Pure: no I/O. Deterministic for a seed.
 
-use super::baselines::fit_lambert;
 use super::components::ComponentSettings;
 use super::fresnel::{F0Rule, MIN_HELD_F0, fit_lambert_ggx_held, fresnel_identifiable};
+use super::lambert_rung::{LambertFit, fit_lambert_rung};
 use super::observe::Observation;
 use super::prior::{Candidate, Prior};
 use super::reliable::{Reliable, ReliableSettings, as_peak, brightest_index};
@@ -168,6 +171,9 @@ pub struct LadderSettings {
     /// How the Lambert + GGX rung (and every use of Lambert + GGX in the reconstruction) sets
     /// Schlick's `F0` where the pixels cannot tell it (`reconstruct::fresnel`).
     pub lambert_ggx_f0: F0Rule,
+    /// How the Lambert rung (and a written Lambert) fits its albedo
+    /// (`reconstruct::lambert_rung`).
+    pub lambert_fit: LambertFit,
 }
 
 /// Which basis rung (k, eta) is written once the choice took the basis family.
@@ -295,6 +301,7 @@ impl Default for LadderSettings {
             analytic_margin: 0.0,
             basis_rung: BasisRung::Lowest,
             lambert_ggx_f0: F0Rule::Physical,
+            lambert_fit: LambertFit::Median,
         }
     }
 }
@@ -945,9 +952,10 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
             let mut basis_fits = prior.fit_lazy_each(&fit.samples, &basis_keys).into_iter();
             keys.iter()
                 .map(|key| match key.family {
-                    Family::Lambert => fit_lambert(&analytic_train).map_or_else(failed, |m| {
-                        score(&AnalyticCandidate(m), &data.held, patch_px)
-                    }),
+                    Family::Lambert => fit_lambert_rung(&analytic_train, settings.lambert_fit)
+                        .map_or_else(failed, |m| {
+                            score(&AnalyticCandidate(m), &data.held, patch_px)
+                        }),
                     Family::LambertGgx => {
                         fit_lambert_ggx_held(&analytic_train, settings.lambert_ggx_f0)
                             .map_or_else(failed, |m| {

@@ -36,6 +36,7 @@ pub mod grazing;
 pub mod hedge;
 pub mod job;
 pub mod ladder;
+pub mod lambert_rung;
 pub mod mask_labels;
 pub mod materials;
 pub mod nielsen;

@@ -9,6 +9,7 @@ use super::carry::Carry;
 use super::core::{CoreSettings, TrialChoice};
 use super::fresnel::F0Rule;
 use super::ladder::BasisRung;
+use super::lambert_rung::LambertFit;
 use super::plausible::ThetaDShape;
 use super::trials::BasisFit;
 
@@ -37,6 +38,8 @@ pub struct CoreOverrides {
     pub basis_rung: Option<BasisRung>,
     /// How the reconstruction's Lambert + GGX sets F0 where the pixels cannot tell it.
     pub lambert_ggx_f0: Option<F0Rule>,
+    /// How the reconstruction's Lambert fits its albedo.
+    pub lambert_fit: Option<LambertFit>,
 }
 
 impl CoreOverrides {
@@ -87,6 +90,9 @@ impl CoreOverrides {
         if let Some(f) = self.lambert_ggx_f0 {
             core.ladder.lambert_ggx_f0 = f;
         }
+        if let Some(f) = self.lambert_fit {
+            core.ladder.lambert_fit = f;
+        }
     }
 }
 
@@ -115,6 +121,7 @@ mod tests {
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
+            lambert_fit: Some(LambertFit::LeastSquares),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -132,6 +139,7 @@ mod tests {
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
         assert_eq!(core.ladder.lambert_ggx_f0, F0Rule::Free);
+        assert_eq!(core.ladder.lambert_fit, LambertFit::LeastSquares);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
     }
 }

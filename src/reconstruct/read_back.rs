@@ -15,6 +15,7 @@ use super::fresnel::F0Rule;
 use super::ladder::{
     BasisRung, ChoiceRule, Family, FoldScheme, HeldOutMetric, Ladder, LadderSettings, Rung,
 };
+use super::lambert_rung::LambertFit;
 use super::refine::{IterationReport, RefineReport, RefineSettings, StartReport, TableBins};
 use serde::{Deserialize, Deserializer};
 
@@ -121,6 +122,9 @@ struct LadderSettingsMirror {
     /// Absent in reports written before it existed (the free fit's `F0`).
     #[serde(default)]
     lambert_ggx_f0: F0Rule,
+    /// Absent in reports written before it existed (least squares).
+    #[serde(default)]
+    lambert_fit: LambertFit,
 }
 
 #[derive(Deserialize)]
@@ -347,6 +351,7 @@ mod tests {
             analytic_margin: 0.25,
             basis_rung: BasisRung::Simplest,
             lambert_ggx_f0: F0Rule::Free,
+            lambert_fit: LambertFit::LeastSquares,
             ..LadderSettings::default()
         });
         round_trip(&RefineReport {
@@ -382,24 +387,27 @@ mod tests {
     }
 
     /// Settings written before session 42 read back as those runs were made: the simplest
-    /// basis rung within noise, and the pixels not carried (today's defaults are the others).
+    /// basis rung within noise, and the pixels not carried (today's defaults are the others);
+    /// before session 47, the Lambert rung by least squares.
     #[test]
     fn older_settings_read_back_with_the_simplest_rung_and_no_carry() {
         use crate::reconstruct::carry::Carry;
         use crate::reconstruct::core::CoreSettings;
         let now = CoreSettings::default();
         assert_eq!(
-            (now.ladder.basis_rung, now.carry),
-            (BasisRung::Lowest, Carry::Difference)
+            (now.ladder.basis_rung, now.carry, now.ladder.lambert_fit),
+            (BasisRung::Lowest, Carry::Difference, LambertFit::Median)
         );
         let mut json = serde_json::to_value(&now).unwrap();
         let o = json.as_object_mut().unwrap();
         o.remove("carry");
-        o["ladder"].as_object_mut().unwrap().remove("basis_rung");
+        let ladder = o["ladder"].as_object_mut().unwrap();
+        ladder.remove("basis_rung");
+        ladder.remove("lambert_fit");
         let old: CoreSettings = serde_json::from_value(json).unwrap();
         assert_eq!(
-            (old.ladder.basis_rung, old.carry),
-            (BasisRung::Simplest, Carry::Off)
+            (old.ladder.basis_rung, old.carry, old.ladder.lambert_fit),
+            (BasisRung::Simplest, Carry::Off, LambertFit::LeastSquares)
         );
     }
 
