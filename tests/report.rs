@@ -260,6 +260,7 @@ fn example_report(job: PathBuf) -> Report {
                 analytic_weight: 0.125,
                 f0: Some(0.04),
                 f0_held: true,
+                unresolved_lobe: false,
             }),
             peak_average: None,
             grazing_transfer: None,

@@ -284,7 +284,9 @@ fn solve_linear(lobe: &[f64], r: &[f64], w2: &[f64], diffuse: bool) -> (f64, f64
     (best.0 * PI, best.1, best.2)
 }
 
-const ALPHA_MIN: f64 = 0.002;
+/// The narrowest GGX roughness a fit may take: a lobe left there is narrower than the pixels
+/// resolved.
+pub const ALPHA_MIN: f64 = 0.002;
 const ALPHA_MAX: f64 = 1.0;
 
 impl LambertGgx {

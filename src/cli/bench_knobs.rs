@@ -37,7 +37,7 @@ pub struct FitKnobs {
     #[arg(long, value_delimiter = ',', value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Closed(1e6)))]
     pub etas: Option<Vec<f64>>,
     /// The weight of Lambert + GGX per unit share of the render from unobserved cells, as
-    /// `reconstruct --hedge` (default: the library's 0.5; 0 turns the averaging off).
+    /// `reconstruct --hedge` (default: the library's 1; 0 turns the averaging off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub hedge: Option<f64>,
     /// The weight of the basis + peak averaged into a basis result the held-out images cannot
@@ -212,9 +212,10 @@ mod tests {
         assert_eq!(o.choose, Some(TrialChoice::Median));
         assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
         assert_eq!(o.lambert_ggx_f0, Some(F0Rule::Free));
+        assert_eq!(o.lambert_fit, Some(LambertFit::LeastSquares));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares"
         );
     }
 }

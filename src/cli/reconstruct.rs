@@ -116,9 +116,9 @@ pub struct Args {
     pub unobserved: ThetaDShape,
     /// Where most of the result's rendered sphere comes from cells no pixel observed (one
     /// light by the camera), average the basis's table with Lambert + GGX's, geometrically,
-    /// with Lambert + GGX's weight this strength times that share (0 to 1; 0 turns it off).
-    /// docs/reconstruction.md, stage 6.
-    #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
+    /// with Lambert + GGX's weight this strength times that share (0 to 1; 0 turns it off; 0.5
+    /// before session 47). docs/reconstruction.md, stage 6.
+    #[arg(long, default_value_t = 1.0, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub hedge: f64,
     /// Where the model ladder chose the basis and a GGX peak on top of it scored within noise
     /// of it on the held-out images, average the two tables geometrically with this weight on

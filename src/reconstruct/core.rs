@@ -663,7 +663,12 @@ pub fn reconstruct_observations(
         && settings.hedge.strength > 0.0
     {
         let unseen_share = unseen_render_share(&table, &used);
-        let analytic_weight = settings.hedge.analytic_weight(unseen_share);
+        let unresolved = lambert_ggx.is_some_and(|m| super::hedge::unresolved_lobe(&m));
+        let analytic_weight = if unresolved {
+            0.0
+        } else {
+            settings.hedge.analytic_weight(unseen_share)
+        };
         if analytic_weight > 0.0 {
             let (analytic, _) = make_plausible(p, None, &used, &settings.plausible);
             blend_into(&mut table, &analytic, analytic_weight);
@@ -675,6 +680,7 @@ pub fn reconstruct_observations(
             f0: lambert_ggx.map(|m| m.f0),
             f0_held: settings.ladder.lambert_ggx_f0 == F0Rule::Physical
                 && !super::fresnel::fresnel_identifiable(&analytic_pixels),
+            unresolved_lobe: unresolved,
         });
     }
     plausibility.extrapolation = extrapolation;

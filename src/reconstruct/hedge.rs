@@ -13,12 +13,26 @@
 //! needs was seen (several lights), the weight is near zero and the result is the chosen model.
 //!
 //! The weight given to Lambert + GGX is `strength * unseen_share` (`strength` 0 turns the step
-//! off). Both tables are already plausible (non-negative, directional albedo at most 1); the
+//! off). The default strength is 1 (0.5 from session 26 to 46): the basis's own extrapolation
+//! keeps the weight of the share of the render the images observed. Once the lobe's `F0` came
+//! from physics where one theta_d cannot tell it (`reconstruct::fresnel`, session 45), the
+//! stronger average lifted the worst one-light scene of every set (the grids' 1.03-1.04 to
+//! 1.13-1.14, Mitsuba 3's painted metal 0.27 to 0.71, four of seven found materials back over
+//! the bar) at the cost of the one-light geometric means (docs/evaluation.md 1aj). Both tables are already plausible (non-negative, directional albedo at most 1); the
 //! weighted geometric mean is at most the weighted arithmetic mean, and the albedo is linear in
 //! the table, so the blend's albedo stays at most 1 as well.
 //!
+//! One exception: a Lambert + GGX whose lobe the fit left at both of its bounds, the narrowest
+//! width and the largest weight ([`unresolved_lobe`]), is not averaged in. Its width is below
+//! what the pixels resolve, so its height is not determined either, and with the weight at
+//! its bound (Schlick's `F0` raised above a dielectric's to keep it there) its extrapolation
+//! towards grazing is a mirror's: on the unrefined 128x96 Spot of blue-acrylic with one light
+//! (seed 0) that table alone rendered 2.69 against the truth, and the hedge at strength 1
+//! took the written table from 0.11 to 0.81 (docs/evaluation.md 1aj).
+//!
 //! Pure: no I/O. Must not refit anything: it only combines two finished tables.
 
+use crate::brdf::analytic::{ALPHA_MIN, LambertGgx, MAX_WEIGHT};
 use crate::brdf::merl::MerlTable;
 use serde::{Deserialize, Serialize};
 
@@ -32,7 +46,7 @@ pub struct HedgeSettings {
 
 impl Default for HedgeSettings {
     fn default() -> Self {
-        Self { strength: 0.5 }
+        Self { strength: 1.0 }
     }
 }
 
@@ -67,6 +81,16 @@ pub struct Hedge {
     pub f0: Option<f64>,
     #[serde(default)]
     pub f0_held: bool,
+    /// Lambert + GGX's lobe lay at both bounds of its fit ([`unresolved_lobe`]), so it was not
+    /// averaged in (weight 0). Absent (false) in reports written before session 47.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub unresolved_lobe: bool,
+}
+
+/// Whether a Lambert + GGX fit left its lobe at both bounds: the narrowest roughness
+/// ([`ALPHA_MIN`]) and, in some channel, the largest weight ([`MAX_WEIGHT`]).
+pub fn unresolved_lobe(m: &LambertGgx) -> bool {
+    m.alpha <= ALPHA_MIN * (1.0 + 1e-9) && m.ks.iter().any(|k| *k >= MAX_WEIGHT * (1.0 - 1e-6))
 }
 
 impl Hedge {
@@ -81,6 +105,14 @@ impl Hedge {
             Some(f) => format!(" (its F0 {f:.3}, fitted)"),
             None => String::new(),
         };
+        if self.unresolved_lobe {
+            return format!(
+                "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + GGX not \
+                 averaged in: its lobe lies at the fit's narrowest width and largest weight, \
+                 narrower than the pixels resolve{f0}",
+                100.0 * self.unseen_share
+            );
+        }
         format!(
             "{:.0} % of the rendered sphere from cells no pixel observed; Lambert + GGX's weight \
              in the written table {:.2}{f0}",
@@ -142,6 +174,58 @@ mod tests {
         assert_eq!(s.analytic_weight(f64::NAN), 0.0);
         assert_eq!(s.analytic_weight(3.0), 0.5);
         assert_eq!(HedgeSettings { strength: 0.0 }.analytic_weight(0.9), 0.0);
+    }
+
+    #[test]
+    fn the_default_strength_is_one_the_weight_the_unseen_share() {
+        let s = HedgeSettings::default();
+        assert_eq!(s.strength, 1.0);
+        assert!((s.analytic_weight(0.57) - 0.57).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_lobe_at_both_bounds_of_its_fit_is_unresolved_and_said_so() {
+        // The unrefined 128x96 Spot of blue-acrylic, one light: the narrowest width, red's
+        // weight at its bound after F0 was raised to 0.07.
+        let spike = LambertGgx {
+            kd: [0.013, 0.038, 0.109],
+            ks: [0.999_999_2, 0.79, 0.77],
+            alpha: ALPHA_MIN,
+            f0: 0.0706,
+        };
+        assert!(unresolved_lobe(&spike));
+        // Either bound alone is a resolved fit: a narrow lobe of moderate weight (the same
+        // scene refined), or a metal's lobe whose F0 the rule raised (weight 1, width 0.2).
+        let narrow = LambertGgx {
+            ks: [0.41, 0.32, 0.32],
+            f0: 0.04,
+            ..spike
+        };
+        let metal = LambertGgx {
+            alpha: 0.2,
+            ..spike
+        };
+        assert!(!unresolved_lobe(&narrow));
+        assert!(!unresolved_lobe(&metal));
+        let report = Hedge {
+            unseen_share: 0.57,
+            analytic_weight: 0.0,
+            f0: Some(spike.f0),
+            f0_held: true,
+            unresolved_lobe: true,
+        };
+        let text = report.describe();
+        assert!(
+            text.contains("57 %") && text.contains("not averaged in"),
+            "{text}"
+        );
+        // A report written before the field reads back without it.
+        let mut json = serde_json::to_value(report).expect("serialises");
+        json.as_object_mut()
+            .expect("object")
+            .remove("unresolved_lobe");
+        let old: Hedge = serde_json::from_value(json).expect("reads back");
+        assert!(!old.unresolved_lobe);
     }
 
     #[test]
