@@ -18,9 +18,11 @@
 //! from physics where one theta_d cannot tell it (`reconstruct::fresnel`, session 45), the
 //! stronger average lifted the worst one-light scene of every set (the grids' 1.03-1.04 to
 //! 1.13-1.14, Mitsuba 3's painted metal 0.27 to 0.71, four of seven found materials back over
-//! the bar) at the cost of the one-light geometric means (docs/evaluation.md 1aj). Both tables are already plausible (non-negative, directional albedo at most 1); the
-//! weighted geometric mean is at most the weighted arithmetic mean, and the albedo is linear in
-//! the table, so the blend's albedo stays at most 1 as well.
+//! the bar) at the cost of the one-light geometric means (docs/evaluation.md 1aj).
+//!
+//! Both tables are already plausible (non-negative, directional albedo at most 1); the weighted
+//! geometric mean is at most the weighted arithmetic mean, and the albedo is linear in the
+//! table, so the blend's albedo stays at most 1 as well.
 //!
 //! One exception: a Lambert + GGX whose lobe the fit left at both of its bounds, the narrowest
 //! width and the largest weight ([`unresolved_lobe`]), is not averaged in. Its width is below
