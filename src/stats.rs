@@ -1,5 +1,5 @@
 //! Order statistics shared across the tool (calibration, reconstruction, the BRDF basis): one
-//! median, by selection, and a nearest-rank percentile. Pure: no I/O.
+//! median, by selection, a weighted median, and a nearest-rank percentile. Pure: no I/O.
 
 /// Median of `values` (reorders them); `None` when empty or when a value is NaN. A selection,
 /// not a sort: linear in the number of values (millions of a 24 MP board's pixels).
@@ -18,6 +18,21 @@ pub fn median(values: &mut [f64]) -> Option<f64> {
     })
 }
 
+/// The weighted median of `(value, weight)` pairs (reorders them): the smallest value at which
+/// the weights below and at it reach half of the total; `None` when there is no positive weight.
+pub fn weighted_median(values: &mut [(f64, f64)]) -> Option<f64> {
+    values.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = values.iter().map(|v| v.1).sum();
+    if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let mut acc = 0.0;
+    values.iter().find_map(|&(x, w)| {
+        acc += w;
+        (acc >= 0.5 * total).then_some(x)
+    })
+}
+
 /// Nearest-rank percentile of values sorted ascending (`q` in [0, 1], clamped); NaN for none.
 pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
@@ -30,6 +45,21 @@ pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn weighted_median_is_the_middle_of_the_weight() {
+        assert_eq!(weighted_median(&mut []), None);
+        assert_eq!(
+            weighted_median(&mut [(3.0, 1.0), (1.0, 1.0), (2.0, 1.0)]),
+            Some(2.0)
+        );
+        // a heavy value wins over several light ones
+        assert_eq!(
+            weighted_median(&mut [(5.0, 4.0), (1.0, 1.0), (2.0, 1.0)]),
+            Some(5.0)
+        );
+        assert_eq!(weighted_median(&mut [(1.0, 0.0)]), None);
+    }
 
     #[test]
     fn median_odd_even_and_nan() {

@@ -187,10 +187,10 @@ impl Lambert {
     }
 
     /// Weighted median: `albedo_c = pi m_c`, `m_c` the value of `r_c` below which half the
-    /// observations' weight lies (the lower one at an exact half). Unlike least squares it
-    /// ignores how far an outlier lies: a pixel in a shadow the model does not cast, or one
-    /// mixing the object's edge with the background, moves it by one rank, not by its value.
-    /// Non-finite values and zero or negative weights are skipped.
+    /// observations' weight lies (the lower one at an exact half; `crate::stats`). Unlike least
+    /// squares it ignores how far an outlier lies: a pixel in a shadow the model does not cast,
+    /// or one mixing the object's edge with the background, moves it by one rank, not by its
+    /// value. Non-finite values and zero or negative weights are skipped.
     pub fn fit_weighted_median(
         samples: &[ReflectanceSample],
         weight: impl Fn(&ReflectanceSample) -> f64,
@@ -203,21 +203,7 @@ impl Lambert {
                 .map(|x| (x.rgb[c], weight(x)))
                 .filter(|(r, w)| r.is_finite() && w.is_finite() && *w > 0.0)
                 .collect();
-            if v.is_empty() {
-                return Err(FitError::Empty);
-            }
-            v.sort_by(|x, y| x.0.total_cmp(&y.0));
-            let half = 0.5 * v.iter().map(|x| x.1).sum::<f64>();
-            let mut below = 0.0;
-            let mut median = v[v.len() - 1].0;
-            for (r, w) in &v {
-                below += w;
-                if below >= half {
-                    median = *r;
-                    break;
-                }
-            }
-            *a = PI * median;
+            *a = PI * crate::stats::weighted_median(&mut v).ok_or(FitError::Empty)?;
         }
         Ok(Self { albedo })
     }

@@ -693,7 +693,7 @@ fn given_centres(f: &Features, fixed: &[Option<u32>], given: usize) -> Vec<[f64;
             let median = |c: usize| {
                 let mut values: Vec<(f64, f64)> =
                     m.iter().map(|&i| (f.points[i][c], f.weight[i])).collect();
-                weighted_median(&mut values)
+                crate::stats::weighted_median(&mut values)
             };
             match (median(0), median(1), median(2)) {
                 (Some(a), Some(b), Some(c)) => [a, b, c],
@@ -701,21 +701,6 @@ fn given_centres(f: &Features, fixed: &[Option<u32>], given: usize) -> Vec<[f64;
             }
         })
         .collect()
-}
-
-/// The weighted median of `(value, weight)` pairs: the smallest value at which the weights
-/// below and at it reach half of the total; `None` when there is no positive weight.
-fn weighted_median(values: &mut [(f64, f64)]) -> Option<f64> {
-    values.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let total: f64 = values.iter().map(|v| v.1).sum();
-    if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return None;
-    }
-    let mut acc = 0.0;
-    values.iter().find_map(|&(x, w)| {
-        acc += w;
-        (acc >= 0.5 * total).then_some(x)
-    })
 }
 
 /// Relative image-space error of per-material fits on held-out pixels (the ladder's
@@ -1429,20 +1414,5 @@ pub(crate) mod tests {
                 assert_eq!(s.vertex_labels[v], *m);
             }
         }
-    }
-
-    #[test]
-    fn weighted_median_is_the_middle_of_the_weight() {
-        assert_eq!(weighted_median(&mut []), None);
-        assert_eq!(
-            weighted_median(&mut [(3.0, 1.0), (1.0, 1.0), (2.0, 1.0)]),
-            Some(2.0)
-        );
-        // a heavy value wins over several light ones
-        assert_eq!(
-            weighted_median(&mut [(5.0, 4.0), (1.0, 1.0), (2.0, 1.0)]),
-            Some(5.0)
-        );
-        assert_eq!(weighted_median(&mut [(1.0, 0.0)]), None);
     }
 }
