@@ -422,6 +422,48 @@ fn finding_6_calibrate_removes_what_a_killed_run_left() {
     assert!(left.is_empty(), "{left:?}");
 }
 
+/// Session 48: `calibrate` wrote merged HDR light images, whose specular peaks are clipped
+/// where even the shortest exposure clipped, into a job without their clip level (a float EXR
+/// file has none), and the reconstruction fitted the clipped values as if they were the peak.
+#[test]
+fn finding_8_the_merged_brackets_clip_level_reaches_the_reconstruction() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = calibratable_session(tmp.path());
+    let o = run(&["calibrate", s(&dir)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let job = brdf_rig::reconstruct::Job::from_file(&dir.join("job.toml")).unwrap();
+    // the plan's shortest single-light exposure is 0.0005 s at gain 1, the camera clips at 1.0
+    // and the merge treats 98 % of it as clipped
+    let want = 0.98 / 0.0005;
+    for (i, li) in job.light_images.iter().enumerate() {
+        let got = li.saturation.unwrap_or(f64::NAN);
+        assert!(
+            (got - want).abs() < 1e-3 * want,
+            "image {i}: {got}, want {want}"
+        );
+    }
+    let settings = brdf_rig::reconstruct::Settings::default();
+    let before = brdf_rig::reconstruct::prepare::prepare(&job, &settings, &mut |_| {}).unwrap();
+    // image 0 clipped everywhere: every pixel of it that was kept is now dropped as saturated
+    set_all(&job, 0, want as f32);
+    let after = brdf_rig::reconstruct::prepare::prepare(&job, &settings, &mut |_| {}).unwrap();
+    let kept = |p: &brdf_rig::reconstruct::prepare::Prepared| {
+        p.observed
+            .observations
+            .iter()
+            .filter(|o| o.image == 0)
+            .count()
+    };
+    assert!(kept(&before) > 100, "{}", kept(&before));
+    assert_eq!(kept(&after), 0);
+    assert!(
+        after.observed.dropped.saturated >= before.observed.dropped.saturated + kept(&before),
+        "{:?} then {:?}",
+        before.observed.dropped,
+        after.observed.dropped
+    );
+}
+
 #[test]
 fn finding_7_a_real_board_that_resets_when_its_port_opens() {
     // The reference firmware in QEMU, built to ignore its UART for 800 ms after a reset as the

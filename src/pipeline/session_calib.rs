@@ -375,7 +375,7 @@ fn calibrate_channel(
 }
 
 /// Merges each single-light bracket, writes it to `hdr_dir` and lists it for the job with its
-/// channel's calibration.
+/// channel's calibration and its clip level; warns of values clipped in every exposure.
 fn write_light_images(
     dir: &Path,
     hdr_dir: &Path,
@@ -383,6 +383,7 @@ fn write_light_images(
     brackets: &Brackets<'_>,
     channels: &[ChannelCalibration],
     inputs: &Inputs,
+    progress: &mut impl FnMut(&str),
 ) -> Result<Vec<LightImageSpec>, SessionCalibError> {
     let ambient_names = ambient_names(manifest);
     let mut light_images = Vec::new();
@@ -414,8 +415,19 @@ fn write_light_images(
                 reason: format!("the COLMAP model has no image named {camera:?}"),
             });
         }
-        let img = merge(dir, shots)?.image;
+        let merged = merge(dir, shots)?;
+        let img = merged.image;
         let file = hdr_dir.join(format!("light_v{view:03}_ch{ch}.exr"));
+        if merged.clipped_everywhere > 0 {
+            progress(&format!(
+                "warning: {}: {} channel value(s) clipped in every exposure (the clip level {}): \
+                 the reconstruction leaves those pixels out; a shorter exposure in the plan's \
+                 [single_light] bracket keeps them (a specular peak)",
+                file.display(),
+                merged.clipped_everywhere,
+                merged.clip
+            ));
+        }
         write_exr(&file, &img, ExrPrecision::F32).map_err(|e| SessionCalibError::File {
             path: file.clone(),
             reason: e.to_string(),
@@ -428,6 +440,8 @@ fn write_light_images(
             irradiance: cal.irradiance,
             mask: None,
             labels: None,
+            // where even the shortest exposure clipped: the reconstruction must not fit it
+            saturation: merged.clip.value.map(f64::from),
         });
     }
     if light_images.is_empty() {
@@ -540,7 +554,15 @@ pub fn calibrate_session(
             &mut progress,
         )?);
     }
-    let light_images = write_light_images(dir, &hdr_dir, &manifest, &brackets, &channels, &inputs)?;
+    let light_images = write_light_images(
+        dir,
+        &hdr_dir,
+        &manifest,
+        &brackets,
+        &channels,
+        &inputs,
+        &mut progress,
+    )?;
     write_job_and_calibration(dir, inputs, light_images, channels)
 }
 

@@ -13,6 +13,7 @@
 //! irradiance = [r, g, b]
 //! mask = "masks/view_00.png"     # optional, non-zero = material
 //! labels = "masks/labels_00.png" # optional: material labels, 0 = not given, v = material v
+//! saturation = 245.0             # optional: channel values at or above this are clipped
 //! ```
 //!
 //! Conventions: relative paths are relative to the folder holding the job file; the light
@@ -27,6 +28,12 @@
 //! that material (docs/materials.md, "Label masks"). Both have the light image's size; an image
 //! may have either, both or neither. `labels` was added within version 1: a tool that predates
 //! it warns that the key is unknown and ignores it.
+//!
+//! `saturation` is the image's clip level in its own values: a pixel with a channel at or above
+//! it is clipped and not used (`brdf-rig calibrate` writes the level of each merged bracket,
+//! where even its shortest exposure clipped: a float EXR file cannot say it itself). Absent:
+//! the file format's own level, if it has one (integer files, RAW); `reconstruct --saturation`
+//! overrides both. Added within version 1, like `labels`.
 //!
 //! This module owns the format: [`JobFile`] is the file as serde reads and writes it (with the
 //! `toml` crate, so strings are escaped as TOML escapes them), [`Job`] the checked job with its
@@ -94,6 +101,8 @@ pub struct LightImageEntry {
     pub mask: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub labels: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saturation: Option<f64>,
 }
 
 /// One single-light image of the job.
@@ -111,6 +120,9 @@ pub struct LightImageSpec {
     pub mask: Option<PathBuf>,
     /// Optional material label mask, resolved; 0 = no label given, `v` = material `v`.
     pub labels: Option<PathBuf>,
+    /// Clip level in the image's values (a channel at or above it is clipped), when the job
+    /// gives one (the merged bracket's, written by `brdf-rig calibrate`); positive, finite.
+    pub saturation: Option<f64>,
 }
 
 /// A parsed and checked job; paths are resolved.
@@ -126,13 +138,14 @@ pub struct Job {
 }
 
 const TOP_KEYS: [&str; 4] = ["format_version", "mesh", "cameras", "light_image"];
-const IMAGE_KEYS: [&str; 6] = [
+const IMAGE_KEYS: [&str; 7] = [
     "file",
     "camera",
     "light_dir_camera",
     "irradiance",
     "mask",
     "labels",
+    "saturation",
 ];
 /// A light direction further than this from unit length is an error, closer is renormalised.
 const UNIT_TOLERANCE: f64 = 0.05;
@@ -243,6 +256,14 @@ impl Job {
                 Some(l) => Some(nonempty(f("labels"), l)?),
                 None => None,
             };
+            if let Some(sat) = e.saturation
+                && !(sat.is_finite() && sat > 0.0)
+            {
+                return Err(field_err(
+                    &f("saturation"),
+                    format!("must be a positive finite clip level, got {sat}"),
+                ));
+            }
             light_images.push(LightImageSpec {
                 file: path,
                 camera: e.camera.clone(),
@@ -250,6 +271,7 @@ impl Job {
                 irradiance: e.irradiance,
                 mask: e.mask.as_ref().map(|m| base.join(m)),
                 labels,
+                saturation: e.saturation,
             });
         }
         Ok(Self {
@@ -291,6 +313,7 @@ impl Job {
                     irradiance: li.irradiance,
                     mask: li.mask.as_deref().map(&rel),
                     labels: li.labels.as_deref().map(&rel),
+                    saturation: li.saturation,
                 })
                 .collect(),
         }
@@ -339,6 +362,7 @@ light_dir_camera = [0.0, 0.0, -1.0]
 irradiance = [1.0, 2, 3.0]
 mask = "masks/view_00.png"
 labels = "masks/labels_00.png"
+saturation = 245.0
 [[light_image]]
 file = "/abs/view_01.exr"
 camera = "view_01.exr"
@@ -357,6 +381,8 @@ irradiance = [1.0, 1.0, 1.0]
         assert_eq!(a.mask, Some(PathBuf::from("/data/masks/view_00.png")));
         assert_eq!(a.labels, Some(PathBuf::from("/data/masks/labels_00.png")));
         assert_eq!(job.light_images[1].labels, None);
+        assert_eq!(a.saturation, Some(245.0));
+        assert_eq!(job.light_images[1].saturation, None);
         assert_eq!(a.irradiance, [1.0, 2.0, 3.0]);
         assert_eq!(job.light_images[1].file, PathBuf::from("/abs/view_01.exr"));
         assert!((job.light_images[1].light_dir_camera.norm() - 1.0).abs() < 1e-12);
@@ -372,8 +398,22 @@ irradiance = [1.0, 1.0, 1.0]
         .unwrap();
         for (a, b) in again.light_images.iter().zip(&job.light_images) {
             assert_eq!(
-                (&a.file, &a.camera, a.irradiance, &a.mask, &a.labels),
-                (&b.file, &b.camera, b.irradiance, &b.mask, &b.labels)
+                (
+                    &a.file,
+                    &a.camera,
+                    a.irradiance,
+                    &a.mask,
+                    &a.labels,
+                    a.saturation
+                ),
+                (
+                    &b.file,
+                    &b.camera,
+                    b.irradiance,
+                    &b.mask,
+                    &b.labels,
+                    b.saturation
+                )
             );
             assert!((a.light_dir_camera - b.light_dir_camera).norm() < 1e-12);
         }
@@ -391,6 +431,13 @@ irradiance = [1.0, 1.0, 1.0]
         assert!(e.contains("job.toml") && e.contains("`cameras`"), "{e}");
         let e = err_of("mesh = = 3");
         assert!(e.contains("not valid TOML"), "{e}");
+        for bad in ["0.0", "-1.0", "nan", "inf"] {
+            let e = err_of(&GOOD.replace("saturation = 245.0", &format!("saturation = {bad}")));
+            assert!(
+                e.contains("light_image[0].saturation") && e.contains("positive finite"),
+                "{bad}: {e}"
+            );
+        }
         let bad_dir = GOOD.replace("[0.0, 0.0, -1.0]", "[0.0, 0.0, -2.0]");
         let e = err_of(&bad_dir);
         assert!(

@@ -262,8 +262,10 @@ fn load_view_pixels(
             },
         )?),
     };
+    // `--saturation`, else the job's level (a merged bracket's), else the file format's
     let saturation = settings
         .saturation
+        .or(spec.saturation)
         .or(samples.clip_level(settings.png_scale).map(f64::from));
     Ok(ViewPixels {
         image,

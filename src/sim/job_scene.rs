@@ -223,6 +223,7 @@ pub fn write_scene_materials(
             irradiance: spec.irradiance,
             mask: None,
             labels: None,
+            saturation: None,
         });
     }
     std::fs::create_dir_all(dir.join("sparse"))?;
