@@ -387,6 +387,7 @@ fn write_light_images(
 ) -> Result<Vec<LightImageSpec>, SessionCalibError> {
     let ambient_names = ambient_names(manifest);
     let mut light_images = Vec::new();
+    let mut clipped = Vec::new();
     let single = kind_key(ShotKind::SingleLight);
     for ((k, view, ch), shots) in brackets {
         if *k != single {
@@ -419,14 +420,7 @@ fn write_light_images(
         let img = merged.image;
         let file = hdr_dir.join(format!("light_v{view:03}_ch{ch}.exr"));
         if merged.clipped_everywhere > 0 {
-            progress(&format!(
-                "warning: {}: {} channel value(s) clipped in every exposure (the clip level {}): \
-                 the reconstruction leaves those pixels out; a shorter exposure in the plan's \
-                 [single_light] bracket keeps them (a specular peak)",
-                file.display(),
-                merged.clipped_everywhere,
-                merged.clip
-            ));
+            clipped.push((file.clone(), merged.clipped_everywhere, merged.clip));
         }
         write_exr(&file, &img, ExrPrecision::F32).map_err(|e| SessionCalibError::File {
             path: file.clone(),
@@ -449,6 +443,18 @@ fn write_light_images(
             dir: dir.into(),
             reason: "no single-light shots to reconstruct from".into(),
         });
+    }
+    if let Some((file, most, clip)) = clipped.iter().max_by_key(|c| c.1) {
+        progress(&format!(
+            "warning: {} of {} light images have channel values clipped in every exposure \
+             ({} values; the most, {most}, in {}; clip level {clip}): the reconstruction \
+             leaves those pixels out (a specular peak's brightest); a shorter exposure in the \
+             plan's [single_light] bracket keeps them",
+            clipped.len(),
+            light_images.len(),
+            clipped.iter().map(|c| c.1).sum::<usize>(),
+            file.display(),
+        ));
     }
     Ok(light_images)
 }
