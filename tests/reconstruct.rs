@@ -434,6 +434,29 @@ fn normal_refinement_undoes_a_photogrammetry_meshs_depth_noise() {
     );
 }
 
+/// The refinement is the default since session 48; `--no-refine-normals` turns it off, and of
+/// the two flags the last given wins.
+#[test]
+fn cli_refines_the_normals_by_default_and_no_refine_normals_turns_it_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = write_small_job(dir.path());
+    let ran = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = QUICK_ARGS.to_vec();
+        args.extend_from_slice(extra);
+        let o = run_cli(&job.source, &out, &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        report_file::read(&out).unwrap().normals.is_some()
+    };
+    assert!(ran("default", &[]));
+    assert!(!ran("off", &["--no-refine-normals"]));
+    assert!(ran("on-last", &["--no-refine-normals", "--refine-normals"]));
+    assert!(!ran(
+        "off-last",
+        &["--refine-normals", "--no-refine-normals"]
+    ));
+}
+
 #[test]
 fn cli_refine_normals_reports_what_it_did() {
     // Two light images cannot hold one out: the refinement is refused, said so, and no

@@ -82,10 +82,11 @@ pub struct BenchAccuracyArgs {
     /// Output folder for accuracy.md and accuracy.json.
     #[arg(long, default_value = "docs/eval")]
     pub out: PathBuf,
-    /// Refine the SfM-like mesh's normals from the images; also runs the pipeline on the
-    /// unrefined normals and reports the normal error against the truth.
-    #[arg(long)]
-    pub refine_normals: bool,
+    /// Refine the SfM-like mesh's normals from the images, as `reconstruct` does by default
+    /// (`--no-refine-normals`: not); with the refinement the pipeline also runs on the
+    /// unrefined normals and the normal error against the truth is reported.
+    #[command(flatten)]
+    pub refine: super::reconstruct::RefineSwitch,
     /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
@@ -211,7 +212,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         a.rigs.join(","),
         a.one_light_deg
     );
-    command += &a.refine_unknowns.command_args(a.refine_normals);
+    command += &a.refine_unknowns.command_args(a.refine.on());
     if a.exact_reference {
         command += " --exact-reference";
     }
@@ -229,7 +230,7 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         seeds: a.seeds,
         rigs,
         no_ablation: a.no_ablation,
-        refine: a.refine_unknowns.settings(a.refine_normals),
+        refine: a.refine_unknowns.settings(a.refine.on()),
         sfm_noise_rel: a.sfm_noise,
         sfm_iterations: a.sfm_smoothing,
         exact_reference: a.exact_reference,

@@ -31,9 +31,10 @@ pub struct BenchExternalArgs {
     /// Output folder for external.md and external.json.
     #[arg(long, default_value = "docs/eval")]
     pub out: PathBuf,
-    /// Reconstruct with the normals refined from the images (`reconstruct --refine-normals`).
-    #[arg(long)]
-    pub refine_normals: bool,
+    /// Reconstruct with the normals refined from the images, as `reconstruct` does by default
+    /// (`--no-refine-normals`: not).
+    #[command(flatten)]
+    pub refine: super::reconstruct::RefineSwitch,
     /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
@@ -87,7 +88,7 @@ pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
 
 pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let mut settings = Settings {
-        refine: a.refine_unknowns.settings(a.refine_normals),
+        refine: a.refine_unknowns.settings(a.refine.on()),
         ..Settings::default()
     };
     if let Some(r) = a.prior_ratio {
@@ -111,7 +112,7 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(","),
         a.bin_step,
-        a.refine_unknowns.command_args(a.refine_normals),
+        a.refine_unknowns.command_args(a.refine.on()),
         a.prior_ratio
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out

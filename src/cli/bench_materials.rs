@@ -40,10 +40,11 @@ pub struct BenchMaterialsArgs {
     /// (`reconstruct --keep-boundary-pixels`; by default they are left out).
     #[arg(long)]
     pub keep_boundary_pixels: bool,
-    /// Refine the SfM-like mesh's normals from the images before finding the materials
-    /// (`reconstruct --refine-normals`); the baselines are fitted to the unrefined pixels.
-    #[arg(long)]
-    pub refine_normals: bool,
+    /// Refine the SfM-like mesh's normals from the images before finding the materials, as
+    /// `reconstruct` does by default (`--no-refine-normals`: not); the baselines are fitted to
+    /// the unrefined pixels.
+    #[command(flatten)]
+    pub refine: super::reconstruct::RefineSwitch,
     /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
@@ -86,7 +87,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         } else {
             ""
         },
-        a.refine_unknowns.command_args(a.refine_normals),
+        a.refine_unknowns.command_args(a.refine.on()),
         if a.time_repeats > 1 {
             format!(" --time-repeats {}", a.time_repeats)
         } else {
@@ -107,7 +108,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         rigs,
         max_materials: a.max_materials,
         keep_boundary_pixels: a.keep_boundary_pixels,
-        refine: a.refine_unknowns.settings(a.refine_normals),
+        refine: a.refine_unknowns.settings(a.refine.on()),
         time_repeats: a.time_repeats,
         time_command: a.time_command,
         out: a.out.clone(),

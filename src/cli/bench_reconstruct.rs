@@ -50,9 +50,10 @@ pub struct BenchReconstructArgs {
     /// Keep the scene folders here instead of a temporary directory.
     #[arg(long)]
     pub keep: Option<PathBuf>,
-    /// Time the reconstruction with `--refine-normals` (the normal refinement's cost).
-    #[arg(long)]
-    pub refine_normals: bool,
+    /// Time the reconstruction as `reconstruct` runs by default, with the normal refinement
+    /// (`--no-refine-normals`: without it).
+    #[command(flatten)]
+    pub refine: super::reconstruct::RefineSwitch,
     /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`;
     /// default: its default).
     #[arg(long, value_enum)]
@@ -86,11 +87,12 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
             a.study_size[1]
         );
     }
-    if a.refine_normals {
-        command += " --refine-normals";
+    if a.refine.on() {
         if let Some(u) = a.refine_unknowns {
             command += &format!(" --refine-unknowns {}", u.name());
         }
+    } else {
+        command += " --no-refine-normals";
     }
     if a.all_pixels {
         command += " --all-pixels";
@@ -120,7 +122,7 @@ pub fn run(a: BenchReconstructArgs) -> anyhow::Result<ExitCode> {
         study_size: (a.study_size[0], a.study_size[1]),
         write: a.write.clone(),
         keep: a.keep.clone(),
-        refine_normals: a.refine_normals,
+        refine_normals: a.refine.on(),
         refine_unknowns: a.refine_unknowns.map(|u| u.name().to_string()),
         all_pixels: a.all_pixels,
         basis_fit: a.basis_fit,

@@ -19,7 +19,7 @@ pub struct DemoArgs {
     /// Folder for everything the demo makes (created; must be new or empty).
     #[arg(long)]
     pub out: PathBuf,
-    /// Capture plan (default: the built-in quick plan, 160x120 images).
+    /// Capture plan (default: the built-in quick plan, 320x240 images, capture-plans/quick.toml).
     #[arg(long)]
     pub plan: Option<PathBuf>,
 }

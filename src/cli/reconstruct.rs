@@ -174,13 +174,8 @@ pub struct Args {
     /// docs/reconstruction.md, stage 6; docs/evaluation.md sections 1ag and 1ai.
     #[arg(long, default_value_t = 1.5, value_parser = real_in(Closed(0.0), Closed(10.0)))]
     pub peak_energy: f64,
-    /// Refine the mesh's normals from the light images before fitting the BRDF (photometric
-    /// stereo across views, checked on held-out images; docs/normal-refinement.md). The
-    /// object's materials are found first, whatever `--materials` says, and each gets its own
-    /// reflectance table in the refinement (a warning says when several are found with
-    /// `--materials one`). Writes mesh_refined.ply when the refinement is accepted.
-    #[arg(long)]
-    pub refine_normals: bool,
+    #[command(flatten)]
+    pub refine: RefineSwitch,
     /// What the refinement moves: `depth` (one displacement per vertex along its normal, the
     /// normals following from the displaced positions: a photogrammetry mesh's error is its
     /// depth noise) or `normals` (two free angles per vertex normal: also normals that are wrong
@@ -221,6 +216,32 @@ pub struct Args {
     pub min_confidence: Option<Level>,
 }
 
+/// Whether the mesh's normals are refined from the light images before the BRDF is fitted
+/// (photometric stereo across views, checked on held-out images; docs/normal-refinement.md):
+/// on by default since session 48 (docs/evaluation.md section 1ak), `--no-refine-normals` turns
+/// it off. Shared by `reconstruct` and the benches that run it.
+#[derive(ClapArgs, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RefineSwitch {
+    /// Refine the mesh's normals from the light images (the default; kept so that commands
+    /// written before it was the default still run). The object's materials are found first,
+    /// whatever `--materials` says, and each gets its own reflectance table in the refinement
+    /// (a warning says when several are found with `--materials one`). Writes
+    /// mesh_refined.ply when the refinement is accepted.
+    #[arg(long, overrides_with = "no_refine_normals")]
+    pub refine_normals: bool,
+    /// Fit the BRDF to the mesh's own normals, unrefined (the default before session 48:
+    /// faster, by 1.5-1.6 times at the paper's scale).
+    #[arg(long, overrides_with = "refine_normals")]
+    pub no_refine_normals: bool,
+}
+
+impl RefineSwitch {
+    /// Refine? (unless `--no-refine-normals` came last)
+    pub fn on(self) -> bool {
+        !self.no_refine_normals
+    }
+}
+
 /// `--refine-unknowns`: what the normal refinement moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum RefineUnknownsArg {
@@ -244,13 +265,13 @@ impl RefineUnknownsArg {
         })
     }
 
-    /// The flags as typed, for a bench's quoted command (`--refine-unknowns` only when not
-    /// the default).
+    /// The flags as typed, for a bench's quoted command (only what is not the default:
+    /// `--no-refine-normals`, or `--refine-unknowns` other than depth).
     pub fn command_args(self, refine: bool) -> String {
         match (refine, self) {
-            (false, _) => String::new(),
-            (true, Self::Depth) => " --refine-normals".into(),
-            (true, u) => format!(" --refine-normals --refine-unknowns {}", u.name()),
+            (false, _) => " --no-refine-normals".into(),
+            (true, Self::Depth) => String::new(),
+            (true, u) => format!(" --refine-unknowns {}", u.name()),
         }
     }
 }
@@ -409,7 +430,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }),
         _ => None,
     };
-    if args.refine_normals {
+    if args.refine.on() {
         settings.refine = Some(reconstruct::refine::RefineSettings {
             max_tilt_deg: args.max_tilt,
             depth: args.refine_unknowns == RefineUnknownsArg::Depth,

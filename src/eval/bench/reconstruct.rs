@@ -172,11 +172,12 @@ pub fn run(
         o.basis_components.to_string(),
     ];
     if o.refine_normals {
-        cmd_args.push("--refine-normals".into());
         if let Some(u) = &o.refine_unknowns {
             cmd_args.push("--refine-unknowns".into());
             cmd_args.push(u.clone());
         }
+    } else {
+        cmd_args.push("--no-refine-normals".into());
     }
     if o.all_pixels {
         cmd_args.push("--all-pixels".into());
