@@ -87,7 +87,7 @@ pub struct BenchAccuracyArgs {
     /// unrefined normals and the normal error against the truth is reported.
     #[command(flatten)]
     pub refine: super::reconstruct::RefineSwitch,
-    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
     /// The SfM-like mesh's normal noise: standard deviation of each vertex's displacement along

@@ -35,7 +35,7 @@ pub struct BenchExternalArgs {
     /// (`--no-refine-normals`: not).
     #[command(flatten)]
     pub refine: super::reconstruct::RefineSwitch,
-    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
     /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.

@@ -45,7 +45,7 @@ pub struct BenchMaterialsArgs {
     /// the unrefined pixels.
     #[command(flatten)]
     pub refine: super::reconstruct::RefineSwitch,
-    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`).
+    /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
     /// Time each object's two reconstructions (its materials, one material) this many times,

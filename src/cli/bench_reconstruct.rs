@@ -54,7 +54,7 @@ pub struct BenchReconstructArgs {
     /// (`--no-refine-normals`: without it).
     #[command(flatten)]
     pub refine: super::reconstruct::RefineSwitch,
-    /// With `--refine-normals`: what the refinement moves (`reconstruct --refine-unknowns`;
+    /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`;
     /// default: its default).
     #[arg(long, value_enum)]
     pub refine_unknowns: Option<super::reconstruct::RefineUnknownsArg>,

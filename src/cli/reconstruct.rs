@@ -229,8 +229,8 @@ pub struct RefineSwitch {
     /// mesh_refined.ply when the refinement is accepted.
     #[arg(long, overrides_with = "no_refine_normals")]
     pub refine_normals: bool,
-    /// Fit the BRDF to the mesh's own normals, unrefined (the default before session 48:
-    /// faster, by 1.5-1.6 times at the paper's scale).
+    /// Fit the BRDF to the mesh's own normals, unrefined (the default before session 48;
+    /// about twice as fast at the paper's scale: docs/benchmarks-reconstruct.md, "Session 48").
     #[arg(long, overrides_with = "refine_normals")]
     pub no_refine_normals: bool,
 }

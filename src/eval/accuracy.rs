@@ -19,6 +19,7 @@ use crate::reconstruct::observe::ObserveSettings;
 use crate::reconstruct::prepare::observe_scene;
 use crate::reconstruct::refine::RefineSettings;
 use crate::reconstruct::reliable::ReliableSettings;
+use crate::report::charts::{ChartError, ChartSpec, Series, line_chart};
 use crate::sim::job_scene::SceneSpec;
 use serde::Serialize;
 use std::path::Path;
@@ -320,6 +321,58 @@ pub fn ratio(r: &SceneResult) -> Option<f64> {
     (ours > 0.0 && base.is_finite()).then_some(base / ours)
 }
 
+/// The chart file the page links to (written beside accuracy.md by the bench).
+pub const RATIO_CHART: &str = "ratios.svg";
+
+/// Every scene's ratio ([`ratio`]) by rig (the rig's label, the ratios), scenes without one
+/// left out.
+pub fn ratios_by_rig(spec: &AccuracySpec, results: &[SceneResult]) -> Vec<(String, Vec<f64>)> {
+    spec.rigs
+        .iter()
+        .map(|rig| {
+            let rs = results
+                .iter()
+                .filter(|r| r.rig == *rig)
+                .filter_map(ratio)
+                .collect();
+            (rig.label(), rs)
+        })
+        .collect()
+}
+
+/// The ratios of each group sorted, one line per group, on a log axis, with the two
+/// levels dashed: 1 / 1.1 (worse by 10 %: no scene may lie below it) and 1.5 (the geometric
+/// mean asked for).
+pub fn ratio_chart(groups: &[(String, Vec<f64>)]) -> Result<String, ChartError> {
+    let mut series = Vec::new();
+    let mut longest = 1;
+    for (label, ratios) in groups {
+        let mut rs: Vec<f64> = ratios.iter().copied().filter(|x| x.is_finite()).collect();
+        rs.sort_by(f64::total_cmp);
+        longest = longest.max(rs.len());
+        let points = rs
+            .iter()
+            .enumerate()
+            .map(|(i, &y)| ((i + 1) as f64, y))
+            .collect();
+        series.push(Series::new(label.clone(), points));
+    }
+    let level = |y: f64, label: &str| {
+        Series::new(label, vec![(1.0, y), (longest as f64, y)])
+            .with_color([120, 120, 120])
+            .dashed()
+    };
+    series.push(level(1.0 / 1.1, "worse by 10 % (no scene below)"));
+    series.push(level(1.5, "1.5 (the geometric mean asked for)"));
+    let chart = ChartSpec::new(
+        "Ours against the better of Lambert and Lambert + GGX",
+        "scenes of the rig, sorted by the ratio",
+        "better baseline / ours, environment error",
+    )
+    .log_y(true);
+    line_chart(&series, &chart)
+}
+
 /// The bar over a set of scenes: how many scenes lose to the better baseline by more
 /// than 10 %, and the geometric mean of the ratio.
 pub struct Summary {
@@ -509,6 +562,7 @@ pub fn markdown(
             }
         );
     }
+    s += &format!("\n![every scene's ratio, sorted, per rig]({RATIO_CHART})\n");
 
     s += "\n## Per scene\n\n";
     s += "| mesh | material | rig | seed | ours env | model | Lambert env | L+GGX env | ratio | ours lights | ours PSNR env dB | ours E_sa | ours log | ours E_c (peak) | L+GGX E_c (peak) | prior share | max albedo before | confidence |\n";
@@ -859,4 +913,29 @@ fn normals_section(spec: &AccuracySpec, results: &[SceneResult]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chart names each rig and both levels, and a group without scenes still draws.
+    #[test]
+    fn the_ratio_chart_shows_each_rig_and_the_bar() {
+        let svg = ratio_chart(&[
+            ("spread".into(), vec![2.0, 0.95, 3.1]),
+            ("one light 30 deg".into(), vec![1.2, f64::NAN]),
+            ("empty".into(), Vec::new()),
+        ])
+        .unwrap();
+        assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(80)]);
+        for label in [
+            "spread",
+            "one light 30 deg",
+            "worse by 10 %",
+            "1.5 (the geometric",
+        ] {
+            assert!(svg.contains(label), "{label} missing");
+        }
+    }
 }

@@ -233,6 +233,10 @@ pub fn run(
         let mut md = accuracy::markdown(&spec, results, command, &machine);
         md += &format!("\nTotal wall time: {secs:.0} s.\n");
         write_file(&o.out.join("accuracy.md"), md)?;
+        write_file(
+            &o.out.join(accuracy::RATIO_CHART),
+            accuracy::ratio_chart(&accuracy::ratios_by_rig(&spec, results))?,
+        )?;
         let json = serde_json::json!({
             "note": "ground truth: neural fits of the MERL materials (Sztrajman et al. 2021), smooth approximations, not measured MERL data",
             "command": command,
