@@ -457,6 +457,46 @@ fn cli_refines_the_normals_by_default_and_no_refine_normals_turns_it_off() {
     ));
 }
 
+/// By default the refinement is skipped, said in a warning, when the light images hold more
+/// pixels than `refine_max_pixels` (it holds every image); without a limit it runs.
+#[test]
+fn the_refinement_is_skipped_with_a_warning_above_its_pixel_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let job = write_small_job(dir.path());
+    let mut settings = brdf_rig::reconstruct::Settings {
+        refine: Some(brdf_rig::reconstruct::refine::RefineSettings::default()),
+        refine_max_pixels: Some(1),
+        ..Default::default()
+    };
+    let p = brdf_rig::reconstruct::prepare::prepare(&job, &settings, &mut |_| {}).unwrap();
+    assert!(p.refinement.is_none());
+    assert!(
+        p.scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("normals not refined") && w.contains("--refine-normals")),
+        "{:?}",
+        p.scene.warnings
+    );
+    assert!(
+        p.scene.views.iter().all(|v| v.image.is_none()),
+        "streamed, not held"
+    );
+    settings.refine_max_pixels = None;
+    let p = brdf_rig::reconstruct::prepare::prepare(&job, &settings, &mut |_| {}).unwrap();
+    assert!(p.refinement.is_some());
+    assert!(
+        !p.scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("normals not refined"))
+    );
+    // the default limit is far above a small job's pixels
+    settings.refine_max_pixels = brdf_rig::reconstruct::Settings::default().refine_max_pixels;
+    let p = brdf_rig::reconstruct::prepare::prepare(&job, &settings, &mut |_| {}).unwrap();
+    assert!(p.refinement.is_some());
+}
+
 #[test]
 fn cli_refine_normals_reports_what_it_did() {
     // Two light images cannot hold one out: the refinement is refused, said so, and no

@@ -222,8 +222,9 @@ pub struct Args {
 /// it off. Shared by `reconstruct` and the benches that run it.
 #[derive(ClapArgs, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RefineSwitch {
-    /// Refine the mesh's normals from the light images (the default; kept so that commands
-    /// written before it was the default still run). The object's materials are found first,
+    /// Refine the mesh's normals from the light images, whatever their size (by default the
+    /// refinement runs when the light images hold at most 48 megapixels in all, and is skipped
+    /// with a warning above: it holds every image in memory). The object's materials are found first,
     /// whatever `--materials` says, and each gets its own reflectance table in the refinement
     /// (a warning says when several are found with `--materials one`). Writes
     /// mesh_refined.ply when the refinement is accepted.
@@ -239,6 +240,13 @@ impl RefineSwitch {
     /// Refine? (unless `--no-refine-normals` came last)
     pub fn on(self) -> bool {
         !self.no_refine_normals
+    }
+
+    /// The pixel limit above which the refinement is skipped with a warning: the default's
+    /// (`reconstruct::prepare::REFINE_AUTO_MAX_PIXELS`) unless `--refine-normals` asked for
+    /// the refinement by name.
+    pub fn max_pixels(self) -> Option<usize> {
+        (!self.refine_normals).then_some(reconstruct::prepare::REFINE_AUTO_MAX_PIXELS)
     }
 }
 
@@ -430,6 +438,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }),
         _ => None,
     };
+    settings.refine_max_pixels = args.refine.max_pixels();
     if args.refine.on() {
         settings.refine = Some(reconstruct::refine::RefineSettings {
             max_tilt_deg: args.max_tilt,

@@ -63,6 +63,11 @@ pub struct Settings {
     pub saturation: Option<f64>,
     /// Refine the mesh's normals from the images first (`reconstruct::refine`); `None` = off.
     pub refine: Option<RefineSettings>,
+    /// With `refine`: skip it, with a warning, when the light images hold more pixels than this
+    /// in all (it holds every image in memory: 7.4 GiB at peak for eleven 24-megapixel images,
+    /// docs/benchmarks-reconstruct.md "Session 48"); `None`: no limit (`reconstruct
+    /// --refine-normals` given). Default [`REFINE_AUTO_MAX_PIXELS`].
+    pub refine_max_pixels: Option<usize>,
     /// Find the object's materials and fit one BRDF each (`reconstruct::materials`); `None` =
     /// one material, as the paper assumes, unless the job's label masks give materials: then
     /// exactly those (`run::finish`).
@@ -81,9 +86,59 @@ impl Default for Settings {
             png_scale: 1.0,
             saturation: None,
             refine: None,
+            refine_max_pixels: Some(REFINE_AUTO_MAX_PIXELS),
             materials: None,
         }
     }
+}
+
+/// The most pixels, over all light images, that the normal refinement runs on unless asked
+/// for by name (`--refine-normals`): 48 megapixels (eleven photographs of 4.4 megapixels), so
+/// that the default stays within issue #14's 2 GiB. Measured (`bench reconstruct`, session 48):
+/// eleven 1920x1440 images (30 megapixels) 1164 MiB at peak refined, 831 MiB not; eleven
+/// 6000x4000 (264 megapixels) 7433 MiB refined, 878 MiB not.
+pub const REFINE_AUTO_MAX_PIXELS: usize = 48_000_000;
+
+/// The refinement `settings` asks for, unless the light images of `scene` hold more pixels
+/// than `settings.refine_max_pixels`: then `None`, and a warning in the scene saying so.
+fn refinement_within_limit<'a>(
+    settings: &'a Settings,
+    scene: &mut Scene,
+) -> Option<&'a RefineSettings> {
+    let refine = settings.refine.as_ref()?;
+    let pixels: usize = scene
+        .views
+        .iter()
+        .map(|v| v.intrinsics.width.saturating_mul(v.intrinsics.height))
+        .fold(0usize, usize::saturating_add);
+    match settings.refine_max_pixels {
+        Some(limit) if pixels > limit => {
+            scene.warnings.push(format!(
+                "normals not refined: the light images hold {:.0} megapixels, more than the {:.0} \
+                 the refinement runs on by default (it holds every image in memory); \
+                 `--refine-normals` refines anyway, `--no-refine-normals` silences this",
+                pixels as f64 / 1e6,
+                limit as f64 / 1e6
+            ));
+            None
+        }
+        _ => Some(refine),
+    }
+}
+
+/// Reads every light image (and its masks) of a scene loaded without them.
+fn hold_images(job: &Job, scene: &mut Scene, settings: &Settings) -> Result<(), ReconstructError> {
+    for view in &mut scene.views {
+        if view.image.is_some() {
+            continue;
+        }
+        let p = load_view_pixels(job, view.index, &view.intrinsics, settings)?;
+        view.image = Some(p.image);
+        view.mask = p.mask;
+        view.labels = p.labels;
+        view.saturation = p.saturation;
+    }
+    Ok(())
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -770,15 +825,21 @@ pub fn prepare(
     let mut timings = Vec::new();
     let t = Instant::now();
     progress("loading mesh, cameras, images");
-    // the normal refinement works on every pixel of every view: it holds the images
-    let mut scene = match settings.refine {
-        Some(_) => load_scene(job, settings)?,
-        None => load_scene_streamed(job, settings)?,
-    };
+    // the normal refinement works on every pixel of every view: it holds the images, unless
+    // they are too many pixels for it by default
+    let mut scene = load_scene_streamed(job, settings)?;
+    let refine = refinement_within_limit(settings, &mut scene);
+    if refine.is_some() {
+        hold_images(job, &mut scene, settings)?;
+    } else if settings.refine.is_some()
+        && let Some(w) = scene.warnings.last()
+    {
+        progress(w);
+    }
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
     progress("rasterising and observing");
-    let (observed, pixels) = match &settings.refine {
+    let (observed, pixels) = match refine {
         Some(r) => {
             let (o, p) = observe_scene_and_pixels(&scene, &settings.observe, r.edge_margin_px);
             (o, Some(p))
@@ -831,7 +892,7 @@ pub fn prepare(
         refinement: None,
         timings,
     };
-    if let Some(refine) = &settings.refine {
+    if let Some(refine) = refine {
         let t = Instant::now();
         let labels = material_labels(
             &prepared.scene.mesh,
