@@ -99,39 +99,35 @@ impl Default for Settings {
 /// 6000x4000 (264 megapixels) 7433 MiB refined, 878 MiB not.
 pub const REFINE_AUTO_MAX_PIXELS: usize = 48_000_000;
 
-/// The refinement `settings` asks for, unless the light images of `scene` hold more pixels
-/// than `settings.refine_max_pixels`: then `None`, and a warning in the scene saying so.
+/// The refinement `settings` asks for, or why it is skipped: the light images of `scene` hold
+/// more pixels than `settings.refine_max_pixels` (the warning to give).
 fn refinement_within_limit<'a>(
     settings: &'a Settings,
-    scene: &mut Scene,
-) -> Option<&'a RefineSettings> {
-    let refine = settings.refine.as_ref()?;
+    scene: &Scene,
+) -> Result<Option<&'a RefineSettings>, String> {
+    let Some(refine) = settings.refine.as_ref() else {
+        return Ok(None);
+    };
     let pixels: usize = scene
         .views
         .iter()
         .map(|v| v.intrinsics.width.saturating_mul(v.intrinsics.height))
         .fold(0usize, usize::saturating_add);
     match settings.refine_max_pixels {
-        Some(limit) if pixels > limit => {
-            scene.warnings.push(format!(
-                "normals not refined: the light images hold {:.0} megapixels, more than the {:.0} \
-                 the refinement runs on by default (it holds every image in memory); \
-                 `--refine-normals` refines anyway, `--no-refine-normals` silences this",
-                pixels as f64 / 1e6,
-                limit as f64 / 1e6
-            ));
-            None
-        }
-        _ => Some(refine),
+        Some(limit) if pixels > limit => Err(format!(
+            "normals not refined: the light images hold {:.0} megapixels, more than the {:.0} \
+             the refinement runs on by default (it holds every image in memory); \
+             `--refine-normals` refines anyway, `--no-refine-normals` silences this",
+            pixels as f64 / 1e6,
+            limit as f64 / 1e6
+        )),
+        _ => Ok(Some(refine)),
     }
 }
 
 /// Reads every light image (and its masks) of a scene loaded without them.
 fn hold_images(job: &Job, scene: &mut Scene, settings: &Settings) -> Result<(), ReconstructError> {
     for view in &mut scene.views {
-        if view.image.is_some() {
-            continue;
-        }
         let p = load_view_pixels(job, view.index, &view.intrinsics, settings)?;
         view.image = Some(p.image);
         view.mask = p.mask;
@@ -365,33 +361,31 @@ fn load_scene_with(job: &Job, settings: &Settings, hold: bool) -> Result<Scene, 
                 known,
             });
         };
-        let (image, mask, labels, saturation) = if hold {
-            let p = load_view_pixels(job, index, &intrinsics, settings)?;
-            (Some(p.image), p.mask, p.labels, p.saturation)
-        } else {
-            (None, None, None, None)
-        };
         views.push(View {
             index,
             file: spec.file.clone(),
             intrinsics,
             pose,
-            image,
-            mask,
+            image: None,
+            mask: None,
             mask_file: spec.mask.clone(),
-            labels,
+            labels: None,
             labels_file: spec.labels.clone(),
             light_world: pose.dir_to_world(&spec.light_dir_camera),
             irradiance: spec.irradiance,
-            saturation,
+            saturation: None,
         });
     }
-    Ok(Scene {
+    let mut scene = Scene {
         mesh,
         mesh_report,
         views,
         warnings,
-    })
+    };
+    if hold {
+        hold_images(job, &mut scene, settings)?;
+    }
+    Ok(scene)
 }
 
 /// What is wrong with a mask file ([`ReconstructError::Mask`] names the job, image and file).
@@ -828,13 +822,16 @@ pub fn prepare(
     // the normal refinement works on every pixel of every view: it holds the images, unless
     // they are too many pixels for it by default
     let mut scene = load_scene_streamed(job, settings)?;
-    let refine = refinement_within_limit(settings, &mut scene);
+    let refine = match refinement_within_limit(settings, &scene) {
+        Ok(r) => r,
+        Err(warning) => {
+            progress(&warning);
+            scene.warnings.push(warning);
+            None
+        }
+    };
     if refine.is_some() {
         hold_images(job, &mut scene, settings)?;
-    } else if settings.refine.is_some()
-        && let Some(w) = scene.warnings.last()
-    {
-        progress(w);
     }
     timings.push(("load".to_string(), t.elapsed().as_secs_f64()));
     let t = Instant::now();
