@@ -137,11 +137,7 @@ pub struct RefineSettings {
     pub hold_out_every: usize,
     /// Relative drop of the held-out error an iteration must bring to count.
     pub min_gain: f64,
-    /// Pixels in each reflectance fit (evenly drawn), per material: an object of K materials
-    /// (a table each) draws up to K times as many, so that each table gets about what one
-    /// material's would. With one budget for all, a half object's table had half the samples,
-    /// took the sparse table shape, and its normals rendered a mirror-like metal worse than
-    /// the mesh's own (docs/materials.md, session 49).
+    /// Pixels in each reflectance fit (evenly drawn).
     pub max_fit_pixels: usize,
     /// Pixels more grazing than this (either cosine) do not enter the reflectance fit.
     pub fit_min_cos: f64,
@@ -593,12 +589,6 @@ fn sparsest_density(bins: TableBins, samples: &[(u32, [f64; 3], f64)], groups: u
     sparsest
 }
 
-/// How many pixels the reflectance fits draw: `max_fit_pixels` for each of `groups` materials
-/// (at least one of each).
-fn fit_budget(max_fit_pixels: usize, groups: usize) -> usize {
-    max_fit_pixels.max(1).saturating_mul(groups.max(1))
-}
-
 /// A table's trilinear value at continuous coordinates.
 fn interpolate(table: &[f64], bins: TableBins, c: [f64; 3]) -> f64 {
     trilinear(bins, c)
@@ -843,8 +833,8 @@ impl<'a> Problem<'a> {
     }
 
     /// The fitting samples `(material, coordinates in a table of shape bins, reflectance)` of
-    /// an even draw of the pixels `idx` with normals `n` (at most `max_fit_pixels` per
-    /// material, [`fit_budget`]; grazing ones left out, `fit_min_cos`).
+    /// an even draw of the pixels `idx` with normals `n` (at most `max_fit_pixels`; grazing
+    /// ones left out, `fit_min_cos`).
     fn samples(
         &self,
         idx: &[usize],
@@ -853,7 +843,7 @@ impl<'a> Problem<'a> {
     ) -> Vec<(u32, [f64; 3], f64)> {
         let stride = idx
             .len()
-            .div_ceil(fit_budget(self.settings.max_fit_pixels, self.group_count))
+            .div_ceil(self.settings.max_fit_pixels.max(1))
             .max(1);
         let min_cos = self.settings.fit_min_cos;
         idx.iter()
@@ -2010,51 +2000,6 @@ mod tests {
             ..defaults
         };
         assert_refused(&run(&mesh, &start, &px, &flat), &start, "48 x 1 x 8");
-    }
-
-    /// Each material's table draws its own `max_fit_pixels`: the two halves of a sphere,
-    /// fitted as two materials from a budget smaller than their pixels, get as many samples
-    /// per observed cell as each half does fitted alone from that budget (with one budget
-    /// shared, each got half of it, and the table shape fell to the sparse one on half
-    /// objects: docs/materials.md, session 49).
-    #[test]
-    fn each_materials_table_gets_the_whole_fit_budget() {
-        assert_eq!(fit_budget(20_000, 3), 60_000);
-        assert_eq!(fit_budget(0, 0), 1);
-        let mesh = noisy_sphere(24, 32);
-        let px = pixels(&mesh, 12, 40.0, 20);
-        let labels: Vec<u32> = mesh
-            .positions()
-            .iter()
-            .map(|p| u32::from(p.z >= 0.0))
-            .collect();
-        let (groups, _) = pixel_groups(mesh.faces(), &px, &labels);
-        let half = |g: u32| -> Vec<RefinePixel> {
-            px.iter()
-                .zip(&groups)
-                .filter(|(_, h)| **h == g)
-                .map(|(p, _)| *p)
-                .collect()
-        };
-        let (upper, lower) = (half(0), half(1));
-        let settings = RefineSettings {
-            max_fit_pixels: upper.len().min(lower.len()) / 2,
-            ..RefineSettings::default()
-        };
-        let density = |px: &[RefinePixel], labels: &[u32]| {
-            let r = run_labelled(&mesh, mesh.vertex_normals(), px, labels, &settings).report;
-            (r.materials, r.table_samples_per_cell.unwrap_or(0.0))
-        };
-        let (_, alone_upper) = density(&upper, &[]);
-        let (_, alone_lower) = density(&lower, &[]);
-        let (two, halves) = density(&px, &labels);
-        let alone = alone_upper.min(alone_lower);
-        eprintln!(
-            "samples per cell: each half alone {alone_upper:.2}, {alone_lower:.2}; a table per half {halves:.2}"
-        );
-        assert_eq!(two, 2);
-        assert!(alone > 0.0);
-        assert!(halves >= 0.8 * alone, "{halves} against {alone}");
     }
 
     #[test]
