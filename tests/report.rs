@@ -172,6 +172,7 @@ fn example_report(job: PathBuf) -> Report {
         error_patch: Some(error),
         standard_error_patch: Some(0.01),
         image_errors: vec![Some(error), None],
+        extrapolation_error_log: None,
     };
     let core = CoreSettings::default();
     Report {

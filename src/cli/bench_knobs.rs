@@ -73,8 +73,9 @@ pub struct FitKnobs {
     #[arg(long, value_parser = super::reconstruct::parse_choice)]
     pub choose: Option<TrialChoice>,
     /// Which basis rung is written once the ladder took the basis family, as `reconstruct
-    /// --basis-rung`: `lowest` (held-out error, the default) or `simplest` (within noise of
-    /// the best).
+    /// --basis-rung`: `lowest` (held-out error, the default), `simplest` (within noise of the
+    /// best) or `extrapolates` (of those within noise of the lowest, the best at the largest
+    /// theta_d; a study knob).
     #[arg(long, value_parser = super::reconstruct::parse_basis_rung)]
     pub basis_rung: Option<BasisRung>,
     /// How the reconstruction's Lambert + GGX sets F0 where the pixels cannot tell it, as

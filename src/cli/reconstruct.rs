@@ -133,8 +133,11 @@ pub struct Args {
     #[arg(long, value_parser = parse_carry, default_value = "difference")]
     pub carry: Carry,
     /// Which basis rung (k, eta) is written once the model ladder took the basis family:
-    /// `simplest` (the simplest within noise of the best, the rule among the families) or
-    /// `lowest` (the lowest held-out error, the default). docs/reconstruction.md, stage 3.
+    /// `simplest` (the simplest within noise of the best, the rule among the families),
+    /// `lowest` (the lowest held-out error, the default) or `extrapolates` (of the rungs within
+    /// noise of the lowest, the one that best predicts the pixels of the largest theta_d fitted
+    /// to the others; a study knob, measured and not adopted: docs/materials.md, session 50).
+    /// docs/reconstruction.md, stage 3.
     #[arg(long, value_parser = parse_basis_rung, default_value = "lowest")]
     pub basis_rung: BasisRung,
     /// How the reconstruction's Lambert + GGX (its ladder rung, the prior of unobserved cells,
@@ -331,7 +334,7 @@ pub(crate) fn parse_carry(s: &str) -> Result<Carry, String> {
 }
 
 pub(crate) fn parse_basis_rung(s: &str) -> Result<BasisRung, String> {
-    BasisRung::parse(s).ok_or_else(|| format!("{s:?}: expected simplest or lowest"))
+    BasisRung::parse(s).ok_or_else(|| format!("{s:?}: expected simplest, lowest or extrapolates"))
 }
 
 pub(crate) fn parse_f0_rule(s: &str) -> Result<F0Rule, String> {

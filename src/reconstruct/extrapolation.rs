@@ -13,13 +13,17 @@
 //!
 //! A report and a study knob (`bench ... --extrapolation`), off by default: on the 72-scene grid
 //! the splits reach theta_d 47 degrees, the losses lie at 60-75, and the check does not point
-//! at them (docs/evaluation.md section 1t). No choice reads it.
+//! at them (docs/evaluation.md section 1t). No choice reads the check.
 //!
-//! Pure: no I/O. Must not change a fit or a choice: it only reports errors.
+//! The ladder's `--basis-rung extrapolates` (a study knob since session 50) scores every basis
+//! rung on a split of its own (`ladder_extrapolation.rs`), sharing this check's folds
+//! (`ladder::split_fold`).
+//!
+//! Pure: no I/O. Must not change a fit or a choice: it only scores (the ladder chooses).
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::ladder::{
-    AnalyticCandidate, FoldData, WithPeak, fit_peak, fold_data, log_error, subset,
+    AnalyticCandidate, FoldData, WithPeak, fit_peak, log_error, split_fold, subset,
 };
 use super::observation::Observation;
 use super::prior::Prior;
@@ -135,30 +139,13 @@ fn check_at(
     split: f64,
 ) -> Option<Extrapolation> {
     let below = |o: &Observation| theta_d_deg(o) < split;
-    // Two folds, below the split (0) and above it (1, held out); the anchor (eq. 2) as the
-    // ladder's folds take it.
-    let fold_of: Vec<usize> = input
-        .reliable
-        .pixels
-        .iter()
-        .map(|o| usize::from(!below(o)))
-        .collect();
     let FoldData {
         train,
         held,
         anchor,
-    } = fold_data(
-        &input.reliable.pixels,
-        &fold_of,
-        1,
-        input.reliable.brightest.as_ref(),
-        input
-            .reliable
-            .brightest
-            .as_ref()
-            .map(|b| usize::from(!below(b))),
-        input.reliable_settings.use_brightest,
-    );
+    } = split_fold(input.reliable, input.reliable_settings.use_brightest, |o| {
+        !below(o)
+    });
     if train.len() < settings.min_pixels || held.len() < settings.min_pixels {
         return None;
     }
@@ -214,7 +201,7 @@ fn check_at(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::reconstruct::observation::Seen;
     use crate::reconstruct::prior::synthetic::CosinePrior;
@@ -223,7 +210,7 @@ mod tests {
 
     /// A Lambertian cap (albedo 0.3) seen from +z under `lights` lights spread from 10 to 70
     /// degrees off the view.
-    fn pixels(lights: usize) -> Vec<Observation> {
+    pub(crate) fn pixels(lights: usize) -> Vec<Observation> {
         pixels_of(lights, |_| 0.3 / std::f64::consts::PI)
     }
 

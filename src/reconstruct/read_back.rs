@@ -154,6 +154,8 @@ struct RungMirror {
     #[serde(default)]
     standard_error_patch: Option<f64>,
     image_errors: Vec<Option<f64>>,
+    #[serde(default)]
+    extrapolation_error_log: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -323,6 +325,7 @@ mod tests {
             error_patch: None,
             standard_error_patch: None,
             image_errors: vec![None, Some(0.3)],
+            extrapolation_error_log: k.map(|_| 0.15),
         };
         for scheme in [
             FoldScheme::Images { folds: 5 },
