@@ -70,10 +70,10 @@
 //!
 //! Pure: no I/O. Deterministic for a seed.
 
-use super::components::ComponentSettings;
-
 #[path = "ladder_extrapolation.rs"]
-mod extrapolation;
+mod rung_extrapolation;
+
+use super::components::ComponentSettings;
 use super::fresnel::{F0Rule, MIN_HELD_F0, fit_lambert_ggx_held, fresnel_identifiable};
 use super::lambert_rung::{LambertFit, fit_lambert_rung};
 use super::observe::Observation;
@@ -1026,7 +1026,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
             .filter(|key| key.family == Family::Basis)
             .map(|key| (key.k.unwrap_or(fallback), key.eta.unwrap_or(40.0)))
             .collect();
-        let fold = extrapolation::score_rungs(&extrapolation::RungInput {
+        let fold = rung_extrapolation::score_rungs(&rung_extrapolation::RungInput {
             prior,
             reliable,
             reliable_settings,
@@ -1047,7 +1047,7 @@ pub fn climb(input: &LadderInput) -> Option<Ladder> {
                 }
             }
             None => {
-                extrapolation_note = extrapolation::NOT_SPANNED.to_string();
+                extrapolation_note = rung_extrapolation::NOT_SPANNED.to_string();
             }
         }
     }
@@ -2043,7 +2043,7 @@ mod tests {
         );
         if one.chosen().family == Family::Basis {
             assert!(
-                one.reason.contains(extrapolation::NOT_SPANNED),
+                one.reason.contains(rung_extrapolation::NOT_SPANNED),
                 "{}",
                 one.reason
             );
