@@ -5,7 +5,7 @@
 //! The ladder's folds hold out whole images, and a held-out image shares the training images'
 //! theta_d: it cannot tell how a basis rung carries the pixels to the grazing theta_d no image
 //! saw well, which the ridge weight decides (on alum-bronze on the half Spot with spread lights
-//! the weak ridge, eta 1, rendered 2-3x worse than eta 40 within noise of it on held-out images;
+//! the weak ridge, eta 1, rendered 1.8-2.9x worse than eta 40 (k 10-64) within noise of it on held-out images;
 //! on fruitwood-241 the other way round). Here the reliable pixels are split at
 //! [`RUNG_QUANTILE`] of their theta_d (the angle between light and half vector: the normals'
 //! error does not move it), every basis rung is fitted to those at or below the split and
