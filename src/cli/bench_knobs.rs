@@ -88,6 +88,11 @@ pub struct FitKnobs {
     /// bench's Lambert baseline is least squares either way.
     #[arg(long = "lambert-fit", value_parser = super::reconstruct::parse_lambert_fit)]
     pub lambert_fit: Option<LambertFit>,
+    /// The curvature filter keeps the pixels whose |mean curvature| is at or below this
+    /// quantile, as `reconstruct --curvature-quantile` (default: the library's 0.5; 1 keeps
+    /// every pixel).
+    #[arg(long, value_parser = super::ranges::real_in(super::ranges::Open(0.0), super::ranges::Closed(1.0)))]
+    pub curvature_quantile: Option<f64>,
 }
 
 impl FitKnobs {
@@ -110,6 +115,7 @@ impl FitKnobs {
             basis_rung: self.basis_rung,
             lambert_ggx_f0: self.lambert_ggx_f0,
             lambert_fit: self.lambert_fit,
+            curvature_quantile: self.curvature_quantile,
         }
     }
 
@@ -166,6 +172,9 @@ impl FitKnobs {
         if let Some(f) = self.lambert_fit {
             s += &format!(" --lambert-fit {}", f.name());
         }
+        if let Some(q) = self.curvature_quantile {
+            s += &format!(" --curvature-quantile {q}");
+        }
         s
     }
 }
@@ -196,6 +205,7 @@ mod tests {
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
             lambert_fit: Some(LambertFit::LeastSquares),
+            curvature_quantile: Some(0.9),
         };
         let o = k.overrides();
         assert_eq!(o.basis_fit, Some(BasisFit::Samples));
@@ -214,9 +224,10 @@ mod tests {
         assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
         assert_eq!(o.lambert_ggx_f0, Some(F0Rule::Free));
         assert_eq!(o.lambert_fit, Some(LambertFit::LeastSquares));
+        assert_eq!(o.curvature_quantile, Some(0.9));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares --curvature-quantile 0.9"
         );
     }
 }

@@ -11,6 +11,7 @@ use super::fresnel::F0Rule;
 use super::ladder::BasisRung;
 use super::lambert_rung::LambertFit;
 use super::plausible::ThetaDShape;
+use super::reliable::CurvatureThreshold;
 use super::trials::BasisFit;
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -40,6 +41,9 @@ pub struct CoreOverrides {
     pub lambert_ggx_f0: Option<F0Rule>,
     /// How the reconstruction's Lambert fits its albedo.
     pub lambert_fit: Option<LambertFit>,
+    /// The curvature filter's quantile of |H| (`ReliableSettings::curvature_threshold`; 1
+    /// keeps every pixel).
+    pub curvature_quantile: Option<f64>,
 }
 
 impl CoreOverrides {
@@ -93,6 +97,9 @@ impl CoreOverrides {
         if let Some(f) = self.lambert_fit {
             core.ladder.lambert_fit = f;
         }
+        if let Some(q) = self.curvature_quantile {
+            core.reliable.curvature_threshold = CurvatureThreshold::Quantile(q);
+        }
     }
 }
 
@@ -122,6 +129,7 @@ mod tests {
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
             lambert_fit: Some(LambertFit::LeastSquares),
+            curvature_quantile: Some(0.9),
         }
         .apply(&mut core);
         assert_eq!(core.trials.basis_fit, BasisFit::Samples);
@@ -138,6 +146,10 @@ mod tests {
         assert_eq!(core.peak_energy_deg, 2.0);
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
+        assert_eq!(
+            core.reliable.curvature_threshold,
+            CurvatureThreshold::Quantile(0.9)
+        );
         assert_eq!(core.ladder.lambert_ggx_f0, F0Rule::Free);
         assert_eq!(core.ladder.lambert_fit, LambertFit::LeastSquares);
         assert_eq!(core.trials.samples, CoreSettings::default().trials.samples);
