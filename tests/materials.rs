@@ -329,7 +329,8 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         .unwrap();
     assert_eq!(file.count, 2, "{}", file.reason);
     assert_eq!(file.materials.len(), 2);
-    // the pixels on faces across the boundary are counted, left out of both fits, and said
+    // the pixels on faces across the boundary (and those of the other's colour near it) are
+    // counted, left out of both fits, and said
     let stderr = String::from_utf8_lossy(&run.stderr);
     for m in &file.materials {
         assert!(
@@ -341,7 +342,7 @@ fn reconstruct_finds_two_materials_and_writes_one_table_each() {
         );
         assert!(
             stderr.contains(&format!(
-                "{} pixels ({} on faces across a boundary, left out of its fit)",
+                "{} pixels ({} on faces across a boundary or of another material's colour near it, left out of its fit)",
                 m.observed_pixels, m.boundary_pixels
             )),
             "{stderr}"

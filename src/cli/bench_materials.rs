@@ -11,6 +11,7 @@ use clap::Args;
 use super::bench_accuracy::EvalCommon;
 use super::ranges::int_in;
 use brdf_rig::eval::bench::materials::{self, MaterialsBenchOptions};
+use brdf_rig::reconstruct::segment::SegmentSettings;
 
 #[derive(Args, Debug)]
 pub struct BenchMaterialsArgs {
@@ -40,6 +41,15 @@ pub struct BenchMaterialsArgs {
     /// (`reconstruct --keep-boundary-pixels`; by default they are left out).
     #[arg(long)]
     pub keep_boundary_pixels: bool,
+    /// Also leave out the pixels of faces within this many rings of edges of the labels'
+    /// boundary (`reconstruct --boundary-rings`; default: the library's).
+    #[arg(long, value_parser = int_in(0usize, 20))]
+    pub boundary_rings: Option<usize>,
+    /// Within this many rings of the labels' boundary, leave out the pixels whose colour is
+    /// nearer another material's (`reconstruct --foreign-colour-rings`; default: the
+    /// library's).
+    #[arg(long, value_parser = int_in(0usize, 20))]
+    pub foreign_colour_rings: Option<usize>,
     /// Refine the SfM-like mesh's normals from the images before finding the materials, as
     /// `reconstruct` does by default (`--no-refine-normals`: not); the baselines are fitted to
     /// the unrefined pixels.
@@ -75,7 +85,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{}{} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{}{}{}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
@@ -87,6 +97,12 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         } else {
             ""
         },
+        a.boundary_rings
+            .map(|r| format!(" --boundary-rings {r}"))
+            .unwrap_or_default(),
+        a.foreign_colour_rings
+            .map(|r| format!(" --foreign-colour-rings {r}"))
+            .unwrap_or_default(),
         a.refine_unknowns.command_args(a.refine.on()),
         if a.time_repeats > 1 {
             format!(" --time-repeats {}", a.time_repeats)
@@ -108,6 +124,12 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         rigs,
         max_materials: a.max_materials,
         keep_boundary_pixels: a.keep_boundary_pixels,
+        boundary_rings: a
+            .boundary_rings
+            .unwrap_or(SegmentSettings::default().boundary_rings),
+        foreign_colour_rings: a
+            .foreign_colour_rings
+            .unwrap_or(SegmentSettings::default().foreign_colour_rings),
         refine: a.refine_unknowns.settings(a.refine.on()),
         time_repeats: a.time_repeats,
         time_command: a.time_command,

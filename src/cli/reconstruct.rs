@@ -203,6 +203,16 @@ pub struct Args {
     /// mix two materials; docs/materials.md, "Boundary pixels").
     #[arg(long)]
     pub keep_boundary_pixels: bool,
+    /// With `--materials auto`: also leave out of each material's fit the pixels of faces
+    /// with a corner within this many rings of edges of the labels' boundary (0: only the
+    /// faces across it; docs/materials.md, "Boundary pixels").
+    #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().boundary_rings, value_parser = int_in(0usize, 20))]
+    pub boundary_rings: usize,
+    /// With `--materials auto`: within this many rings of edges of the labels' boundary,
+    /// leave out of a material's fit its pixels whose colour is nearer another material's
+    /// (0: off; docs/materials.md, "Boundary pixels").
+    #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().foreign_colour_rings, value_parser = int_in(0usize, 20))]
+    pub foreign_colour_rings: usize,
     /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
     /// "Cost at camera resolution"; slower and larger at camera resolutions).
     #[arg(long)]
@@ -453,6 +463,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         settings.materials = Some(reconstruct::segment::SegmentSettings {
             max_materials: args.max_materials,
             fit_interior_only: !args.keep_boundary_pixels,
+            boundary_rings: args.boundary_rings,
+            foreign_colour_rings: args.foreign_colour_rings,
             ..Default::default()
         });
     }
@@ -484,7 +496,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .map_or(String::new(), |l| format!(" (mask label {l})"));
             let boundary = if e.boundary_pixels > 0 {
                 format!(
-                    " ({} on faces across a boundary, left out of its fit)",
+                    " ({} on faces across a boundary or of another material's colour near it, left out of its fit)",
                     e.boundary_pixels
                 )
             } else {

@@ -159,7 +159,7 @@ pub fn score_split(
     truths: &[Truth],
 ) -> Result<SplitResult, String> {
     use crate::geometry::labels::{FaceLabels, area_agreement};
-    use crate::reconstruct::segment::interior_groups;
+    use crate::reconstruct::segment::fit_groups;
     let m = output
         .materials
         .as_ref()
@@ -194,14 +194,7 @@ pub fn score_split(
     let groups: Vec<Vec<crate::reconstruct::observation::Observation>> = if m.results.is_empty() {
         vec![observations.clone()]
     } else {
-        interior_groups(
-            mesh,
-            &m.segmentation.vertex_labels,
-            count,
-            observations,
-            m.settings.fit_interior_only,
-        )
-        .0
+        fit_groups(mesh, &m.segmentation, observations, &m.settings).0
     };
     let found = found_tables(&m.results, &output.table, &output.core);
     let materials = found

@@ -24,7 +24,7 @@ use crate::reconstruct::observation::Observation;
 use crate::reconstruct::observe::{NO_FACE, ObserveSettings};
 use crate::reconstruct::prepare::observe_scene;
 use crate::reconstruct::refine::TableBins;
-use crate::reconstruct::segment::{SegmentSettings, interior_groups};
+use crate::reconstruct::segment::{SegmentSettings, fit_groups};
 use crate::sim::job_scene::{view_geometry, write_scene_materials};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -374,24 +374,11 @@ pub fn run(
                     // (results and cores are both empty when one material was found)
                     let tables = found_tables(&m.results, &one.table, &one);
                     // the pixels each material's fit had (the baselines get the same)
-                    let (mut groups, _) = interior_groups(
-                        &seg_mesh,
-                        &m.segmentation.vertex_labels,
-                        m.segmentation.count,
-                        &obs,
-                        m.settings.fit_interior_only,
-                    );
+                    let (mut groups, _) = fit_groups(&seg_mesh, &m.segmentation, &obs, &m.settings);
                     // with a refinement the baselines get the same faces' unrefined pixels
-                    let mut base_groups = unrefined.as_ref().map(|u| {
-                        interior_groups(
-                            &seg_mesh,
-                            &m.segmentation.vertex_labels,
-                            m.segmentation.count,
-                            u,
-                            m.settings.fit_interior_only,
-                        )
-                        .0
-                    });
+                    let mut base_groups = unrefined
+                        .as_ref()
+                        .map(|u| fit_groups(&seg_mesh, &m.segmentation, u, &m.settings).0);
                     for (i, (name, table, model, confidence)) in tables.into_iter().enumerate() {
                         let own: Vec<Observation> = if cores.is_empty() {
                             obs.to_vec()

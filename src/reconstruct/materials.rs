@@ -21,9 +21,7 @@ use super::mask_labels::FixedLabels;
 use super::observation::Observation;
 use super::plausible::Plausibility;
 use super::prior::Prior;
-use super::segment::{
-    CountScore, SegmentSettings, Segmentation, interior_groups, segment_with_labels,
-};
+use super::segment::{CountScore, SegmentSettings, Segmentation, fit_groups, segment_with_labels};
 use crate::brdf::merl::MerlTable;
 use crate::format::{FormatError, Versioned};
 use crate::geometry::mesh::Mesh;
@@ -62,8 +60,9 @@ pub struct MaterialResult {
     pub name: String,
     /// Its observations (pixels).
     pub observed_pixels: usize,
-    /// Of those, the pixels on faces across a boundary, left out of its fit
-    /// ([`SegmentSettings::fit_interior_only`]).
+    /// Of those, the pixels on faces across a boundary and those of another material's colour
+    /// near it, left out of its fit ([`SegmentSettings::fit_interior_only`],
+    /// [`SegmentSettings::foreign_colour_rings`]).
     pub boundary_pixels: usize,
     /// Mesh vertices observed with this label.
     pub observed_vertices: usize,
@@ -129,13 +128,7 @@ pub fn reconstruct_materials(
     let mut results = Vec::new();
     let mut cores = Vec::new();
     if segmentation.count > 1 {
-        let (mut groups, mut boundary) = interior_groups(
-            mesh,
-            &segmentation.vertex_labels,
-            segmentation.count,
-            observations,
-            settings.fit_interior_only,
-        );
+        let (mut groups, mut boundary) = fit_groups(mesh, &segmentation, observations, settings);
         // largest first, labels renumbered to match
         let mut order: Vec<usize> = (0..groups.len()).collect();
         order.sort_by_key(|&i| std::cmp::Reverse(groups[i].len() + boundary[i]));
@@ -255,8 +248,9 @@ pub struct MaterialEntry {
     /// Its MERL table, relative to the folder of `materials.json`.
     pub file: String,
     pub observed_pixels: usize,
-    /// Of `observed_pixels`, those on faces across a boundary, left out of its fit (0 in a
-    /// file written before they were).
+    /// Of `observed_pixels`, those on faces across a boundary and (since session 51) those of
+    /// another material's colour near it, left out of its fit (0 in a file written before they
+    /// were).
     #[serde(default)]
     pub boundary_pixels: usize,
     pub observed_vertices: usize,

@@ -92,6 +92,16 @@ pub struct SegmentSettings {
     /// `merge_distance`. `false` (what a `materials.json` written before session 34 means).
     #[serde(default)]
     pub merge_same_body: bool,
+    /// With `fit_interior_only`, also leave out the pixels of faces with a corner within this
+    /// many rings of edges of the labels' boundary ([`interior_groups`]; 0: only the faces
+    /// across it, what a `materials.json` written before session 51 means).
+    #[serde(default)]
+    pub boundary_rings: usize,
+    /// Within this many rings of the labels' boundary, leave a material's pixels whose colour
+    /// is nearer another material's out of its fit ([`drop_foreign_colours`]; 0: off, what a
+    /// `materials.json` written before session 51 means).
+    #[serde(default)]
+    pub foreign_colour_rings: usize,
 }
 
 impl Default for SegmentSettings {
@@ -112,6 +122,8 @@ impl Default for SegmentSettings {
             count_min_theta_h_deg: 10.0,
             fit_interior_only: true,
             merge_same_body: true,
+            boundary_rings: 0,
+            foreign_colour_rings: 3,
         }
     }
 }
@@ -183,17 +195,27 @@ impl Segmentation {
 /// labelled with it were left out. A pixel belongs to the material of its face's nearest corner
 /// ([`Segmentation::label_of`]); with `interior_only`, a pixel whose face has corners of
 /// another material is left out of every fit: it may mix two materials (the camera sees both
-/// across the boundary), and the boundary is where the labels themselves are least sure. A
-/// material keeps every pixel when its interior ones would be fewer than half of them (a thin
-/// strip, or labels broken into specks): a fit to a few boundary-free pixels is worse than one
-/// to some mixed ones. Pure.
+/// across the boundary), and the boundary is where the labels themselves are least sure. With
+/// `rings` above 0, so is a pixel whose face has a corner fewer than `rings` rings of edges
+/// from a vertex of another material: the labels' boundary is off the true one by a ring or
+/// more where the segmentation's features blur, and a few pixels of another material in a fit
+/// cost more than the pixels left out (docs/materials.md, session 51). A material keeps every
+/// pixel when its interior ones would be fewer than half of them (a thin strip, or labels
+/// broken into specks): a fit to a few boundary-free pixels is worse than one to some mixed
+/// ones. Pure.
 pub fn interior_groups(
     mesh: &Mesh,
     vertex_labels: &[u32],
     count: usize,
     observations: &[Observation],
     interior_only: bool,
+    rings: usize,
 ) -> (Vec<Vec<Observation>>, Vec<usize>) {
+    let near = if interior_only && rings > 0 {
+        rings_from_boundary(mesh, vertex_labels, rings)
+    } else {
+        Vec::new()
+    };
     let mut all: Vec<Vec<Observation>> = vec![Vec::new(); count];
     let mut inner: Vec<Vec<Observation>> = vec![Vec::new(); count];
     for o in observations {
@@ -210,6 +232,7 @@ pub fn interior_groups(
                 vertex_labels
                     .get(v as usize)
                     .is_some_and(|&x| x as usize == l)
+                    && near.get(v as usize).is_none_or(|&r| r >= rings)
             })
         });
         if interior_only && pure {
@@ -227,6 +250,113 @@ pub fn interior_groups(
             }
         })
         .unzip()
+}
+
+/// The pixels each material's BRDF is fitted to, and how many of its labelled pixels were
+/// left out: [`interior_groups`] by `settings`, then [`drop_foreign_colours`]. What
+/// `reconstruct --materials auto` fits and what the benches fit their baselines to. Pure.
+pub fn fit_groups(
+    mesh: &Mesh,
+    segmentation: &Segmentation,
+    observations: &[Observation],
+    settings: &SegmentSettings,
+) -> (Vec<Vec<Observation>>, Vec<usize>) {
+    let labels = &segmentation.vertex_labels;
+    let (mut groups, mut left_out) = interior_groups(
+        mesh,
+        labels,
+        segmentation.count,
+        observations,
+        settings.fit_interior_only,
+        settings.boundary_rings,
+    );
+    let foreign = drop_foreign_colours(
+        mesh,
+        labels,
+        &mut groups,
+        &segmentation.chromaticity,
+        settings.foreign_colour_rings,
+    );
+    for (n, f) in left_out.iter_mut().zip(foreign) {
+        *n += f;
+    }
+    (groups, left_out)
+}
+
+/// Of each material's pixels (`groups`, in label order) on faces with a corner fewer than
+/// `rings` rings of edges from the labels' boundary, leaves out those whose chromaticity lies
+/// nearer another material's (`chromaticity`) than their own: where the labels' boundary is
+/// off the true one, the pixels of the wrong side carry the other material's colour. Returns
+/// how many were left out per material. Pure. A study (docs/materials.md, session 51).
+pub fn drop_foreign_colours(
+    mesh: &Mesh,
+    vertex_labels: &[u32],
+    groups: &mut [Vec<Observation>],
+    chromaticity: &[[f64; 3]],
+    rings: usize,
+) -> Vec<usize> {
+    if rings == 0 || chromaticity.len() < 2 {
+        return vec![0; groups.len()];
+    }
+    let ring = rings_from_boundary(mesh, vertex_labels, rings);
+    let near = |o: &Observation| {
+        mesh.faces().get(o.face as usize).is_some_and(|f| {
+            f.iter()
+                .any(|&v| ring.get(v as usize).is_some_and(|&r| r < rings))
+        })
+    };
+    let dist2 = |c: &[f64; 3], m: &[f64; 3]| (0..3).map(|i| (c[i] - m[i]).powi(2)).sum::<f64>();
+    groups
+        .iter_mut()
+        .enumerate()
+        .map(|(l, g)| {
+            let Some(own) = chromaticity.get(l) else {
+                return 0;
+            };
+            let before = g.len();
+            g.retain(|o| {
+                let t: f64 = o.reflectance.iter().sum();
+                if !near(o) || !t.is_finite() || t <= 0.0 {
+                    return true;
+                }
+                let c = o.reflectance.map(|x| x / t);
+                let d = dist2(&c, own);
+                chromaticity
+                    .iter()
+                    .enumerate()
+                    .all(|(m, other)| m == l || dist2(&c, other) >= d)
+            });
+            before - g.len()
+        })
+        .collect()
+}
+
+/// Per vertex, the rings of edges between it and the nearest vertex with a neighbour of
+/// another label (0 for such a vertex), counted up to `max` (farther vertices get `max`).
+fn rings_from_boundary(mesh: &Mesh, vertex_labels: &[u32], max: usize) -> Vec<usize> {
+    let nb = mesh.vertex_neighbours();
+    let label = |v: usize| vertex_labels.get(v).copied();
+    let mut ring = vec![max; nb.len()];
+    let mut front: Vec<usize> = (0..nb.len())
+        .filter(|&v| nb[v].iter().any(|&u| label(u as usize) != label(v)))
+        .collect();
+    for &v in &front {
+        ring[v] = 0;
+    }
+    for r in 1..max {
+        let mut next = Vec::new();
+        for v in front {
+            for &u in &nb[v] {
+                let u = u as usize;
+                if ring[u] > r {
+                    ring[u] = r;
+                    next.push(u);
+                }
+            }
+        }
+        front = next;
+    }
+    ring
 }
 
 /// The vertex of `o`'s face nearest to where it was seen.
@@ -1224,21 +1354,24 @@ pub(crate) mod tests {
         assert!(e(2).unwrap() < 0.5 * e(1).unwrap(), "{:?}", s.scores);
     }
 
-    #[test]
-    fn boundary_faces_are_left_out_of_the_fits_unless_a_material_would_lose_half() {
-        let mesh = grid(8);
-        let obs = scene(&mesh, &[ggx([0.3, 0.2, 0.1], 0.3)], 8.0, 2);
-        let p = mesh.positions();
-        // Two materials split at x = 3.5, and a third that is one column of vertices (x = 7):
-        // no face has all three corners in it.
-        let labels: Vec<u32> = p
+    /// Two materials split at x = 3.5, and a third that is one column of vertices (x = 7):
+    /// no face has all three corners in it.
+    fn three_bands(mesh: &Mesh) -> Vec<u32> {
+        mesh.positions()
             .iter()
             .map(|v| match v.x {
                 x if x < 3.5 => 0,
                 x if x > 6.5 => 2,
                 _ => 1,
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn boundary_faces_are_left_out_of_the_fits_unless_a_material_would_lose_half() {
+        let mesh = grid(8);
+        let obs = scene(&mesh, &[ggx([0.3, 0.2, 0.1], 0.3)], 8.0, 2);
+        let labels = three_bands(&mesh);
         let seg = Segmentation {
             count: 3,
             vertex_labels: labels.clone(),
@@ -1249,13 +1382,13 @@ pub(crate) mod tests {
             scores: Vec::new(),
             reason: String::new(),
         };
-        let (all, none_dropped) = interior_groups(&mesh, &labels, 3, &obs, false);
+        let (all, none_dropped) = interior_groups(&mesh, &labels, 3, &obs, false, 0);
         assert_eq!(none_dropped, vec![0, 0, 0]);
         for (l, g) in all.iter().enumerate() {
             assert!(!g.is_empty());
             assert!(g.iter().all(|o| seg.label_of(&mesh, o) == Some(l as u32)));
         }
-        let (inner, dropped) = interior_groups(&mesh, &labels, 3, &obs, true);
+        let (inner, dropped) = interior_groups(&mesh, &labels, 3, &obs, true, 0);
         let pure = |o: &Observation, l: usize| {
             mesh.faces()[o.face as usize]
                 .iter()
@@ -1271,6 +1404,86 @@ pub(crate) mod tests {
         // The one-column material has no interior face: it keeps every pixel.
         assert_eq!(dropped[2], 0);
         assert_eq!(inner[2].len(), all[2].len());
+    }
+
+    #[test]
+    fn rings_around_the_boundary_leave_out_the_faces_near_it_too() {
+        let mesh = grid(8);
+        let obs = scene(&mesh, &[ggx([0.3, 0.2, 0.1], 0.3)], 8.0, 2);
+        let labels = three_bands(&mesh);
+        let p = mesh.positions();
+        // rings counted from the last column of material 0 (x = 3, beside x = 4), capped at 3
+        let ring = rings_from_boundary(&mesh, &labels, 3);
+        for (q, r) in p.iter().zip(&ring).filter(|(q, _)| q.x < 3.5) {
+            assert_eq!(*r, (3.0 - q.x).round() as usize, "vertex at x = {}", q.x);
+        }
+        let (all, _) = interior_groups(&mesh, &labels, 3, &obs, false, 0);
+        let (across, _) = interior_groups(&mesh, &labels, 3, &obs, true, 0);
+        let (inner, dropped) = interior_groups(&mesh, &labels, 3, &obs, true, 1);
+        // material 0 keeps only the faces whose corners all lie at x <= 2
+        let corners_within = |o: &Observation, x_max: f64| {
+            mesh.faces()[o.face as usize]
+                .iter()
+                .all(|&v| p[v as usize].x <= x_max + 1e-9)
+        };
+        assert!(!inner[0].is_empty());
+        assert!(inner[0].len() < across[0].len());
+        assert!(inner[0].iter().all(|o| corners_within(o, 2.0)));
+        assert_eq!(
+            inner[0].len(),
+            all[0].iter().filter(|o| corners_within(o, 2.0)).count()
+        );
+        assert_eq!(inner[0].len() + dropped[0], all[0].len());
+        // material 1 (x = 4 to 6) has no face a ring from both its boundaries: it keeps every
+        // pixel, as a thin strip does
+        assert_eq!(dropped[1], 0);
+        assert_eq!(inner[1].len(), all[1].len());
+    }
+
+    #[test]
+    fn pixels_of_another_materials_colour_near_the_boundary_are_left_out() {
+        // Red faces left of x = 4.5, blue right of it; the labels put the boundary a column of
+        // faces further left (x = 3.5), so the red faces between x = 4 and 4.5 are labelled blue.
+        let mesh = grid(8);
+        let (red, blue) = (ggx([0.5, 0.05, 0.05], 0.3), ggx([0.05, 0.05, 0.5], 0.3));
+        let obs = scene(&mesh, &[red, blue], 4.5, 4);
+        let p = mesh.positions();
+        let labels: Vec<u32> = p.iter().map(|v| u32::from(v.x > 3.5)).collect();
+        let chroma = |c: [f64; 3]| c.map(|x| x / c.iter().sum::<f64>());
+        let seg = Segmentation {
+            count: 2,
+            vertex_labels: labels.clone(),
+            observed_vertices: vec![0; 2],
+            chromaticity: vec![chroma(red.kd), chroma(blue.kd)],
+            fixed_vertices: vec![0; 2],
+            given: 0,
+            scores: Vec::new(),
+            reason: String::new(),
+        };
+        let is_red = |o: &Observation| {
+            let t = mesh.triangle(o.face as usize);
+            (t[0].x + t[1].x + t[2].x) / 3.0 < 4.5
+        };
+        let settings = |rings| SegmentSettings {
+            foreign_colour_rings: rings,
+            ..SegmentSettings::default()
+        };
+        let (kept, _) = fit_groups(&mesh, &seg, &obs, &settings(0));
+        let red_in_blue = kept[1].iter().filter(|o| is_red(o)).count();
+        assert!(
+            red_in_blue > 0,
+            "the labels' offset puts red pixels in blue"
+        );
+        let (clean, left_out) = fit_groups(&mesh, &seg, &obs, &settings(3));
+        assert!(
+            clean[1].iter().all(|o| !is_red(o)),
+            "no red pixel left in blue"
+        );
+        // only the red ones went: every blue pixel stays, and the red material keeps its own
+        assert_eq!(clean[1].len(), kept[1].len() - red_in_blue);
+        assert_eq!(clean[0].len(), kept[0].len());
+        let (_, interior_only) = interior_groups(&mesh, &labels, 2, &obs, true, 0);
+        assert_eq!(left_out[1], interior_only[1] + red_in_blue);
     }
 
     #[test]

@@ -520,7 +520,7 @@ fn section_material(
                 "left out of its fit".into(),
                 if e.boundary_pixels > 0 {
                     format!(
-                        "{} pixels on faces across a boundary with another material (they may mix the two)",
+                        "{} pixels on faces across a boundary with another material, or of another material's colour near it (they may mix the two, or be the other material's)",
                         e.boundary_pixels
                     )
                 } else {

@@ -25,6 +25,12 @@ pub struct MaterialsBenchOptions {
     /// Fit each material to the boundary faces' pixels too (`SegmentSettings::fit_interior_only`
     /// off).
     pub keep_boundary_pixels: bool,
+    /// Rings of edges around the labels' boundary whose faces' pixels are left out of each
+    /// material's fit too (`SegmentSettings::boundary_rings`).
+    pub boundary_rings: usize,
+    /// Rings of the labels' boundary within which pixels of another material's colour are
+    /// left out (`SegmentSettings::foreign_colour_rings`).
+    pub foreign_colour_rings: usize,
     /// Refine the normals from the images first (`reconstruct --refine-normals`).
     pub refine: Option<crate::reconstruct::refine::RefineSettings>,
     /// Times each object's reconstructions this many times, keeping the least
@@ -73,6 +79,8 @@ pub fn run(
         segment: SegmentSettings {
             max_materials: o.max_materials,
             fit_interior_only: !o.keep_boundary_pixels,
+            boundary_rings: o.boundary_rings,
+            foreign_colour_rings: o.foreign_colour_rings,
             ..SegmentSettings::default()
         },
         seeds: o.seeds.max(1),
