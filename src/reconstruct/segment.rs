@@ -33,6 +33,9 @@
 //!    and a second scale on a region of one shiny material then lowers that miss as much as a
 //!    true second material does (docs/materials.md, "One material at the accuracy grid's
 //!    size").
+//! 4. **Which pixels each material's fit gets** ([`fit_groups`]): those of faces whose corners
+//!    all carry its label ([`interior_groups`]), less those near the labels' boundary whose
+//!    colour is another material's ([`drop_foreign_colours`]).
 
 use super::baselines::{fit_lambert, fit_lambert_ggx};
 use super::ladder::{AnalyticCandidate, image_residual, subset};
@@ -197,9 +200,9 @@ impl Segmentation {
 /// another material is left out of every fit: it may mix two materials (the camera sees both
 /// across the boundary), and the boundary is where the labels themselves are least sure. With
 /// `rings` above 0, so is a pixel whose face has a corner fewer than `rings` rings of edges
-/// from a vertex of another material: the labels' boundary is off the true one by a ring or
-/// more where the segmentation's features blur, and a few pixels of another material in a fit
-/// cost more than the pixels left out (docs/materials.md, session 51). A material keeps every
+/// from a vertex of another material (a study knob, `SegmentSettings::boundary_rings`,
+/// measured and not adopted: it also takes a material's own pixels near its boundary, which
+/// cost fruitwood-241 on the three-material Bunny; docs/materials.md, session 51). A material keeps every
 /// pixel when its interior ones would be fewer than half of them (a thin strip, or labels
 /// broken into specks): a fit to a few boundary-free pixels is worse than one to some mixed
 /// ones. Pure.
@@ -286,8 +289,10 @@ pub fn fit_groups(
 /// Of each material's pixels (`groups`, in label order) on faces with a corner fewer than
 /// `rings` rings of edges from the labels' boundary, leaves out those whose chromaticity lies
 /// nearer another material's (`chromaticity`) than their own: where the labels' boundary is
-/// off the true one, the pixels of the wrong side carry the other material's colour. Returns
-/// how many were left out per material. Pure. A study (docs/materials.md, session 51).
+/// off the true one, the pixels of the wrong side carry the other material's colour (the
+/// default since session 51, 3 rings: docs/materials.md, "Another material's colour near the
+/// boundary"). A material that would keep fewer than half of its pixels keeps them all, as in
+/// [`interior_groups`]. Returns how many were left out per material. Pure.
 pub fn drop_foreign_colours(
     mesh: &Mesh,
     vertex_labels: &[u32],
@@ -313,8 +318,7 @@ pub fn drop_foreign_colours(
             let Some(own) = chromaticity.get(l) else {
                 return 0;
             };
-            let before = g.len();
-            g.retain(|o| {
+            let own_colour = |o: &Observation| {
                 let t: f64 = o.reflectance.iter().sum();
                 if !near(o) || !t.is_finite() || t <= 0.0 {
                     return true;
@@ -325,8 +329,14 @@ pub fn drop_foreign_colours(
                     .iter()
                     .enumerate()
                     .all(|(m, other)| m == l || dist2(&c, other) >= d)
-            });
-            before - g.len()
+            };
+            let kept = g.iter().filter(|o| own_colour(o)).count();
+            if kept * 2 < g.len() {
+                return 0;
+            }
+            let before = g.len();
+            g.retain(own_colour);
+            before - kept
         })
         .collect()
 }
@@ -1484,6 +1494,18 @@ pub(crate) mod tests {
         assert_eq!(clean[0].len(), kept[0].len());
         let (_, interior_only) = interior_groups(&mesh, &labels, 2, &obs, true, 0);
         assert_eq!(left_out[1], interior_only[1] + red_in_blue);
+        // a material that would lose most of its pixels keeps them all (colours swapped: every
+        // pixel near the boundary is "another material's")
+        let mut swapped = kept.clone();
+        let gone = drop_foreign_colours(
+            &mesh,
+            &labels,
+            &mut swapped,
+            &[chroma(blue.kd), chroma(red.kd)],
+            3,
+        );
+        assert_eq!(gone, vec![0, 0]);
+        assert_eq!(swapped[0].len(), kept[0].len());
     }
 
     #[test]
