@@ -441,13 +441,16 @@ mod tests {
                 .remove("fit_interior_only")
                 .is_some()
         );
-        assert!(
-            old["settings"]
-                .as_object_mut()
-                .unwrap()
-                .remove("merge_same_body")
-                .is_some()
-        );
+        for key in ["merge_same_body", "boundary_rings", "foreign_colour_rings"] {
+            assert!(
+                old["settings"]
+                    .as_object_mut()
+                    .unwrap()
+                    .remove(key)
+                    .is_some(),
+                "{key}"
+            );
+        }
         assert!(
             old["materials"][0]
                 .as_object_mut()
@@ -468,6 +471,10 @@ mod tests {
         assert!(back.materials[0].ladder.is_none() && back.materials[0].plausibility.is_none());
         assert!(!back.settings.fit_interior_only);
         assert!(!back.settings.merge_same_body);
+        // written before session 51: no ring margin and no colour rule
+        assert_eq!(back.settings.boundary_rings, 0);
+        assert_eq!(back.settings.foreign_colour_rings, 0);
+        assert_ne!(SegmentSettings::default().foreign_colour_rings, 0);
         assert_eq!(back.materials[0].boundary_pixels, 0);
         assert_eq!(back.materials[0].observed_pixels, 10);
     }
