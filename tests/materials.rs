@@ -264,7 +264,7 @@ fn normal_refinement_fits_a_reflectance_table_to_each_material() {
         Some(pixels),
         &settings.observe,
         &refine,
-        &[],
+        &Default::default(),
         &mut |_| {},
     );
     let e = |n: &[Vector3<f64>]| normal_error_deg(n, mesh.vertex_normals(), &seen).unwrap().0;
@@ -293,6 +293,29 @@ fn normal_refinement_fits_a_reflectance_table_to_each_material() {
     let p = brdf_rig::reconstruct::prepare::prepare(&job, &asked_one, &mut |_| {}).unwrap();
     let r = p.refinement.expect("the refinement ran");
     assert_eq!(r.materials, 2, "{}", r.reason);
+    // by default every pixel enters; with the colour rule (a study knob) the pixels near the
+    // found labels' boundary (off the true one by a ring or so) of the other material's colour
+    // are left out, a few of them
+    assert_eq!(r.foreign_colour_pixels, 0);
+    let colour_rule = Settings {
+        refine: Some(RefineSettings {
+            foreign_colours: true,
+            ..refine.clone()
+        }),
+        ..Settings::default()
+    };
+    let p_rule = brdf_rig::reconstruct::prepare::prepare(&job, &colour_rule, &mut |_| {}).unwrap();
+    let r_rule = p_rule.refinement.expect("the refinement ran");
+    assert!(
+        r_rule.foreign_colour_pixels > 0 && r_rule.foreign_colour_pixels * 20 < r.pixels_offered,
+        "{} of {}",
+        r_rule.foreign_colour_pixels,
+        r.pixels_offered
+    );
+    assert_eq!(
+        r.pixels_offered,
+        r_rule.pixels_offered + r_rule.foreign_colour_pixels
+    );
     assert!(
         p.scene
             .warnings

@@ -345,7 +345,7 @@ fn refine_spot(
         None,
         &observe,
         settings,
-        &[],
+        &Default::default(),
         &mut |_| {},
     );
     let report = prepared.refinement.clone().expect("the refinement ran");
@@ -517,6 +517,10 @@ fn cli_refine_normals_reports_what_it_did() {
         normals.settings.depth,
         "displacements are the default unknowns"
     );
+    assert!(
+        !normals.settings.foreign_colours,
+        "the colour rule in the refinement is a study knob, off by default"
+    );
     assert!(!out.join("mesh_refined.ply").exists());
     // The HTML report says what the refinement did.
     let html = util::html_report(&out);
@@ -529,11 +533,17 @@ fn cli_refine_normals_reports_what_it_did() {
     // The free normals on request, said in report.json; an unknown choice is refused.
     let free = dir.path().join("free");
     let mut args = QUICK_ARGS.to_vec();
-    args.extend(["--refine-normals", "--refine-unknowns", "normals"]);
+    args.extend([
+        "--refine-normals",
+        "--refine-unknowns",
+        "normals",
+        "--refine-colour-rule",
+    ]);
     let o = run_cli(&job.source, &free, &args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let normals = report_file::read(&free).unwrap().normals.unwrap();
     assert!(!normals.settings.depth);
+    assert!(normals.settings.foreign_colours);
     let o = run_cli(
         &job.source,
         &free,

@@ -297,6 +297,7 @@ fn example_report(job: PathBuf) -> Report {
             materials: 1,
             table_bins: RefineSettings::default().sparse_table_bins,
             table_samples_per_cell: Some(1.3),
+            foreign_colour_pixels: 12,
         }),
         materials: None,
         timings: [("rasterise", 1.5), ("observe", 0.25), ("trials", 3.0)]
@@ -537,6 +538,16 @@ fn missing_and_broken_pieces_are_reported_not_fatal() {
     // the refinement's table: the coarser shape, and why
     assert!(
         html.contains("32 x 16 x 8 (theta_h x theta_d x phi_d): 1.3 fitting samples per observed cell of 48 x 32 x 8"),
+        "{}",
+        n.table
+    );
+    // ... and the pixels the colour rule left out of it
+    assert!(
+        n.table.ends_with(
+            "; 12 pixels of another material's colour near the labels' boundary left out"
+        ) && html.contains(
+            "; 12 pixels of another material&#39;s colour near the labels&#39; boundary left out"
+        ),
         "{}",
         n.table
     );

@@ -90,6 +90,10 @@ pub struct BenchAccuracyArgs {
     /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
+    /// Study knob: leave out of the normal refinement the pixels of another material's colour
+    /// near the labels' boundary (`reconstruct --refine-colour-rule`).
+    #[arg(long)]
+    pub refine_colour_rule: bool,
     /// The SfM-like mesh's normal noise: standard deviation of each vertex's displacement along
     /// its normal, in mean edge lengths (`geometry::sfm_like`).
     #[arg(long, default_value_t = 0.05, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(2.0)))]
@@ -212,7 +216,9 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         a.rigs.join(","),
         a.one_light_deg
     );
-    command += &a.refine_unknowns.command_args(a.refine.on());
+    command += &a
+        .refine_unknowns
+        .command_args(a.refine.on(), a.refine_colour_rule);
     if a.exact_reference {
         command += " --exact-reference";
     }
@@ -230,7 +236,9 @@ pub fn run(a: BenchAccuracyArgs) -> anyhow::Result<ExitCode> {
         seeds: a.seeds,
         rigs,
         no_ablation: a.no_ablation,
-        refine: a.refine_unknowns.settings(a.refine.on()),
+        refine: a
+            .refine_unknowns
+            .settings(a.refine.on(), a.refine_colour_rule),
         sfm_noise_rel: a.sfm_noise,
         sfm_iterations: a.sfm_smoothing,
         exact_reference: a.exact_reference,

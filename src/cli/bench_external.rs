@@ -38,6 +38,10 @@ pub struct BenchExternalArgs {
     /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
+    /// Study knob: leave out of the normal refinement the pixels of another material's colour
+    /// near the labels' boundary (`reconstruct --refine-colour-rule`).
+    #[arg(long)]
+    pub refine_colour_rule: bool,
     /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub seeds: Vec<u64>,
@@ -88,7 +92,9 @@ pub(crate) fn parse_metric(s: &str) -> Result<HeldOutMetric, String> {
 
 pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let mut settings = Settings {
-        refine: a.refine_unknowns.settings(a.refine.on()),
+        refine: a
+            .refine_unknowns
+            .settings(a.refine.on(), a.refine_colour_rule),
         ..Settings::default()
     };
     if let Some(r) = a.prior_ratio {
@@ -112,7 +118,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(","),
         a.bin_step,
-        a.refine_unknowns.command_args(a.refine.on()),
+        a.refine_unknowns
+            .command_args(a.refine.on(), a.refine_colour_rule),
         a.prior_ratio
             .map_or(String::new(), |r| format!(" --prior-ratio {r}")),
         a.held_out

@@ -58,6 +58,10 @@ pub struct BenchMaterialsArgs {
     /// When the normals are refined: what the refinement moves (`reconstruct --refine-unknowns`).
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: super::reconstruct::RefineUnknownsArg,
+    /// Study knob: leave out of the normal refinement the pixels of another material's colour
+    /// near the labels' boundary (`reconstruct --refine-colour-rule`).
+    #[arg(long)]
+    pub refine_colour_rule: bool,
     /// Time each object's two reconstructions (its materials, one material) this many times,
     /// in turn, and keep the least time of each: the time ratio of one run moves by 10-20 %
     /// with what else the machine does.
@@ -103,7 +107,8 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         a.foreign_colour_rings
             .map(|r| format!(" --foreign-colour-rings {r}"))
             .unwrap_or_default(),
-        a.refine_unknowns.command_args(a.refine.on()),
+        a.refine_unknowns
+            .command_args(a.refine.on(), a.refine_colour_rule),
         if a.time_repeats > 1 {
             format!(" --time-repeats {}", a.time_repeats)
         } else {
@@ -130,7 +135,9 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         foreign_colour_rings: a
             .foreign_colour_rings
             .unwrap_or(SegmentSettings::default().foreign_colour_rings),
-        refine: a.refine_unknowns.settings(a.refine.on()),
+        refine: a
+            .refine_unknowns
+            .settings(a.refine.on(), a.refine_colour_rule),
         time_repeats: a.time_repeats,
         time_command: a.time_command,
         out: a.out.clone(),

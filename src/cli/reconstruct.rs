@@ -185,6 +185,12 @@ pub struct Args {
     /// independently of the positions). docs/normal-refinement.md, "Session 28".
     #[arg(long, value_enum, default_value = "depth")]
     pub refine_unknowns: RefineUnknownsArg,
+    /// Study knob: leave out of the normal refinement the pixels near the boundary of two
+    /// found materials whose colour is the other material's, as the fits do
+    /// (`--foreign-colour-rings`). Measured and not adopted: docs/materials.md, "The colour
+    /// rule in the normal refinement".
+    #[arg(long)]
+    pub refine_colour_rule: bool,
     /// Largest tilt the refinement may give a normal, degrees (0 to 60).
     #[arg(long, default_value_t = 20.0, value_parser = real_in(Closed(0.0), Closed(60.0)))]
     pub max_tilt: f64,
@@ -278,21 +284,32 @@ impl RefineUnknownsArg {
         }
     }
 
-    /// The refinement a bench's `--refine-normals` (`refine`) with these unknowns asks for.
-    pub fn settings(self, refine: bool) -> Option<reconstruct::refine::RefineSettings> {
+    /// The refinement a bench's `--refine-normals` (`refine`) with these unknowns asks for;
+    /// `colour_rule`: `--refine-colour-rule`.
+    pub fn settings(
+        self,
+        refine: bool,
+        colour_rule: bool,
+    ) -> Option<reconstruct::refine::RefineSettings> {
         refine.then(|| reconstruct::refine::RefineSettings {
             depth: self == Self::Depth,
+            foreign_colours: colour_rule,
             ..Default::default()
         })
     }
 
     /// The flags as typed, for a bench's quoted command (only what is not the default:
-    /// `--no-refine-normals`, or `--refine-unknowns` other than depth).
-    pub fn command_args(self, refine: bool) -> String {
+    /// `--no-refine-normals`, `--refine-unknowns` other than depth, `--refine-colour-rule`).
+    pub fn command_args(self, refine: bool, colour_rule: bool) -> String {
+        let every = if refine && colour_rule {
+            " --refine-colour-rule"
+        } else {
+            ""
+        };
         match (refine, self) {
             (false, _) => " --no-refine-normals".into(),
-            (true, Self::Depth) => String::new(),
-            (true, u) => format!(" --refine-unknowns {}", u.name()),
+            (true, Self::Depth) => every.into(),
+            (true, u) => format!(" --refine-unknowns {}{every}", u.name()),
         }
     }
 }
@@ -456,6 +473,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         settings.refine = Some(reconstruct::refine::RefineSettings {
             max_tilt_deg: args.max_tilt,
             depth: args.refine_unknowns == RefineUnknownsArg::Depth,
+            foreign_colours: args.refine_colour_rule,
             ..Default::default()
         });
     }
@@ -514,12 +532,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(r) = &output.report.normals {
         errln!(
-            "normals: {} ({}; mean tilt {:.2} deg, largest {:.2} deg over {} vertices)",
+            "normals: {} ({}; mean tilt {:.2} deg, largest {:.2} deg over {} vertices{})",
             if r.accepted { "refined" } else { "kept" },
             r.reason,
             r.mean_tilt_deg,
             r.max_tilt_deg,
-            r.vertices_refined
+            r.vertices_refined,
+            if r.foreign_colour_pixels > 0 {
+                format!(
+                    "; {} pixels of another material's colour near the boundary left out",
+                    r.foreign_colour_pixels
+                )
+            } else {
+                String::new()
+            }
         );
     }
     let p = &output.report.plausibility;

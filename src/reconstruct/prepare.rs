@@ -22,9 +22,9 @@ use super::observe::{
 use super::reduce::reduce;
 use super::refine::{
     MeshNormals, RefinePixel, RefineReport, RefineSettings, StartNormals, refine_normals,
-    seen_vertices,
+    seen_vertices, without_foreign_colours,
 };
-use super::segment::{SegmentSettings, segment_with_labels};
+use super::segment::{ForeignColours, SegmentSettings, segment_with_labels};
 use super::sweep::{ViewSweep, sweep_view};
 use crate::brdf::basis::{Basis, BasisSettings};
 use crate::brdf::basis_cache::{self, BasisCacheError, CacheStatus};
@@ -897,7 +897,7 @@ pub fn prepare(
             settings.materials,
             progress,
         );
-        let found = labels.iter().max().map_or(1, |m| m + 1);
+        let found = labels.vertex.iter().max().map_or(1, |m| m + 1);
         prepared.timings.push((
             format!("materials for the refinement ({found})"),
             t.elapsed().as_secs_f64(),
@@ -944,14 +944,14 @@ pub fn segmentation_for(
 /// material and has no label masks, the default segmentation all the same: with one table for
 /// an object of several materials the refinement bends the normals to absorb their difference
 /// (docs/materials.md, "With `--refine-normals`"), and a one-material object is found to be one
-/// (the count's rule, docs/materials.md "How many"). Empty when one material is found. The
+/// (the count's rule, docs/materials.md "How many"). Its labels are empty when one material is found. The
 /// materials reported are found again after the refinement (or not at all, when one was asked).
 pub fn material_labels(
     mesh: &Mesh,
     observed: &Observed,
     materials: Option<SegmentSettings>,
     progress: &mut dyn FnMut(&str),
-) -> Vec<u32> {
+) -> RefineLabels {
     let fixed = observed.label_votes.fixed(mesh.positions().len());
     let seg = segmentation_for(materials, fixed.is_some()).unwrap_or_default();
     progress("normal refinement: finding the materials first (a reflectance table each)");
@@ -962,10 +962,25 @@ pub fn material_labels(
         fixed.as_ref().map_or(&[][..], |f| &f.vertex[..]),
     );
     if found.count > 1 {
-        found.vertex_labels
+        RefineLabels {
+            vertex: found.vertex_labels,
+            chromaticity: found.chromaticity,
+            foreign_colour_rings: seg.foreign_colour_rings,
+        }
     } else {
-        Vec::new()
+        RefineLabels::default()
     }
+}
+
+/// The materials found before the normal refinement ([`material_labels`]): one label per
+/// vertex (empty: one material), and what the colour rule near their boundary needs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RefineLabels {
+    pub vertex: Vec<u32>,
+    /// Per material: its pixels' mean chromaticity (r, g, b shares).
+    pub chromaticity: Vec<[f64; 3]>,
+    /// The segmentation's `SegmentSettings::foreign_colour_rings` (0: the rule is off).
+    pub foreign_colour_rings: usize,
 }
 
 /// Refines the normals of a prepared scene from its images; when the refinement is accepted,
@@ -977,7 +992,7 @@ pub fn refine_prepared(
     pixels: Option<Vec<RefinePixel>>,
     observe: &ObserveSettings,
     settings: &RefineSettings,
-    labels: &[u32],
+    labels: &RefineLabels,
     progress: &mut dyn FnMut(&str),
 ) -> Vec<bool> {
     let t = Instant::now();
@@ -987,6 +1002,24 @@ pub fn refine_prepared(
         refine_pixels(scene, observe, settings.edge_margin_px)
     });
     let seen = seen_vertices(scene.mesh.faces(), &pixels, scene.mesh.positions().len());
+    // With the colour rule (a study knob, off by default): near the labels' boundary, a pixel
+    // of another material's colour pulls its labelled material's table, and the normals fitted
+    // through it, towards the other material (docs/materials.md, session 52).
+    let rule = settings
+        .foreign_colours
+        .then(|| {
+            ForeignColours::new(
+                &scene.mesh,
+                &labels.vertex,
+                &labels.chromaticity,
+                labels.foreign_colour_rings,
+            )
+        })
+        .flatten();
+    let (pixels, foreign_colour_pixels) = match &rule {
+        Some(rule) => without_foreign_colours(scene.mesh.faces(), pixels, &labels.vertex, rule),
+        None => (pixels, 0),
+    };
     let neighbours = scene.mesh.vertex_neighbours();
     let ks: Vec<usize> = settings
         .start_smoothing
@@ -1002,19 +1035,20 @@ pub fn refine_prepared(
             normals,
         })
         .collect();
-    let refinement = refine_normals(
+    let mut refinement = refine_normals(
         &MeshNormals {
             faces: scene.mesh.faces(),
             positions: scene.mesh.positions(),
             normals: scene.mesh.vertex_normals(),
             neighbours: &neighbours,
             starts: &starts,
-            labels,
+            labels: &labels.vertex,
         },
         &pixels,
         settings,
         progress,
     );
+    refinement.report.foreign_colour_pixels = foreign_colour_pixels;
     prepared
         .timings
         .push(("refine normals".to_string(), t.elapsed().as_secs_f64()));

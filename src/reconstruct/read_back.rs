@@ -209,6 +209,9 @@ struct RefineSettingsMirror {
     /// Absent in reports written before it existed (every surface pixel entered).
     #[serde(default)]
     edge_margin_px: usize,
+    /// Absent in reports written before it existed (every pixel entered).
+    #[serde(default)]
+    foreign_colours: bool,
     /// Absent in reports written before it existed (the normals were the unknowns).
     #[serde(default)]
     depth: bool,
@@ -287,6 +290,9 @@ struct RefineReportMirror {
     table_bins: TableBins,
     #[serde(default)]
     table_samples_per_cell: Option<f64>,
+    /// Absent in reports written before the colour rule reached the refinement: none.
+    #[serde(default)]
+    foreign_colour_pixels: usize,
 }
 
 fn one() -> usize {
@@ -386,6 +392,7 @@ mod tests {
             materials: 2,
             table_bins: table_bins_before_session_40(),
             table_samples_per_cell: Some(1.3),
+            foreign_colour_pixels: 7,
         });
     }
 
@@ -436,6 +443,7 @@ mod tests {
             materials: 1,
             table_bins: RefineSettings::default().table_bins,
             table_samples_per_cell: Some(2.5),
+            foreign_colour_pixels: 0,
         };
         let mut json = serde_json::to_value(&report).unwrap();
         let o = json.as_object_mut().unwrap();

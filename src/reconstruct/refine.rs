@@ -59,6 +59,7 @@
 mod depth;
 
 use super::observe::Observation;
+use super::segment::ForeignColours;
 use crate::render::frame::ShadingFrame;
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -81,6 +82,9 @@ pub struct RefinePixel {
     pub view: Vector3<f64>,
     /// `I_c / E_c`: what `f_c cos theta_i` must equal, summed over the channels.
     pub target: f64,
+    /// The observation's reflectance per channel, for the colour rule near the labels'
+    /// boundary ([`without_foreign_colours`]).
+    pub colour: [f32; 3],
 }
 
 impl RefinePixel {
@@ -98,6 +102,7 @@ impl RefinePixel {
             light: o.light,
             view: o.view,
             target: (0..3).map(|c| o.radiance[c] / o.irradiance[c]).sum(),
+            colour: o.reflectance.map(|c| c as f32),
         }
     }
 }
@@ -178,6 +183,12 @@ pub struct RefineSettings {
     /// silhouette or a cast shadow's edge, where a mesh whose positions are off by a little
     /// sees background or shadow) do not enter the refinement (`prepare::refine_pixels`).
     pub edge_margin_px: usize,
+    /// With several materials, leave out of the refinement a pixel near the labels' boundary
+    /// whose colour is another material's (`reconstruct::segment`'s colour rule with the
+    /// segmentation's rings; [`without_foreign_colours`]). A study knob, off by default:
+    /// measured in session 52 and not adopted (docs/materials.md, "The colour rule in the
+    /// normal refinement").
+    pub foreign_colours: bool,
     /// The unknowns: false, two tangent angles per vertex normal; true, one displacement per
     /// vertex along its normal, the normals following from the displaced positions
     /// (`refine_depth`; the mesh's positions are needed).
@@ -226,6 +237,7 @@ impl Default for RefineSettings {
             min_samples_per_cell: 2.0,
             start_smoothing: vec![0, 2, 4, 8, 16],
             edge_margin_px: 1,
+            foreign_colours: false,
             depth: true,
             depth_sigma_edges: 0.5,
             depth_sweeps: 1,
@@ -288,6 +300,10 @@ pub struct RefineReport {
     /// that chose it (`None` when the refinement stopped before choosing).
     pub table_bins: TableBins,
     pub table_samples_per_cell: Option<f64>,
+    /// Pixels left out before the refinement because their colour is another material's near
+    /// the labels' boundary (`RefineSettings::foreign_colours`), not counted in
+    /// `pixels_offered`.
+    pub foreign_colour_pixels: usize,
 }
 
 /// The normals to use and what was done.
@@ -340,6 +356,44 @@ fn pixel_groups(faces: &[[u32; 3]], pixels: &[RefinePixel], labels: &[u32]) -> (
         .collect();
     let count = groups.iter().max().map_or(1, |m| *m as usize + 1);
     (groups, count)
+}
+
+/// The pixels whose colour is their own material's: of each material's pixels (by
+/// [`pixel_groups`]' corner rule), those `rule` calls foreign are left out, unless the material
+/// would keep fewer than half of its pixels (as the fits' rule, `segment::drop_foreign_colours`).
+/// Returns the pixels kept, in order, and how many were left out. Pure.
+pub fn without_foreign_colours(
+    faces: &[[u32; 3]],
+    pixels: Vec<RefinePixel>,
+    labels: &[u32],
+    rule: &ForeignColours,
+) -> (Vec<RefinePixel>, usize) {
+    let (groups, count) = pixel_groups(faces, &pixels, labels);
+    let foreign: Vec<bool> = pixels
+        .iter()
+        .zip(&groups)
+        .map(|(p, &g)| rule.is_foreign(p.face, g as usize, p.colour.map(f64::from)))
+        .collect();
+    let mut all = vec![0usize; count];
+    let mut gone = vec![0usize; count];
+    for (&g, &f) in groups.iter().zip(&foreign) {
+        all[g as usize] += 1;
+        gone[g as usize] += usize::from(f);
+    }
+    let drops: Vec<bool> = all
+        .iter()
+        .zip(&gone)
+        .map(|(&a, &d)| (a - d) * 2 >= a)
+        .collect();
+    let before = pixels.len();
+    let kept: Vec<RefinePixel> = pixels
+        .into_iter()
+        .zip(groups.iter().zip(&foreign))
+        .filter(|(_, (g, f))| !(**f && drops[**g as usize]))
+        .map(|(p, _)| p)
+        .collect();
+    let left_out = before - kept.len();
+    (kept, left_out)
 }
 
 /// Vertices that at least one pixel shows.
@@ -1443,6 +1497,7 @@ pub fn refine_normals(
         materials: 1,
         table_bins: settings.table_bins,
         table_samples_per_cell: None,
+        foreign_colour_pixels: 0,
     };
     let refuse = |mut report: RefineReport, why: String| {
         report.reason = why;
@@ -1801,6 +1856,7 @@ mod tests {
                         light: l,
                         view: v,
                         target: brdf(lobe, &n, &l, &v) * ci,
+                        colour: [1.0; 3],
                     });
                 }
             }
@@ -1959,6 +2015,7 @@ mod tests {
             light: Vector3::z(),
             view: Vector3::z(),
             target: 1.0,
+            colour: [1.0; 3],
         };
         let pixels = [
             px(0, [0.6, 0.2, 0.2]),
@@ -1971,6 +2028,65 @@ mod tests {
             (vec![0, 1, 0, 0], 2)
         );
         assert_eq!(pixel_groups(&faces, &pixels, &[]), (vec![0; 4], 1));
+    }
+
+    #[test]
+    fn pixels_of_another_materials_colour_near_the_boundary_do_not_enter() {
+        // Red where x < 0.2, blue beyond; the labels put the boundary at x = 0, so the red
+        // pixels between 0 and 0.2 are labelled blue.
+        let mesh = sphere(16, 24);
+        let p = mesh.positions();
+        let labels: Vec<u32> = p.iter().map(|v| u32::from(v.x > 0.0)).collect();
+        let (red, blue) = ([0.8f32, 0.1, 0.1], [0.1f32, 0.1, 0.8]);
+        let chroma = |c: [f32; 3]| c.map(|x| f64::from(x / c.iter().sum::<f32>()));
+        let pixels: Vec<RefinePixel> = (0..mesh.faces().len())
+            .map(|f| {
+                let bary = [0.6f32, 0.2, 0.2];
+                let c = mesh.faces()[f].map(|v| p[v as usize]);
+                let x = 0.6 * c[0].x + 0.2 * c[1].x + 0.2 * c[2].x;
+                RefinePixel {
+                    image: 0,
+                    face: f as u32,
+                    bary,
+                    sign: 1.0,
+                    light: Vector3::z(),
+                    view: Vector3::z(),
+                    target: 1.0,
+                    colour: if x < 0.2 { red } else { blue },
+                }
+            })
+            .collect();
+        let (groups, _) = pixel_groups(mesh.faces(), &pixels, &labels);
+        let red_in_blue = pixels
+            .iter()
+            .zip(&groups)
+            .filter(|(px, g)| **g == 1 && px.colour == red)
+            .count();
+        assert!(
+            red_in_blue > 0,
+            "the labels' offset puts red pixels in blue"
+        );
+        let means = [chroma(red), chroma(blue)];
+        let rule = ForeignColours::new(&mesh, &labels, &means, 3).expect("two materials");
+        let (kept, left_out) =
+            without_foreign_colours(mesh.faces(), pixels.clone(), &labels, &rule);
+        assert_eq!(left_out, red_in_blue);
+        assert_eq!(kept.len(), pixels.len() - red_in_blue);
+        let (kept_groups, _) = pixel_groups(mesh.faces(), &kept, &labels);
+        assert!(
+            kept.iter()
+                .zip(&kept_groups)
+                .all(|(px, &g)| (g == 0) == (px.colour == red)),
+            "every pixel kept is its material's colour"
+        );
+        // no rings, or one material: no rule
+        assert!(ForeignColours::new(&mesh, &labels, &means, 0).is_none());
+        assert!(ForeignColours::new(&mesh, &labels, &means[..1], 3).is_none());
+        // a material that would lose most of its pixels keeps them all (colours swapped)
+        let swapped = [chroma(blue), chroma(red)];
+        let rule = ForeignColours::new(&mesh, &labels, &swapped, 20).expect("two materials");
+        let (all, none) = without_foreign_colours(mesh.faces(), pixels.clone(), &labels, &rule);
+        assert_eq!((all.len(), none), (pixels.len(), 0));
     }
 
     #[test]
@@ -2208,6 +2324,7 @@ mod tests {
             light: Vector3::z(),
             view: Vector3::z(),
             target: 1.0,
+            colour: [1.0; 3],
         };
         let mut px: Vec<RefinePixel> = (0..12).map(|j| p(0, 7, j as f32 / 11.0)).collect();
         px.extend((0..2).map(|j| p(0, 8, j as f32)));

@@ -300,36 +300,14 @@ pub fn drop_foreign_colours(
     chromaticity: &[[f64; 3]],
     rings: usize,
 ) -> Vec<usize> {
-    if rings == 0 || chromaticity.len() < 2 {
+    let Some(rule) = ForeignColours::new(mesh, vertex_labels, chromaticity, rings) else {
         return vec![0; groups.len()];
-    }
-    let ring = rings_from_boundary(mesh, vertex_labels, rings);
-    let near = |o: &Observation| {
-        mesh.faces().get(o.face as usize).is_some_and(|f| {
-            f.iter()
-                .any(|&v| ring.get(v as usize).is_some_and(|&r| r < rings))
-        })
     };
-    let dist2 = |c: &[f64; 3], m: &[f64; 3]| (0..3).map(|i| (c[i] - m[i]).powi(2)).sum::<f64>();
     groups
         .iter_mut()
         .enumerate()
         .map(|(l, g)| {
-            let Some(own) = chromaticity.get(l) else {
-                return 0;
-            };
-            let own_colour = |o: &Observation| {
-                let t: f64 = o.reflectance.iter().sum();
-                if !near(o) || !t.is_finite() || t <= 0.0 {
-                    return true;
-                }
-                let c = o.reflectance.map(|x| x / t);
-                let d = dist2(&c, own);
-                chromaticity
-                    .iter()
-                    .enumerate()
-                    .all(|(m, other)| m == l || dist2(&c, other) >= d)
-            };
+            let own_colour = |o: &Observation| !rule.is_foreign(o.face, l, o.reflectance);
             let kept = g.iter().filter(|o| own_colour(o)).count();
             if kept * 2 < g.len() {
                 return 0;
@@ -339,6 +317,61 @@ pub fn drop_foreign_colours(
             before - kept
         })
         .collect()
+}
+
+/// The rule of [`drop_foreign_colours`] for one pixel at a time: a pixel of material `label`
+/// on a face with a corner fewer than `rings` rings from the labels' boundary whose
+/// chromaticity lies nearer another material's mean than its own. Shared by the fits and the
+/// normal refinement's reflectance tables (`reconstruct::prepare`). Pure.
+pub struct ForeignColours<'a> {
+    mesh: &'a Mesh,
+    ring: Vec<usize>,
+    rings: usize,
+    chromaticity: &'a [[f64; 3]],
+}
+
+impl<'a> ForeignColours<'a> {
+    /// `None` when the rule cannot apply (`rings` 0, or fewer than two materials).
+    pub fn new(
+        mesh: &'a Mesh,
+        vertex_labels: &[u32],
+        chromaticity: &'a [[f64; 3]],
+        rings: usize,
+    ) -> Option<Self> {
+        if rings == 0 || chromaticity.len() < 2 {
+            return None;
+        }
+        Some(Self {
+            mesh,
+            ring: rings_from_boundary(mesh, vertex_labels, rings),
+            rings,
+            chromaticity,
+        })
+    }
+
+    /// Whether a pixel of material `label` seen on `face` with `reflectance` (r, g, b) carries
+    /// another material's colour near the boundary. A pixel of no colour (non-positive or not
+    /// finite) or of a material without a mean is never foreign.
+    pub fn is_foreign(&self, face: u32, label: usize, reflectance: [f64; 3]) -> bool {
+        let Some(own) = self.chromaticity.get(label) else {
+            return false;
+        };
+        let near = self.mesh.faces().get(face as usize).is_some_and(|f| {
+            f.iter()
+                .any(|&v| self.ring.get(v as usize).is_some_and(|&r| r < self.rings))
+        });
+        let t: f64 = reflectance.iter().sum();
+        if !near || !t.is_finite() || t <= 0.0 {
+            return false;
+        }
+        let c = reflectance.map(|x| x / t);
+        let dist2 = |m: &[f64; 3]| (0..3).map(|i| (c[i] - m[i]).powi(2)).sum::<f64>();
+        let d = dist2(own);
+        self.chromaticity
+            .iter()
+            .enumerate()
+            .any(|(m, other)| m != label && dist2(other) < d)
+    }
 }
 
 /// Per vertex, the rings of edges between it and the nearest vertex with a neighbour of

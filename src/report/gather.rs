@@ -490,7 +490,18 @@ fn table_text(n: &RefineReport) -> String {
             fmt_num(s.min_samples_per_cell)
         ),
     };
-    format!("{} (theta_h x theta_d x phi_d): {why}", n.table_bins)
+    let foreign = if n.foreign_colour_pixels > 0 {
+        format!(
+            "; {} pixels of another material's colour near the labels' boundary left out",
+            n.foreign_colour_pixels
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "{} (theta_h x theta_d x phi_d): {why}{foreign}",
+        n.table_bins
+    )
 }
 
 /// `comparisons` of report.json, with their panels embedded.
