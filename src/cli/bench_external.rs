@@ -42,6 +42,11 @@ pub struct BenchExternalArgs {
     /// near the labels' boundary (`reconstruct --refine-colour-rule`).
     #[arg(long)]
     pub refine_colour_rule: bool,
+    /// Study knob: every scene reconstructed with `--materials auto` (as the scenes of several
+    /// materials are) with this many passes moving the labels' boundary
+    /// (`reconstruct --relabel-passes`).
+    #[arg(long, value_parser = super::ranges::int_in(0usize, 10))]
+    pub relabel_passes: Option<usize>,
     /// Reconstruction seeds (trials and held-out folds): each job runs once per seed.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub seeds: Vec<u64>,
@@ -107,9 +112,12 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     if let Some(m) = a.held_out {
         settings.core.ladder.metric = m;
     }
+    if let Some(passes) = a.relabel_passes {
+        settings.materials = Some(segment_settings(passes));
+    }
     a.knobs.overrides().apply(&mut settings.core);
     let command = format!(
-        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{} --out {}",
+        "cargo run --release -- bench external --scenes {} --jobs {} --seeds {} --bin-step {}{}{}{}{}{} --out {}",
         a.scenes.display(),
         a.jobs.join(","),
         a.seeds
@@ -125,6 +133,8 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
         a.held_out
             .map_or(String::new(), |m| format!(" --held-out {}", metric_name(m))),
         a.knobs.args(),
+        a.relabel_passes
+            .map_or(String::new(), |r| format!(" --relabel-passes {r}")),
         a.out.display()
     );
     let options = ExternalBenchOptions {
@@ -140,4 +150,12 @@ pub fn run(a: BenchExternalArgs) -> anyhow::Result<ExitCode> {
     let bench = external::run(&options, &mut super::bench_notes::printer())?;
     outln!("{}", bench.markdown);
     Ok(ExitCode::SUCCESS)
+}
+
+/// The default segmentation with `passes` of the boundary's relabelling.
+fn segment_settings(passes: usize) -> brdf_rig::reconstruct::segment::SegmentSettings {
+    brdf_rig::reconstruct::segment::SegmentSettings {
+        relabel_passes: passes,
+        ..Default::default()
+    }
 }

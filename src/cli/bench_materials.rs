@@ -50,6 +50,10 @@ pub struct BenchMaterialsArgs {
     /// library's).
     #[arg(long, value_parser = int_in(0usize, 20))]
     pub foreign_colour_rings: Option<usize>,
+    /// Passes moving the labels' boundary by each boundary vertex's own pixels
+    /// (`reconstruct --relabel-passes`; default: the library's).
+    #[arg(long, value_parser = int_in(0usize, 10))]
+    pub relabel_passes: Option<usize>,
     /// Refine the SfM-like mesh's normals from the images before finding the materials, as
     /// `reconstruct` does by default (`--no-refine-normals`: not); the baselines are fitted to
     /// the unrefined pixels.
@@ -106,7 +110,10 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
             .unwrap_or_default(),
         a.foreign_colour_rings
             .map(|r| format!(" --foreign-colour-rings {r}"))
-            .unwrap_or_default(),
+            .unwrap_or_default()
+            + &a.relabel_passes
+                .map(|r| format!(" --relabel-passes {r}"))
+                .unwrap_or_default(),
         a.refine_unknowns
             .command_args(a.refine.on(), a.refine_colour_rule),
         if a.time_repeats > 1 {
@@ -135,6 +142,9 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         foreign_colour_rings: a
             .foreign_colour_rings
             .unwrap_or(SegmentSettings::default().foreign_colour_rings),
+        relabel_passes: a
+            .relabel_passes
+            .unwrap_or(SegmentSettings::default().relabel_passes),
         refine: a
             .refine_unknowns
             .settings(a.refine.on(), a.refine_colour_rule),

@@ -219,6 +219,11 @@ pub struct Args {
     /// (0: off; docs/materials.md, "Boundary pixels").
     #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().foreign_colour_rings, value_parser = int_in(0usize, 20))]
     pub foreign_colour_rings: usize,
+    /// With `--materials auto`: passes that move each vertex on the labels' boundary to the
+    /// neighbouring material its own pixels' colour and level are nearest (0: off;
+    /// docs/materials.md, "The labels' boundary moved by its own pixels").
+    #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().relabel_passes, value_parser = int_in(0usize, 10))]
+    pub relabel_passes: usize,
     /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
     /// "Cost at camera resolution"; slower and larger at camera resolutions).
     #[arg(long)]
@@ -483,6 +488,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             fit_interior_only: !args.keep_boundary_pixels,
             boundary_rings: args.boundary_rings,
             foreign_colour_rings: args.foreign_colour_rings,
+            relabel_passes: args.relabel_passes,
             ..Default::default()
         });
     }

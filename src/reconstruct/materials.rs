@@ -441,7 +441,12 @@ mod tests {
                 .remove("fit_interior_only")
                 .is_some()
         );
-        for key in ["merge_same_body", "boundary_rings", "foreign_colour_rings"] {
+        for key in [
+            "merge_same_body",
+            "boundary_rings",
+            "foreign_colour_rings",
+            "relabel_passes",
+        ] {
             assert!(
                 old["settings"]
                     .as_object_mut()
@@ -475,6 +480,8 @@ mod tests {
         assert_eq!(back.settings.boundary_rings, 0);
         assert_eq!(back.settings.foreign_colour_rings, 0);
         assert_ne!(SegmentSettings::default().foreign_colour_rings, 0);
+        // written before session 52: the labels' boundary as the smoothing left it
+        assert_eq!(back.settings.relabel_passes, 0);
         assert_eq!(back.materials[0].boundary_pixels, 0);
         assert_eq!(back.materials[0].observed_pixels, 10);
     }

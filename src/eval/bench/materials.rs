@@ -31,6 +31,9 @@ pub struct MaterialsBenchOptions {
     /// Rings of the labels' boundary within which pixels of another material's colour are
     /// left out (`SegmentSettings::foreign_colour_rings`).
     pub foreign_colour_rings: usize,
+    /// Passes moving the labels' boundary by its vertices' own pixels
+    /// (`SegmentSettings::relabel_passes`).
+    pub relabel_passes: usize,
     /// Refine the normals from the images first (`reconstruct --refine-normals`).
     pub refine: Option<crate::reconstruct::refine::RefineSettings>,
     /// Times each object's reconstructions this many times, keeping the least
@@ -81,6 +84,7 @@ pub fn run(
             fit_interior_only: !o.keep_boundary_pixels,
             boundary_rings: o.boundary_rings,
             foreign_colour_rings: o.foreign_colour_rings,
+            relabel_passes: o.relabel_passes,
             ..SegmentSettings::default()
         },
         seeds: o.seeds.max(1),
