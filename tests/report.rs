@@ -264,6 +264,7 @@ fn example_report(job: PathBuf) -> Report {
                 unresolved_lobe: false,
             }),
             peak_average: None,
+            rung_average: None,
             grazing_transfer: None,
             peak_energy: None,
             extrapolation: Vec::new(),

@@ -44,6 +44,10 @@ pub struct FitKnobs {
     /// tell from it, as `reconstruct --peak-average` (default: the library's 0.5; 0: never).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(1.0)))]
     pub peak_average: Option<f64>,
+    /// Whether the basis rungs within noise of the chosen one are averaged into a basis
+    /// result, as `reconstruct --rung-average` (default: the library's).
+    #[arg(long, action = clap::ArgAction::Set)]
+    pub rung_average: Option<bool>,
     /// Whether the written basis fit sees pixels carried to their row's centre, as
     /// `reconstruct --carry` (`difference`, the default, or `off`).
     #[arg(long, value_parser = super::reconstruct::parse_carry)]
@@ -105,6 +109,7 @@ impl FitKnobs {
             etas: self.etas.clone(),
             hedge: self.hedge,
             peak_average: self.peak_average,
+            rung_average: self.rung_average,
             carry: self.carry,
             deblur_deg: self.deblur,
             extrapolation: self.extrapolation.clone(),
@@ -140,6 +145,9 @@ impl FitKnobs {
         }
         if let Some(w) = self.peak_average {
             s += &format!(" --peak-average {w}");
+        }
+        if let Some(r) = self.rung_average {
+            s += &format!(" --rung-average {r}");
         }
         if let Some(c) = self.carry {
             s += &format!(" --carry {}", c.name());
@@ -195,6 +203,7 @@ mod tests {
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.25),
             peak_average: Some(0.75),
+            rung_average: Some(false),
             carry: Some(Carry::Difference),
             deblur: Some(3.0),
             extrapolation: Some(vec![0.7, 0.8]),
@@ -214,6 +223,7 @@ mod tests {
         assert_eq!(o.etas, Some(vec![0.01, 1.0]));
         assert_eq!(o.hedge, Some(0.25));
         assert_eq!(o.peak_average, Some(0.75));
+        assert_eq!(o.rung_average, Some(false));
         assert_eq!(o.carry, Some(Carry::Difference));
         assert_eq!(o.deblur_deg, Some(3.0));
         assert_eq!(o.extrapolation, Some(vec![0.7, 0.8]));
@@ -227,7 +237,7 @@ mod tests {
         assert_eq!(o.curvature_quantile, Some(0.9));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares --curvature-quantile 0.9"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --rung-average false --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares --curvature-quantile 0.9"
         );
     }
 }

@@ -125,6 +125,11 @@ pub struct Args {
     /// the basis + peak (0 to 1; 0: the basis alone). docs/reconstruction.md, stage 6.
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub peak_average: f64,
+    /// Where the model ladder chose the basis, average the basis rungs (components, ridge
+    /// weight) the held-out images cannot tell from it into the written table (`true` or
+    /// `false`). docs/reconstruction.md, stage 6.
+    #[arg(long, default_value_t = reconstruct::core::CoreSettings::default().rung_average, action = clap::ArgAction::Set)]
+    pub rung_average: bool,
     /// Carry each pixel to its basis row's centre before the written basis fit, its value
     /// times Lambert + GGX's ratio between the row's theta_d and phi_d and its own
     /// (`difference`, the default), or leave the pixels as they are (`off`). The model ladder
@@ -425,6 +430,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.plausible.theta_d_shape = args.unobserved;
     settings.core.hedge.strength = args.hedge;
     settings.core.peak_average = args.peak_average;
+    settings.core.rung_average = args.rung_average;
     settings.core.carry = args.carry;
     settings.core.ladder.basis_rung = args.basis_rung;
     settings.core.ladder.lambert_ggx_f0 = args.lambert_ggx_f0;

@@ -96,6 +96,13 @@ pub struct CoreSettings {
     /// before it existed.
     #[serde(default)]
     pub peak_average: f64,
+    /// Where the ladder chose the basis, the basis rungs (k, eta) within noise of the chosen
+    /// one both ways (`Ladder::basis_within_noise`), each fitted to the chosen trial's samples
+    /// and made plausible, are averaged geometrically with it, in equal weights: the held-out
+    /// images cannot rank them, and their extrapolations differ (docs/evaluation.md 1am).
+    /// Off in reports written before it existed.
+    #[serde(default)]
+    pub rung_average: bool,
     /// Keep the final fit of every family, not only the chosen one (studies compare them with
     /// the truth; costs one more analytic peak fit).
     pub keep_alternatives: bool,
@@ -152,6 +159,7 @@ impl Default for CoreSettings {
             plausible: PlausibleSettings::default(),
             hedge: HedgeSettings::default(),
             peak_average: 0.5,
+            rung_average: false,
             keep_alternatives: false,
             keep_trial_fits: false,
             carry: Carry::Difference,
@@ -618,6 +626,31 @@ pub fn reconstruct_observations(
         )
     };
     let (mut table, mut plausibility) = plausible_of(brdf.as_ref());
+    // The basis rungs the held-out images cannot tell from the chosen one, averaged in
+    // (equal weights, geometric: the running mean's weight on the n-th is 1 / n).
+    if family == Family::Basis
+        && settings.rung_average
+        && eta > 0.0
+        && let Some(l) = ladder.as_ref()
+        && let Some(f) = fits[chosen].as_ref()
+    {
+        let mut n = 1usize;
+        for (k2, eta2) in l.basis_within_noise(&settings.ladder) {
+            if let Some(c) = f.tabulate_at(trial_prior, k2, eta2 / eta) {
+                let (other, _) = plausible_of(c.as_ref());
+                n += 1;
+                blend_into(&mut table, &other, 1.0 / n as f64);
+            }
+        }
+        plausibility.max_albedo_after = albedo_curve(&table).into_iter().fold(0.0, f64::max);
+        plausibility.rung_average = Some(n);
+        if n > 1 {
+            reason = format!(
+                "{reason}; {} other basis rung(s) within noise of it both ways averaged in                  (geometrically, equal weights)",
+                n - 1
+            );
+        }
+    }
     if prior_model.is_some() && settings.grazing_transfer > 0.0 {
         plausibility.grazing_transfer = Some(settings.grazing_transfer.min(1.0));
     }
@@ -1142,6 +1175,46 @@ mod tests {
             .map(|t| t.similarity)
             .fold(f64::MIN, f64::max);
         assert_eq!(out.trials[out.chosen_trial].similarity, best);
+    }
+
+    /// Where the basis is chosen, the rungs within noise of it are averaged in, as many as
+    /// the ladder says, and the table moves exactly when there were some; off, nothing is.
+    #[test]
+    fn the_basis_rungs_within_noise_are_averaged_in_and_reported() {
+        let obs = scene();
+        let with = |rung_average: bool| {
+            let mut settings = CoreSettings {
+                model: ModelSelection::Only(Family::Basis),
+                rung_average,
+                ..CoreSettings::default()
+            };
+            settings.trials.trials = 3;
+            settings.trials.samples = 12;
+            let out = reconstruct_observations(&obs, &CosinePrior { k: 3 }, &settings, &mut |_| {})
+                .expect("reconstructs");
+            (out, settings)
+        };
+        let (off, _) = with(false);
+        let (on, settings) = with(true);
+        assert_eq!(off.plausibility.rung_average, None);
+        let ladder = on.ladder.as_ref().expect("the ladder ran");
+        assert_eq!(ladder.chosen().family, Family::Basis);
+        let within = ladder.basis_within_noise(&settings.ladder);
+        assert_eq!(on.plausibility.rung_average, Some(within.len() + 1));
+        assert!(
+            !within.is_empty(),
+            "this scene's rungs fit it alike: {:?}",
+            ladder.rungs
+        );
+        let moved = (0..crate::brdf::coords::MERL_BINS)
+            .step_by(7)
+            .any(|i| on.table.get(i) != off.table.get(i));
+        assert!(moved, "the average moved the table");
+        assert!(
+            on.model.reason.contains("averaged in"),
+            "{}",
+            on.model.reason
+        );
     }
 
     #[test]

@@ -440,6 +440,28 @@ impl Ladder {
         })
     }
 
+    /// The basis rungs `(k, eta)` other than the chosen one that lie within noise of it both
+    /// ways (neither beyond noise better under `settings`' held-out error); empty unless the
+    /// basis was chosen.
+    pub fn basis_within_noise(&self, settings: &LadderSettings) -> Vec<(usize, f64)> {
+        let b = self.chosen();
+        if b.family != Family::Basis {
+            return Vec::new();
+        }
+        let n = settings.noise();
+        self.rungs
+            .iter()
+            .enumerate()
+            .filter(|(i, r)| *i != self.chosen && r.family == Family::Basis)
+            .filter(|(_, r)| {
+                in_every_space(settings.metric, r, b, |r, b| {
+                    within_noise(r, b, n) && within_noise(b, r, n)
+                })
+            })
+            .filter_map(|(_, r)| Some((r.k?, r.eta?)))
+            .collect()
+    }
+
     /// Chooses again among the analytic rungs only, by the same metric and rule, when the
     /// basis rungs cannot be trusted (`why`, which leads the new reason). False, and nothing
     /// changed, when no analytic rung was scored.

@@ -22,6 +22,7 @@ pub struct CoreOverrides {
     pub etas: Option<Vec<f64>>,
     pub hedge: Option<f64>,
     pub peak_average: Option<f64>,
+    pub rung_average: Option<bool>,
     pub carry: Option<Carry>,
     /// The RMS normal tilt (degrees) the written basis fit is deblurred for.
     pub deblur_deg: Option<f64>,
@@ -66,6 +67,9 @@ impl CoreOverrides {
         }
         if let Some(w) = self.peak_average {
             core.peak_average = w;
+        }
+        if let Some(r) = self.rung_average {
+            core.rung_average = r;
         }
         if let Some(c) = self.carry {
             core.carry = c;
@@ -119,6 +123,7 @@ mod tests {
             etas: Some(vec![0.01, 1.0]),
             hedge: Some(0.0),
             peak_average: Some(0.25),
+            rung_average: Some(!CoreSettings::default().rung_average),
             carry: Some(Carry::Off),
             deblur_deg: Some(3.0),
             extrapolation: Some(vec![0.8]),
@@ -138,6 +143,7 @@ mod tests {
         assert_eq!(core.components.etas, vec![0.01, 1.0]);
         assert_eq!(core.hedge.strength, 0.0);
         assert_eq!(core.peak_average, 0.25);
+        assert_eq!(core.rung_average, !CoreSettings::default().rung_average);
         assert_eq!(core.carry, Carry::Off);
         assert_eq!(core.deblur_deg, 3.0);
         assert_eq!(core.extrapolation.quantiles, vec![0.8]);

@@ -125,6 +125,11 @@ pub struct Plausibility {
     /// where it was not done and in reports written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peak_average: Option<f64>,
+    /// How many basis rungs were averaged into the written table, the chosen one included
+    /// (`CoreSettings::rung_average`; absent where it was not done and in reports written
+    /// before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rung_average: Option<usize>,
     /// The carried value's weight in the grazing peak cells (`reconstruct::grazing`; absent
     /// where it was not done and in reports written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -337,6 +342,7 @@ pub fn make_plausible_shaped(
         prior: prior.map_or_else(|| "none".to_string(), |(_, name)| name.to_string()),
         hedge: None,
         peak_average: None,
+        rung_average: None,
         grazing_transfer: None,
         peak_energy: None,
         extrapolation: Vec::new(),

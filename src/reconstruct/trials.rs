@@ -337,6 +337,17 @@ impl TrialFit<'_> {
     pub fn tabulate(&self, prior: &dyn Prior) -> Option<Box<dyn Candidate>> {
         prior.fit(&self.samples, self.k, self.eta).ok()
     }
+
+    /// The same samples fitted at `k` components and the ridge weight times `eta_factor`,
+    /// tabulated by the prior.
+    pub fn tabulate_at(
+        &self,
+        prior: &dyn Prior,
+        k: usize,
+        eta_factor: f64,
+    ) -> Option<Box<dyn Candidate>> {
+        prior.fit(&self.samples, k, self.eta * eta_factor).ok()
+    }
 }
 
 /// The observations' bins, each basis row once: a fit of the prior has one value per row
