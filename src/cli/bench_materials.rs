@@ -50,8 +50,8 @@ pub struct BenchMaterialsArgs {
     /// library's).
     #[arg(long, value_parser = int_in(0usize, 20))]
     pub foreign_colour_rings: Option<usize>,
-    /// Passes moving the labels' boundary by each boundary vertex's own pixels
-    /// (`reconstruct --relabel-passes`; default: the library's).
+    /// Study knob: passes moving the labels' boundary by each boundary vertex's own pixels
+    /// (`reconstruct --relabel-passes`; default: the library's, 0).
     #[arg(long, value_parser = int_in(0usize, 10))]
     pub relabel_passes: Option<usize>,
     /// Refine the SfM-like mesh's normals from the images before finding the materials, as

@@ -125,9 +125,10 @@ pub struct Args {
     /// the basis + peak (0 to 1; 0: the basis alone). docs/reconstruction.md, stage 6.
     #[arg(long, default_value_t = 0.5, value_parser = real_in(Closed(0.0), Closed(1.0)))]
     pub peak_average: f64,
-    /// Where the model ladder chose the basis, average the basis rungs (components, ridge
-    /// weight) the held-out images cannot tell from it into the written table (`true` or
-    /// `false`). docs/reconstruction.md, stage 6.
+    /// Study knob: where the model ladder chose the basis, average the basis rungs
+    /// (components, ridge weight) the held-out images cannot tell from it into the written
+    /// table (`true` or `false`; off by default: measured and not adopted, docs/evaluation.md
+    /// section 1am).
     #[arg(long, default_value_t = reconstruct::core::CoreSettings::default().rung_average, action = clap::ArgAction::Set)]
     pub rung_average: bool,
     /// Carry each pixel to its basis row's centre before the written basis fit, its value
@@ -224,9 +225,10 @@ pub struct Args {
     /// (0: off; docs/materials.md, "Boundary pixels").
     #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().foreign_colour_rings, value_parser = int_in(0usize, 20))]
     pub foreign_colour_rings: usize,
-    /// With `--materials auto`: passes that move each vertex on the labels' boundary to the
-    /// neighbouring material its own pixels' colour and level are nearest (0: off;
-    /// docs/materials.md, "The labels' boundary moved by its own pixels").
+    /// Study knob, with `--materials auto`: passes that move each vertex on the labels'
+    /// boundary to the neighbouring material its own pixels' colour and level are nearest (0,
+    /// the default: off; measured and not adopted, docs/materials.md, "The labels' boundary
+    /// moved by its own pixels").
     #[arg(long, default_value_t = reconstruct::segment::SegmentSettings::default().relabel_passes, value_parser = int_in(0usize, 10))]
     pub relabel_passes: usize,
     /// Observe every pixel: no reduction of redundant pixels (docs/reconstruction.md,
@@ -311,15 +313,15 @@ impl RefineUnknownsArg {
     /// The flags as typed, for a bench's quoted command (only what is not the default:
     /// `--no-refine-normals`, `--refine-unknowns` other than depth, `--refine-colour-rule`).
     pub fn command_args(self, refine: bool, colour_rule: bool) -> String {
-        let every = if refine && colour_rule {
+        let rule = if refine && colour_rule {
             " --refine-colour-rule"
         } else {
             ""
         };
         match (refine, self) {
             (false, _) => " --no-refine-normals".into(),
-            (true, Self::Depth) => every.into(),
-            (true, u) => format!(" --refine-unknowns {}{every}", u.name()),
+            (true, Self::Depth) => rule.into(),
+            (true, u) => format!(" --refine-unknowns {}{rule}", u.name()),
         }
     }
 }

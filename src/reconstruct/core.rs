@@ -646,7 +646,8 @@ pub fn reconstruct_observations(
         plausibility.rung_average = Some(n);
         if n > 1 {
             reason = format!(
-                "{reason}; {} other basis rung(s) within noise of it both ways averaged in                  (geometrically, equal weights)",
+                "{reason}; {} other basis rung(s) within noise of it both ways averaged in \
+                 (geometrically, equal weights)",
                 n - 1
             );
         }
@@ -1211,7 +1212,7 @@ mod tests {
             .any(|i| on.table.get(i) != off.table.get(i));
         assert!(moved, "the average moved the table");
         assert!(
-            on.model.reason.contains("averaged in"),
+            on.model.reason.contains("averaged in (geometrically"),
             "{}",
             on.model.reason
         );

@@ -106,8 +106,10 @@ pub struct SegmentSettings {
     #[serde(default)]
     pub foreign_colour_rings: usize,
     /// Passes of [`relabel_boundary`] over the chosen labels: each moves a boundary vertex
-    /// to the neighbouring material its own pixels' colour and level are nearest (0: off,
-    /// what a `materials.json` written before session 52 means).
+    /// to the neighbouring material its own pixels' colour and level are nearest (0: off, the
+    /// default and what a `materials.json` written before session 52 means; a study knob,
+    /// measured and not adopted: docs/materials.md, "The labels' boundary moved by its own
+    /// pixels").
     #[serde(default)]
     pub relabel_passes: usize,
 }
@@ -439,21 +441,10 @@ struct Features {
 }
 
 /// The features of the observations `keep` admits, each at its nearest corner (`corners`, in
-/// the order of `obs`): the pixels are read in their order, so a subset gives what the same
-/// pixels copied out would.
+/// the order of `obs`), each vertex's pixels pooled with its one-ring's (`pool`, what the
+/// labelling uses) or alone: the pixels are read in their order, so a subset gives what the
+/// same pixels copied out would.
 fn features(
-    mesh: &Mesh,
-    nb: &[Vec<u32>],
-    obs: &[Observation],
-    corners: &[Option<usize>],
-    keep: impl Fn(usize) -> bool,
-    settings: &SegmentSettings,
-) -> Features {
-    features_pooled(mesh, nb, obs, corners, keep, settings, true)
-}
-
-/// [`features`], each vertex's pixels pooled with its one-ring's (`pool`) or alone.
-fn features_pooled(
     mesh: &Mesh,
     nb: &[Vec<u32>],
     obs: &[Observation],
@@ -1099,13 +1090,13 @@ pub fn segment_with_labels(
         .collect();
     // The features depend on the pixels, not on the count: once for every pixel and once per
     // fold's training pixels.
-    let all_features = features(mesh, &nb, obs, &corners, |_| true, settings);
+    let all_features = features(mesh, &nb, obs, &corners, |_| true, settings, true);
     let fold_features: Vec<Features> = if folds < 2 {
         Vec::new()
     } else {
         (0..folds)
             .into_par_iter()
-            .map(|k| features(mesh, &nb, obs, &corners, |i| fold[i] != k, settings))
+            .map(|k| features(mesh, &nb, obs, &corners, |i| fold[i] != k, settings, true))
             .collect()
     };
     let mut scores = Vec::new();
@@ -1199,7 +1190,7 @@ pub fn segment_with_labels(
         .cloned()
         .unwrap_or((0, 1, vec![0; mesh.positions().len()]));
     if settings.relabel_passes > 0 && count > 1 {
-        let own = features_pooled(mesh, &nb, obs, &corners, |_| true, settings, false);
+        let own = features(mesh, &nb, obs, &corners, |_| true, settings, false);
         relabel_boundary(
             &own,
             &nb,
@@ -1465,7 +1456,7 @@ pub(crate) mod tests {
         }
         let settings = SegmentSettings::default();
         let corners: Vec<Option<usize>> = obs.iter().map(|o| nearest_corner(&mesh, o)).collect();
-        let f = features(&mesh, &nb, &obs, &corners, |_| true, &settings);
+        let f = features(&mesh, &nb, &obs, &corners, |_| true, &settings, true);
         let off = SegmentSettings {
             merge_same_body: false,
             ..settings
@@ -1672,7 +1663,7 @@ pub(crate) mod tests {
         let obs = scene(&mesh, &[red, blue], 4.5, 4);
         let corners: Vec<Option<usize>> = obs.iter().map(|o| nearest_corner(&mesh, o)).collect();
         let settings = SegmentSettings::default();
-        let own = features_pooled(&mesh, &nb, &obs, &corners, |_| true, &settings, false);
+        let own = features(&mesh, &nb, &obs, &corners, |_| true, &settings, false);
         let p = mesh.positions();
         let offset: Vec<u32> = p.iter().map(|v| u32::from(v.x > 3.5)).collect();
         let counted =
