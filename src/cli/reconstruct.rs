@@ -552,14 +552,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             r.mean_tilt_deg,
             r.max_tilt_deg,
             r.vertices_refined,
-            if r.foreign_colour_pixels > 0 {
-                format!(
-                    "; {} pixels of another material's colour near the boundary left out",
-                    r.foreign_colour_pixels
-                )
-            } else {
-                String::new()
-            }
+            r.foreign_colour_text()
+                .map_or(String::new(), |t| format!("; {t}"))
         );
     }
     let p = &output.report.plausibility;

@@ -306,6 +306,19 @@ pub struct RefineReport {
     pub foreign_colour_pixels: usize,
 }
 
+impl RefineReport {
+    /// "N pixels of another material's colour near the labels' boundary left out", when the
+    /// colour rule left any out (the CLI's line and the HTML report say it).
+    pub fn foreign_colour_text(&self) -> Option<String> {
+        (self.foreign_colour_pixels > 0).then(|| {
+            format!(
+                "{} pixels of another material's colour near the labels' boundary left out",
+                self.foreign_colour_pixels
+            )
+        })
+    }
+}
+
 /// The normals to use and what was done.
 pub struct Refinement {
     /// One per vertex: refined when accepted, else the mesh's.

@@ -490,14 +490,9 @@ fn table_text(n: &RefineReport) -> String {
             fmt_num(s.min_samples_per_cell)
         ),
     };
-    let foreign = if n.foreign_colour_pixels > 0 {
-        format!(
-            "; {} pixels of another material's colour near the labels' boundary left out",
-            n.foreign_colour_pixels
-        )
-    } else {
-        String::new()
-    };
+    let foreign = n
+        .foreign_colour_text()
+        .map_or(String::new(), |t| format!("; {t}"));
     format!(
         "{} (theta_h x theta_d x phi_d): {why}{foreign}",
         n.table_bins
