@@ -93,7 +93,7 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
         bail!("--objects: an empty material name (write e.g. green-latex+pink-fabric)");
     }
     let command = format!(
-        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{}{}{}{} --out {}",
+        "cargo run --release -- bench materials --objects {} {} --seeds {} --rigs {} --one-light-deg {} --max-materials {}{}{}{}{}{}{}{} --out {}",
         a.objects.join(","),
         a.common.command_args(),
         a.seeds,
@@ -110,10 +110,10 @@ pub fn run(a: BenchMaterialsArgs) -> anyhow::Result<ExitCode> {
             .unwrap_or_default(),
         a.foreign_colour_rings
             .map(|r| format!(" --foreign-colour-rings {r}"))
-            .unwrap_or_default()
-            + &a.relabel_passes
-                .map(|r| format!(" --relabel-passes {r}"))
-                .unwrap_or_default(),
+            .unwrap_or_default(),
+        a.relabel_passes
+            .map(|r| format!(" --relabel-passes {r}"))
+            .unwrap_or_default(),
         a.refine_unknowns
             .command_args(a.refine.on(), a.refine_colour_rule),
         if a.time_repeats > 1 {

@@ -393,7 +393,8 @@ pub fn without_foreign_colours(
         all[g as usize] += 1;
         gone[g as usize] += usize::from(f);
     }
-    let drops: Vec<bool> = all
+    // a material keeps every pixel when the rule would leave it fewer than half
+    let may_drop: Vec<bool> = all
         .iter()
         .zip(&gone)
         .map(|(&a, &d)| (a - d) * 2 >= a)
@@ -402,7 +403,7 @@ pub fn without_foreign_colours(
     let kept: Vec<RefinePixel> = pixels
         .into_iter()
         .zip(groups.iter().zip(&foreign))
-        .filter(|(_, (g, f))| !(**f && drops[**g as usize]))
+        .filter(|(_, (g, f))| !(**f && may_drop[**g as usize]))
         .map(|(p, _)| p)
         .collect();
     let left_out = before - kept.len();
