@@ -538,12 +538,24 @@ fn cli_refine_normals_reports_what_it_did() {
         "--refine-unknowns",
         "normals",
         "--refine-colour-rule",
+        "--peak-energy-bands",
+        "4",
     ]);
     let o = run_cli(&job.source, &free, &args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let normals = report_file::read(&free).unwrap().normals.unwrap();
+    let report = report_file::read(&free).unwrap();
+    // the study knob of the peak's factor per theta_d band reaches the core, off by default
+    assert_eq!(report.settings.core.peak_energy_bands, 4);
+    assert_eq!(
+        brdf_rig::reconstruct::core::CoreSettings::default().peak_energy_bands,
+        0
+    );
+    let normals = report.normals.unwrap();
     assert!(!normals.settings.depth);
     assert!(normals.settings.foreign_colours);
+    let o = run_cli(&job.source, &free, &["--peak-energy-bands", "9"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--peak-energy-bands"));
     let o = run_cli(
         &job.source,
         &free,

@@ -72,6 +72,10 @@ pub struct FitKnobs {
     /// patch sums, as `reconstruct --peak-energy` (default 1.5; 0 turns it off).
     #[arg(long, value_parser = super::ranges::real_in(super::ranges::Closed(0.0), super::ranges::Closed(10.0)))]
     pub peak_energy: Option<f64>,
+    /// Study knob: the peak's factor per band of theta_d, up to this many bands, as
+    /// `reconstruct --peak-energy-bands` (default 0: one factor; measured, not adopted).
+    #[arg(long, value_parser = super::ranges::int_in(0usize, 8))]
+    pub peak_energy_bands: Option<usize>,
     /// How the reported trial is chosen and the written basis fit made, as `reconstruct
     /// --choose`: `similarity` (the default), `pixel-error`, `mean` or `median`.
     #[arg(long, value_parser = super::reconstruct::parse_choice)]
@@ -116,6 +120,7 @@ impl FitKnobs {
             analytic_margin: self.analytic_margin,
             grazing_transfer: self.grazing_transfer,
             peak_energy: self.peak_energy,
+            peak_energy_bands: self.peak_energy_bands,
             choose: self.choose,
             basis_rung: self.basis_rung,
             lambert_ggx_f0: self.lambert_ggx_f0,
@@ -168,6 +173,9 @@ impl FitKnobs {
         if let Some(d) = self.peak_energy {
             s += &format!(" --peak-energy {d}");
         }
+        if let Some(n) = self.peak_energy_bands {
+            s += &format!(" --peak-energy-bands {n}");
+        }
         if let Some(c) = self.choose {
             s += &format!(" --choose {}", super::reconstruct::choice_name(c));
         }
@@ -210,6 +218,7 @@ mod tests {
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
             peak_energy: Some(1.0),
+            peak_energy_bands: Some(4),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
@@ -230,6 +239,7 @@ mod tests {
         assert_eq!(o.analytic_margin, Some(0.25));
         assert_eq!(o.grazing_transfer, Some(0.75));
         assert_eq!(o.peak_energy, Some(1.0));
+        assert_eq!(o.peak_energy_bands, Some(4));
         assert_eq!(o.choose, Some(TrialChoice::Median));
         assert_eq!(o.basis_rung, Some(BasisRung::Simplest));
         assert_eq!(o.lambert_ggx_f0, Some(F0Rule::Free));

@@ -183,6 +183,11 @@ pub struct Args {
     /// docs/reconstruction.md, stage 6; docs/evaluation.md sections 1ag and 1ai.
     #[arg(long, default_value_t = 1.5, value_parser = real_in(Closed(0.0), Closed(10.0)))]
     pub peak_energy: f64,
+    /// Study knob: fit the peak's factor (`--peak-energy`) per band of theta_d, up to this many
+    /// bands holding equal shares of the pixels' peak energy (0 to 8; 0 or 1: one factor, 0 by
+    /// default). Measured, not adopted: docs/evaluation.md section 1an.
+    #[arg(long, default_value_t = reconstruct::core::CoreSettings::default().peak_energy_bands, value_parser = int_in(0usize, 8))]
+    pub peak_energy_bands: usize,
     #[command(flatten)]
     pub refine: RefineSwitch,
     /// What the refinement moves: `depth` (one displacement per vertex along its normal, the
@@ -441,6 +446,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     settings.core.deblur_deg = args.deblur;
     settings.core.grazing_transfer = args.grazing_transfer;
     settings.core.peak_energy_deg = args.peak_energy;
+    settings.core.peak_energy_bands = args.peak_energy_bands;
     let r = &mut settings.core.reliable;
     r.use_curvature = !args.no_curvature;
     r.use_monotonicity = !args.no_monotonicity;
@@ -574,7 +580,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
              (--grazing-transfer)"
         );
     }
-    if let Some(e) = p.peak_energy {
+    if let Some(e) = &p.peak_energy {
         errln!("peak energy: {} (--peak-energy)", e.describe());
     }
     let confidence = &output.report.confidence;

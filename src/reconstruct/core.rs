@@ -138,6 +138,11 @@ pub struct CoreSettings {
     /// back with 0, as they were made.
     #[serde(default)]
     pub peak_energy_deg: f64,
+    /// Where 2 or more, the peak's factor is fitted per band of theta_d, up to this many
+    /// bands (`reconstruct::peak_bands`; 0, the default, and in reports written before: one
+    /// factor). Study knob, measured and not adopted: docs/evaluation.md section 1an.
+    #[serde(default)]
+    pub peak_energy_bands: usize,
     /// The theta_d extrapolation check (`reconstruct::extrapolation`). Off in reports written
     /// before it existed.
     #[serde(default = "ExtrapolationSettings::off")]
@@ -166,6 +171,7 @@ impl Default for CoreSettings {
             deblur_deg: 0.0,
             grazing_transfer: 0.0,
             peak_energy_deg: 1.5,
+            peak_energy_bands: 0,
             extrapolation: ExtrapolationSettings::off(),
         }
     }
@@ -681,10 +687,29 @@ pub fn reconstruct_observations(
         // every observed pixel: a patch's sum integrates the table only over all of its pixels
         let all: Vec<&Observation> = observations.iter().collect();
         let patch_px = super::ladder::patch_size(observations.iter(), &settings.ladder);
-        if let Some(fit) =
+        if let Some(mut fit) =
             super::peak_energy::fit_scale(&table, &all, patch_px, settings.peak_energy_deg)
         {
-            super::peak_energy::apply(&mut table, &fit, &super::peak_energy::theta_d_weights(&all));
+            let weights = super::peak_energy::theta_d_weights(&all);
+            // per theta_d band where asked for (reconstruct::peak_bands, a study knob)
+            fit.bands = (settings.peak_energy_bands >= 2)
+                .then(|| {
+                    super::peak_bands::fit_bands(
+                        &table,
+                        &all,
+                        patch_px,
+                        settings.peak_energy_deg,
+                        settings.peak_energy_bands,
+                        &fit,
+                    )
+                })
+                .flatten();
+            match &fit.bands {
+                Some(b) if b.applied => {
+                    super::peak_bands::apply(&mut table, b, settings.peak_energy_deg, &weights)
+                }
+                _ => super::peak_energy::apply(&mut table, &fit, &weights),
+            }
             let curve = albedo_curve(&table);
             let (curve, _) =
                 super::plausible::cap_albedo(&mut table, curve, settings.plausible.max_albedo);

@@ -44,6 +44,7 @@ pub mod observation;
 pub mod observe;
 pub mod output;
 pub mod overrides;
+pub mod peak_bands;
 pub mod peak_energy;
 pub mod plausible;
 pub mod prepare;

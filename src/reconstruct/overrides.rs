@@ -34,6 +34,8 @@ pub struct CoreOverrides {
     pub grazing_transfer: Option<f64>,
     /// The peak's theta_h extent (degrees) scaled to the patch sums (`reconstruct::peak_energy`).
     pub peak_energy: Option<f64>,
+    /// Up to this many theta_d bands of the peak's factor (`reconstruct::peak_bands`).
+    pub peak_energy_bands: Option<usize>,
     /// How the reported trial is chosen and the written basis fit made (`CoreSettings::choose`).
     pub choose: Option<TrialChoice>,
     /// Which basis rung the ladder writes once it took the basis family.
@@ -89,6 +91,9 @@ impl CoreOverrides {
         if let Some(d) = self.peak_energy {
             core.peak_energy_deg = d;
         }
+        if let Some(n) = self.peak_energy_bands {
+            core.peak_energy_bands = n;
+        }
         if let Some(c) = self.choose {
             core.choose = c;
         }
@@ -130,6 +135,7 @@ mod tests {
             analytic_margin: Some(0.25),
             grazing_transfer: Some(0.75),
             peak_energy: Some(2.0),
+            peak_energy_bands: Some(3),
             choose: Some(TrialChoice::Median),
             basis_rung: Some(BasisRung::Simplest),
             lambert_ggx_f0: Some(F0Rule::Free),
@@ -150,6 +156,7 @@ mod tests {
         assert_eq!(core.ladder.analytic_margin, 0.25);
         assert_eq!(core.grazing_transfer, 0.75);
         assert_eq!(core.peak_energy_deg, 2.0);
+        assert_eq!(core.peak_energy_bands, 3);
         assert_eq!(core.choose, TrialChoice::Median);
         assert_eq!(core.ladder.basis_rung, BasisRung::Simplest);
         assert_eq!(

@@ -29,13 +29,14 @@
 //! Pure: no I/O. Must not refit the model: it only rescales the written table's peak cells.
 
 use super::observe::Observation;
+use super::peak_bands::PeakBands;
 use crate::brdf::coords::{MerlBin, THETA_D_BINS};
 use crate::brdf::merl::MerlTable;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// What the step did, for `report.json`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PeakEnergy {
     /// The peak's cells: full factor below this theta_h (degrees), none beyond twice it.
     pub theta_deg: f64,
@@ -57,24 +58,39 @@ pub struct PeakEnergy {
     pub held_out_standard_error: f64,
     /// Images held out.
     pub images: usize,
+    /// The factors per band of theta_d, where asked for (`reconstruct::peak_bands`, a study
+    /// knob); where applied they replace `scale`. Absent in reports written before session 53.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bands: Option<PeakBands>,
 }
 
 impl PeakEnergy {
     /// What the step did, in words (the command line and the HTML report).
     pub fn describe(&self) -> String {
-        format!(
-            "peak cells below theta_h {:.1} deg {}; fitted to the images' patch sums {:.2}, \
-             held out one image at a time their patch error {:+.4} +- {:.4}",
-            self.theta_deg,
-            if self.scale == 1.0 {
-                "left as fitted".to_string()
-            } else {
-                format!("scaled by {:.2}", self.scale)
-            },
-            self.fitted,
-            self.held_out_change,
-            self.held_out_standard_error
-        )
+        let one = format!(
+            "fitted to the images' patch sums {:.2}, held out one image at a time their patch \
+             error {:+.4} +- {:.4}",
+            self.fitted, self.held_out_change, self.held_out_standard_error
+        );
+        match &self.bands {
+            Some(b) if b.applied => format!(
+                "peak cells below theta_h {:.1} deg scaled {} (one factor {one}, not applied)",
+                self.theta_deg,
+                b.describe()
+            ),
+            _ => format!(
+                "peak cells below theta_h {:.1} deg {}; {one}{}",
+                self.theta_deg,
+                if self.scale == 1.0 {
+                    "left as fitted".to_string()
+                } else {
+                    format!("scaled by {:.2}", self.scale)
+                },
+                self.bands
+                    .as_ref()
+                    .map_or(String::new(), |b| format!("; {}", b.describe()))
+            ),
+        }
     }
 }
 
@@ -113,7 +129,7 @@ pub fn theta_d_weights(obs: &[&Observation]) -> Vec<f64> {
 }
 
 /// The weight of a bin in the peak (1 below `theta_deg`, 0 from twice it).
-fn peak_weight(bin: usize, theta_deg: f64) -> f64 {
+pub(super) fn peak_weight(bin: usize, theta_deg: f64) -> f64 {
     let Some(b) = MerlBin::from_index(bin) else {
         return 0.0;
     };
@@ -243,6 +259,7 @@ pub fn fit_scale(
         held_out_change: mean,
         held_out_standard_error: standard_error,
         images: diffs.len(),
+        bands: None,
     })
 }
 
@@ -408,6 +425,7 @@ mod tests {
             held_out_change: -0.1,
             held_out_standard_error: 0.01,
             images: 3,
+            bands: None,
         };
         let mut t = table(10.0);
         apply(&mut t, &fit, &w);
