@@ -1,5 +1,6 @@
 //! Order statistics shared across the tool (calibration, reconstruction, the BRDF basis): one
-//! median, by selection, a weighted median, and a nearest-rank percentile. Pure: no I/O.
+//! median, by selection, a weighted median, and a nearest-rank percentile; and a sample's mean
+//! with its standard error. Pure: no I/O.
 
 /// Median of `values` (reorders them); `None` when empty or when a value is NaN. A selection,
 /// not a sort: linear in the number of values (millions of a 24 MP board's pixels).
@@ -42,6 +43,16 @@ pub fn percentile_sorted(sorted: &[f64], q: f64) -> f64 {
     sorted[i]
 }
 
+/// The mean of `values` and its standard error (the sample standard deviation, n - 1, over
+/// sqrt(n)); (0, 0) for none, the standard error 0 for one value.
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n.max(1.0);
+    let sd =
+        (values.iter().map(|d| (d - mean) * (d - mean)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    (mean, sd / n.max(1.0).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -67,5 +78,15 @@ mod tests {
         assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), Some(2.5));
         assert_eq!(median(&mut []), None);
         assert_eq!(median(&mut [1.0, f64::NAN]), None);
+    }
+
+    #[test]
+    fn mean_and_standard_error_of_a_sample() {
+        let (m, se) = mean_and_standard_error(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(m, 2.5);
+        // sample sd sqrt(5/3), over sqrt(4)
+        assert!((se - (5.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-15);
+        assert_eq!(mean_and_standard_error(&[]), (0.0, 0.0));
+        assert_eq!(mean_and_standard_error(&[7.0]), (7.0, 0.0));
     }
 }

@@ -247,7 +247,7 @@ mod tests {
         assert_eq!(o.curvature_quantile, Some(0.9));
         assert_eq!(
             k.args(),
-            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --rung-average false --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares --curvature-quantile 0.9"
+            " --basis-fit samples --unobserved transfer-basis --min-gain 0.05 --etas 0.01,1 --hedge 0.25 --peak-average 0.75 --rung-average false --carry difference --deblur 3 --extrapolation 0.7,0.8 --analytic-margin 0.25 --grazing-transfer 0.75 --peak-energy 1 --peak-energy-bands 4 --choose median --basis-rung simplest --lambert-ggx-f0 free --lambert-fit least-squares --curvature-quantile 0.9"
         );
     }
 }

@@ -305,11 +305,7 @@ pub fn fit_bands(
             diffs.push((with.sqrt() - without.sqrt()) / den.sqrt());
         }
     }
-    let k = diffs.len() as f64;
-    let mean = diffs.iter().sum::<f64>() / k.max(1.0);
-    let sd =
-        (diffs.iter().map(|d| (d - mean) * (d - mean)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
-    let standard_error = sd / k.max(1.0).sqrt();
+    let (mean, standard_error) = crate::stats::mean_and_standard_error(&diffs);
     Some(PeakBands {
         bands: centres
             .into_iter()

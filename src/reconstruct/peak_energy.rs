@@ -244,11 +244,7 @@ pub fn fit_scale(
             diffs.push((with.sqrt() - without.sqrt()) / den.sqrt());
         }
     }
-    let n = diffs.len() as f64;
-    let mean = diffs.iter().sum::<f64>() / n.max(1.0);
-    let sd =
-        (diffs.iter().map(|d| (d - mean) * (d - mean)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
-    let standard_error = sd / n.max(1.0).sqrt();
+    let (mean, standard_error) = crate::stats::mean_and_standard_error(&diffs);
     let accepted = diffs.len() >= 2 && mean < standard_error;
     Some(PeakEnergy {
         theta_deg,
