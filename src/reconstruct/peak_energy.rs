@@ -29,7 +29,6 @@
 //! Pure: no I/O. Must not refit the model: it only rescales the written table's peak cells.
 
 use super::observe::Observation;
-use super::peak_bands::PeakBands;
 use crate::brdf::coords::{MerlBin, THETA_D_BINS};
 use crate::brdf::merl::MerlTable;
 use serde::{Deserialize, Serialize};
@@ -91,6 +90,77 @@ impl PeakEnergy {
                     .map_or(String::new(), |b| format!("; {}", b.describe()))
             ),
         }
+    }
+}
+
+/// One band's factor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PeakBand {
+    /// The peak energy's mean theta_d in the band (degrees), where its factor is exact.
+    pub theta_d_deg: f64,
+    /// The band's fitted factor, clamped to `[MIN_SCALE, MAX_SCALE]`.
+    pub fitted: f64,
+}
+
+/// The band factors of `reconstruct::peak_bands` (a study knob) and their check, for
+/// `report.json` (inside `plausibility.peak_energy`): the report's type lives here, the fit
+/// there.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PeakBands {
+    pub bands: Vec<PeakBand>,
+    /// Applied: the images held out one at a time confirmed the band factors, and beyond what
+    /// the one factor achieved (`reconstruct::peak_bands::accepted`).
+    pub applied: bool,
+    /// Mean over the held-out images of the change in their relative patch error with the
+    /// band factors fitted to the others (negative: better), and its standard error.
+    pub held_out_change: f64,
+    pub held_out_standard_error: f64,
+}
+
+impl PeakBands {
+    /// In words, for the command line and the HTML report.
+    pub fn describe(&self) -> String {
+        let list: Vec<String> = self
+            .bands
+            .iter()
+            .map(|b| format!("{:.2} at theta_d {:.0}", b.fitted, b.theta_d_deg))
+            .collect();
+        format!(
+            "per theta_d band {} ({}; held out one image at a time {:+.4} +- {:.4})",
+            if self.applied {
+                "applied"
+            } else {
+                "not applied (not confirmed by the held-out images beyond the one factor)"
+            },
+            list.join(", "),
+            self.held_out_change,
+            self.held_out_standard_error
+        )
+    }
+
+    /// The factor at theta_d bin `j`: interpolated in log between the bands' centres, held
+    /// beyond the outer ones; 1 when not applied.
+    pub fn factor_at(&self, j: usize) -> f64 {
+        if !self.applied || self.bands.is_empty() {
+            return 1.0;
+        }
+        let t = j as f64 + 0.5;
+        let first = &self.bands[0];
+        let last = &self.bands[self.bands.len() - 1];
+        if t <= first.theta_d_deg {
+            return first.fitted;
+        }
+        if t >= last.theta_d_deg {
+            return last.fitted;
+        }
+        self.bands
+            .windows(2)
+            .find(|w| t >= w[0].theta_d_deg && t <= w[1].theta_d_deg)
+            .map_or(last.fitted, |w| {
+                let span = (w[1].theta_d_deg - w[0].theta_d_deg).max(1e-9);
+                let u = (t - w[0].theta_d_deg) / span;
+                (w[0].fitted.ln() * (1.0 - u) + w[1].fitted.ln() * u).exp()
+            })
     }
 }
 
