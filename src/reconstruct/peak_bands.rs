@@ -214,6 +214,9 @@ pub fn fit_bands(
     if bands < 2 || centres.iter().any(|c| !c.is_finite()) {
         return None;
     }
+    // The one factor's own patch sums (`peak_energy::fit_scale`) are not reused: summing the
+    // bands' parts back into one would change the default path's arithmetic, and a second pass
+    // over the pixels costs little beside the fits (study knob only).
     let sums = patch_sums(table, obs, patch_px, theta_deg, &band, bands);
     let clamp = |m: f64| m.clamp(MIN_SCALE, MAX_SCALE);
     let fitted: Vec<f64> = solve(sums.values(), bands, one.rest_gain, one.scale)?
