@@ -7,8 +7,10 @@
 //! (`SH SD SP`: the basis grid's stride; no targets: all materials; `BAND_DROP=LO,HI,TH` also
 //! withholds the rows with theta_d in [LO, HI) and theta_h below TH degrees; `AUGMENT=N`, session
 //! 37, builds each basis with the first N of 48 analytic dielectrics added as materials, see
-//! [`analytic_family`]). Prints, per target, the environment error of each model over the whole
-//! table and with the truth kept where observed (only the extrapolation judged).
+//! [`analytic_family`]; `KNN=k`, session 54, adds two extrapolations from the `k` materials of
+//! the basis nearest the seen values, see [`knn_extrapolations`]). Prints, per target, the
+//! environment error of each model over the whole table and with the truth kept where observed
+//! (only the extrapolation judged).
 
 use brdf_rig::brdf::analytic::{LambertGgx, ReflectanceSample, pixel_weight};
 use brdf_rig::brdf::basis::{Basis, BasisSettings, GridStride};
@@ -76,6 +78,8 @@ fn main() -> anyhow::Result<()> {
         Err(_) => 0,
     };
     let family: Vec<(String, LambertGgx)> = analytic_family().into_iter().take(augment).collect();
+    // `KNN=k`: also the k nearest materials' extrapolations (session 54).
+    let knn: Option<usize> = std::env::var("KNN").ok().and_then(|v| v.parse().ok());
     let probe = SphereProbe::standard(ProbeSettings::default());
     let pbins = probe.bins().to_vec();
     let seen = |bin: usize| {
@@ -108,9 +112,12 @@ fn main() -> anyhow::Result<()> {
         "# theta_d < {d_max} deg seen; stride {stride:?}; {} analytic materials added; env error (whole | extrapolation only)",
         family.len()
     );
-    println!(
-        "target basis_eta1 basis_eta10 basis_eta40 lggx | basis_eta1 basis_eta10 basis_eta40 lggx"
-    );
+    let cols = if knn.is_some() {
+        "basis_eta1 basis_eta10 basis_eta40 lggx knn_scaled knn_anchored"
+    } else {
+        "basis_eta1 basis_eta10 basis_eta40 lggx"
+    };
+    println!("target {cols} | {cols}");
     for target in &targets {
         let settings = BasisSettings {
             stride,
@@ -206,6 +213,15 @@ fn main() -> anyhow::Result<()> {
                 })
                 .collect(),
         );
+        if let Some(k) = knn {
+            let others: Vec<&(String, brdf_rig::brdf::nbrdf::Nbrdf)> = materials
+                .iter()
+                .filter(|(n, _)| basis.materials().contains(n))
+                .collect();
+            let (a, b) = knn_extrapolations(&others, &bins, &truth, &pbins, net, &seen, k);
+            score(a);
+            score(b);
+        }
         println!(
             "{target} {} | {}   (alpha {:.3} f0 {:.3})",
             whole
@@ -223,4 +239,107 @@ fn main() -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Session 54 (`KNN=k`, docs/evaluation.md 1ao): the unseen bins from the `k` materials of the
+/// basis nearest the seen values (each scaled per channel to the seen energy; distance: mean
+/// squared difference of `ln(rho c + eps)` over every 5th seen row), averaged geometrically
+/// with weights `1 / distance`. Two ways: `knn_scaled`, the neighbours' scaled values
+/// themselves; `knn_anchored`, the seen value at the same theta_h and phi_d and the largest
+/// seen theta_d, times the neighbours' ratio between the bin and that anchor. Prints the
+/// neighbours to stderr.
+fn knn_extrapolations(
+    others: &[&(String, brdf_rig::brdf::nbrdf::Nbrdf)],
+    rows: &[usize],
+    truth_rows: &[[f64; 3]],
+    pbins: &[usize],
+    truth: &dyn BinValues,
+    seen: &dyn Fn(usize) -> bool,
+    k: usize,
+) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    use brdf_rig::brdf::basis::{COS_MAP_MIN, MAP_EPS};
+    let cmap = |bin: usize| {
+        MerlBin::from_index(bin).map_or(1.0, |b| {
+            let (wi, wo) = b.centre_directions();
+            (wi.z * wo.z).clamp(COS_MAP_MIN, 1.0)
+        })
+    };
+    let fit_rows: Vec<usize> = (0..rows.len())
+        .filter(|&r| seen(rows[r]))
+        .step_by(5)
+        .collect();
+    let fit_bins: Vec<usize> = fit_rows.iter().map(|&r| rows[r]).collect();
+    let mut scored: Vec<(f64, [f64; 3], usize)> = others
+        .iter()
+        .enumerate()
+        .map(|(j, (_, net))| {
+            let v = net.values_at(&fit_bins);
+            let mut scale = [1.0; 3];
+            for ch in 0..3 {
+                let (mut a, mut b) = (0.0, 0.0);
+                for (i, &r) in fit_rows.iter().enumerate() {
+                    let c = cmap(rows[r]);
+                    a += truth_rows[r][ch] * c;
+                    b += v[i][ch] * c;
+                }
+                scale[ch] = if b > 0.0 { a / b } else { 1.0 };
+            }
+            let mut d = 0.0;
+            for (i, &r) in fit_rows.iter().enumerate() {
+                let c = cmap(rows[r]);
+                for ch in 0..3 {
+                    let x = (truth_rows[r][ch].max(0.0) * c + MAP_EPS).ln()
+                        - (scale[ch] * v[i][ch].max(0.0) * c + MAP_EPS).ln();
+                    d += x * x;
+                }
+            }
+            (d / (3 * fit_rows.len()).max(1) as f64, scale, j)
+        })
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    scored.truncate(k.max(1));
+    let wsum: f64 = scored.iter().map(|s| 1.0 / s.0.max(1e-9)).sum();
+    eprintln!(
+        "  nearest: {}",
+        scored
+            .iter()
+            .map(|s| format!("{} ({:.3})", others[s.2].0, s.0))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    // the anchor of each probe bin: same theta_h and phi_d, the largest seen theta_d
+    let anchor: Vec<Option<usize>> = pbins
+        .iter()
+        .map(|&bin| {
+            let b = MerlBin::from_index(bin)?;
+            (0..=b.theta_d)
+                .rev()
+                .map(|d| MerlBin { theta_d: d, ..b }.index())
+                .find(|&a| seen(a))
+        })
+        .collect();
+    let anchors: Vec<usize> = anchor.iter().map(|a| a.unwrap_or(0)).collect();
+    let mut ga = vec![[0.0f64; 3]; pbins.len()];
+    let mut gb = vec![[0.0f64; 3]; pbins.len()];
+    for s in &scored {
+        let w = 1.0 / s.0.max(1e-9) / wsum;
+        let net = &others[s.2].1;
+        let v = net.values_at(pbins);
+        let va = net.values_at(&anchors);
+        for i in 0..pbins.len() {
+            for ch in 0..3 {
+                ga[i][ch] += w * (s.1[ch] * v[i][ch]).max(1e-9).ln();
+                gb[i][ch] += w * (v[i][ch].max(1e-9) / va[i][ch].max(1e-9)).ln();
+            }
+        }
+    }
+    let ta = truth.values_at(&anchors);
+    let a: Vec<[f64; 3]> = ga.iter().map(|g| g.map(f64::exp)).collect();
+    let b: Vec<[f64; 3]> = (0..pbins.len())
+        .map(|i| match anchor[i] {
+            Some(_) => std::array::from_fn(|ch| ta[i][ch] * gb[i][ch].exp()),
+            None => a[i],
+        })
+        .collect();
+    (a, b)
 }
