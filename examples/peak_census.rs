@@ -12,8 +12,8 @@
 //!   faces of that material count.
 //!
 //! With the job's normals and with the normals refined as `reconstruct` refines them by default
-//! (`eval::refine_case`; with `truth_labels.json`, per material found, as `--materials auto`
-//! does), for the observed pixels and for those the curvature filter keeps (assumption 1, as
+//! (`eval::refine_case`, the object's materials found first, each with its own reflectance
+//! table, as `reconstruct` does whatever `--materials` says), for the observed pixels and for those the curvature filter keeps (assumption 1, as
 //! the pipeline applies it), per band of theta_d: the pixels within 2, 6 and 12 degrees of the
 //! peak (theta_h, from the normals), and their summed `r cos theta_i` over the truth's at the
 //! same directions (green channel): 1 where the values are the truth's at the angles the normals
@@ -109,7 +109,8 @@ fn main() -> anyhow::Result<()> {
     let observe = ObserveSettings::default();
     let scene = load_case(&job, &observe, &Perturb::default())?;
     let mesh = scene.mesh.clone();
-    let segment = label.as_ref().map(|_| SegmentSettings::default());
+    // The refinement finds the object's materials first, whatever `--materials` says.
+    let segment = Some(SegmentSettings::default());
     let case = refine_case(scene, &observe, &RefineSettings::default(), segment, &mesh);
     let keep = |obs: Vec<Observation>| -> Vec<Observation> {
         match &label {
