@@ -257,18 +257,13 @@ fn knn_extrapolations(
     seen: &dyn Fn(usize) -> bool,
     k: usize,
 ) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
-    use brdf_rig::brdf::basis::{COS_MAP_MIN, MAP_EPS};
-    let cmap = |bin: usize| {
-        MerlBin::from_index(bin).map_or(1.0, |b| {
-            let (wi, wo) = b.centre_directions();
-            (wi.z * wo.z).clamp(COS_MAP_MIN, 1.0)
-        })
-    };
+    use brdf_rig::brdf::basis::{MAP_EPS, cos_map};
     let fit_rows: Vec<usize> = (0..rows.len())
         .filter(|&r| seen(rows[r]))
         .step_by(5)
         .collect();
     let fit_bins: Vec<usize> = fit_rows.iter().map(|&r| rows[r]).collect();
+    let cs: Vec<f64> = fit_bins.iter().map(|&b| cos_map(b)).collect();
     let mut scored: Vec<(f64, [f64; 3], usize)> = others
         .iter()
         .enumerate()
@@ -278,7 +273,7 @@ fn knn_extrapolations(
             for ch in 0..3 {
                 let (mut a, mut b) = (0.0, 0.0);
                 for (i, &r) in fit_rows.iter().enumerate() {
-                    let c = cmap(rows[r]);
+                    let c = cs[i];
                     a += truth_rows[r][ch] * c;
                     b += v[i][ch] * c;
                 }
@@ -286,7 +281,7 @@ fn knn_extrapolations(
             }
             let mut d = 0.0;
             for (i, &r) in fit_rows.iter().enumerate() {
-                let c = cmap(rows[r]);
+                let c = cs[i];
                 for ch in 0..3 {
                     let x = (truth_rows[r][ch].max(0.0) * c + MAP_EPS).ln()
                         - (scale[ch] * v[i][ch].max(0.0) * c + MAP_EPS).ln();
