@@ -8,7 +8,9 @@
 //! withholds the rows with theta_d in [LO, HI) and theta_h below TH degrees; `AUGMENT=N`, session
 //! 37, builds each basis with the first N of 48 analytic dielectrics added as materials, see
 //! [`analytic_family`]; `KNN=k`, session 54, adds two extrapolations from the `k` materials of
-//! the basis nearest the seen values, see [`knn_extrapolations`]). Prints, per target, the
+//! the basis nearest the seen values, see [`knn_extrapolations`], and, session 55, the basis's ridge
+//! shrunk towards them ([`local_ridge`]) and two geometric blends; `SEEN_BAND=LO,HI`, session
+//! 55, sees only theta_d in [LO, HI), as one light beside the camera does). Prints, per target, the
 //! environment error of each model over the whole table and with the truth kept where observed
 //! (only the extrapolation judged).
 
@@ -80,13 +82,23 @@ fn main() -> anyhow::Result<()> {
     let family: Vec<(String, LambertGgx)> = analytic_family().into_iter().take(augment).collect();
     // `KNN=k`: also the k nearest materials' extrapolations (session 54).
     let knn: Option<usize> = std::env::var("KNN").ok().and_then(|v| v.parse().ok());
+    // `SEEN_BAND=LO,HI` (session 55): only theta_d in [LO, HI) is seen, as with one light fixed
+    // beside the camera (THETA_D_MAX is then ignored).
+    let seen_band: Option<(f64, f64)> = std::env::var("SEEN_BAND").ok().and_then(|v| {
+        let p: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
+        (p.len() == 2).then(|| (p[0], p[1]))
+    });
     let probe = SphereProbe::standard(ProbeSettings::default());
     let pbins = probe.bins().to_vec();
     let seen = |bin: usize| {
         MerlBin::from_index(bin).is_some_and(|b| {
             let (wi, wo) = b.centre_directions();
             let cos_d = wi.dot(&(wi + wo).normalize());
-            cos_d.clamp(-1.0, 1.0).acos().to_degrees() < d_max
+            let d = cos_d.clamp(-1.0, 1.0).acos().to_degrees();
+            match seen_band {
+                Some((lo, hi)) => d >= lo && d < hi,
+                None => d < d_max,
+            }
         })
     };
     // `BAND_DROP=LO,HI,TH`: also leave unseen the rows with theta_d in [LO, HI) and theta_h
@@ -109,11 +121,11 @@ fn main() -> anyhow::Result<()> {
     };
     let pseen: Vec<bool> = pbins.iter().map(|&b| seen(b)).collect();
     println!(
-        "# theta_d < {d_max} deg seen; stride {stride:?}; {} analytic materials added; env error (whole | extrapolation only)",
+        "# theta_d < {d_max} deg seen (SEEN_BAND {seen_band:?} overrides); stride {stride:?}; {} analytic materials added; env error (whole | extrapolation only)",
         family.len()
     );
     let cols = if knn.is_some() {
-        "basis_eta1 basis_eta10 basis_eta40 lggx knn_scaled knn_anchored"
+        "basis_eta1 basis_eta10 basis_eta40 lggx knn_scaled knn_anchored local_eta10 local_eta40 blend_knn blend_lggx blend3"
     } else {
         "basis_eta1 basis_eta10 basis_eta40 lggx"
     };
@@ -198,29 +210,55 @@ fn main() -> anyhow::Result<()> {
                 .collect();
             extra.push(compare(&tr, &probe.render_values(&mixed)).environment);
         };
+        let mut basis40 = Vec::new();
         for eta in [1.0, 10.0, 40.0] {
             let rec = reconstruct(&basis, &obs, &RidgeSettings { k: 64, eta })?;
-            score(rec.values_at(&pbins));
+            basis40 = rec.values_at(&pbins);
+            score(basis40.clone());
         }
-        score(
-            pbins
-                .iter()
-                .map(|&b| {
-                    MerlBin::from_index(b).map_or([0.0; 3], |m| {
-                        let (wi, wo) = m.centre_directions();
-                        lggx.eval_local(&wi, &wo)
-                    })
+        let lggx_values: Vec<[f64; 3]> = pbins
+            .iter()
+            .map(|&b| {
+                MerlBin::from_index(b).map_or([0.0; 3], |m| {
+                    let (wi, wo) = m.centre_directions();
+                    lggx.eval_local(&wi, &wo)
                 })
-                .collect(),
-        );
+            })
+            .collect();
+        score(lggx_values.clone());
+        // the geometric mean of two tables, bin by bin
+        let geo = |a: &[[f64; 3]], b: &[[f64; 3]]| -> Vec<[f64; 3]> {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| std::array::from_fn(|ch| (x[ch].max(0.0) * y[ch].max(0.0)).sqrt()))
+                .collect()
+        };
         if let Some(k) = knn {
             let others: Vec<&(String, brdf_rig::brdf::nbrdf::Nbrdf)> = materials
                 .iter()
                 .filter(|(n, _)| basis.materials().contains(n))
                 .collect();
-            let (a, b) = knn_extrapolations(&others, &bins, &truth, &pbins, net, &seen, k);
+            let (a, b, near) = knn_extrapolations(&others, &bins, &truth, &pbins, net, &seen, k);
             score(a);
-            score(b);
+            score(b.clone());
+            for eta in [10.0, 40.0] {
+                score(local_ridge(&basis, &obs, &others, &near, &pbins, eta)?);
+            }
+            score(geo(&basis40, &b));
+            score(geo(&basis40, &lggx_values));
+            // the three guesses, each with weight 1/3
+            score(
+                basis40
+                    .iter()
+                    .zip(&b)
+                    .zip(&lggx_values)
+                    .map(|((x, y), z)| {
+                        std::array::from_fn(|ch| {
+                            (x[ch].max(0.0) * y[ch].max(0.0) * z[ch].max(0.0)).cbrt()
+                        })
+                    })
+                    .collect(),
+            );
         }
         println!(
             "{target} {} | {}   (alpha {:.3} f0 {:.3})",
@@ -256,7 +294,7 @@ fn knn_extrapolations(
     truth: &dyn BinValues,
     seen: &dyn Fn(usize) -> bool,
     k: usize,
-) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+) -> (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<Neighbour>) {
     use brdf_rig::brdf::basis::{MAP_EPS, cos_map};
     let fit_rows: Vec<usize> = (0..rows.len())
         .filter(|&r| seen(rows[r]))
@@ -302,7 +340,8 @@ fn knn_extrapolations(
             .collect::<Vec<_>>()
             .join(", ")
     );
-    // the anchor of each probe bin: same theta_h and phi_d, the largest seen theta_d
+    // the anchor of each probe bin: same theta_h and phi_d, the nearest seen theta_d (below
+    // first: with everything below a limit seen, the largest seen theta_d)
     let anchor: Vec<Option<usize>> = pbins
         .iter()
         .map(|&bin| {
@@ -311,6 +350,11 @@ fn knn_extrapolations(
                 .rev()
                 .map(|d| MerlBin { theta_d: d, ..b }.index())
                 .find(|&a| seen(a))
+                .or_else(|| {
+                    (b.theta_d..brdf_rig::brdf::coords::THETA_D_BINS)
+                        .map(|d| MerlBin { theta_d: d, ..b }.index())
+                        .find(|&a| seen(a))
+                })
         })
         .collect();
     let anchors: Vec<usize> = anchor.iter().map(|a| a.unwrap_or(0)).collect();
@@ -336,5 +380,88 @@ fn knn_extrapolations(
             None => a[i],
         })
         .collect();
-    (a, b)
+    let near: Vec<Neighbour> = scored
+        .iter()
+        .map(|s| Neighbour {
+            weight: 1.0 / s.0.max(1e-9) / wsum,
+            scale: s.1,
+            index: s.2,
+        })
+        .collect();
+    (a, b, near)
+}
+
+/// One of the nearest materials: its weight (summing to 1), its per-channel scale to the seen
+/// energy and its index in the basis's materials.
+struct Neighbour {
+    weight: f64,
+    scale: [f64; 3],
+    index: usize,
+}
+
+/// Session 55 (`KNN=k`, docs/evaluation.md 1ap): the basis's ridge fit shrunk towards the
+/// nearest materials instead of towards the basis's mean: `min |A c - b|^2 + eta |c - c0|^2`,
+/// `c0` the weighted mean of the neighbours' coefficients (each neighbour scaled per channel to
+/// the seen energy, projected on the 64 components; weights as `knn_extrapolations`'). Where
+/// the pixels pin the fit it is the basis's; where none do, the neighbours' shape.
+fn local_ridge(
+    basis: &Basis,
+    obs: &[BasisSample],
+    others: &[&(String, brdf_rig::brdf::nbrdf::Nbrdf)],
+    near: &[Neighbour],
+    pbins: &[usize],
+    eta: f64,
+) -> anyhow::Result<Vec<[f64; 3]>> {
+    use nalgebra::{DMatrix, DVector};
+    let n = basis.basis_components().min(64);
+    let bins = basis.grid().bins().to_vec();
+    let mut c0 = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    for nb in near {
+        let (w, scale) = (&nb.weight, &nb.scale);
+        let v: Vec<[f64; 3]> = others[nb.index]
+            .1
+            .values_at(&bins)
+            .iter()
+            .map(|x| std::array::from_fn(|ch| x[ch] * scale[ch]))
+            .collect();
+        let c = basis.project(&v, n);
+        for ch in 0..3 {
+            for (o, x) in c0[ch].iter_mut().zip(&c[ch]) {
+                *o += w * x;
+            }
+        }
+    }
+    let mut gram = DMatrix::<f64>::zeros(n, n);
+    let mut rhs = [
+        DVector::<f64>::zeros(n),
+        DVector::zeros(n),
+        DVector::zeros(n),
+    ];
+    for o in obs {
+        let q = DVector::from_iterator(n, basis.q_row(o.row, n).iter().map(|v| f64::from(*v)));
+        gram += &q * q.transpose();
+        for (ch, r) in rhs.iter_mut().enumerate() {
+            *r += &q * basis.map(o.row, o.rgb[ch]);
+        }
+    }
+    let mut normal = gram;
+    for j in 0..n {
+        normal[(j, j)] += eta;
+    }
+    let chol = normal
+        .cholesky()
+        .ok_or_else(|| anyhow::anyhow!("local ridge: normal matrix not positive definite"))?;
+    let coeffs: [Vec<f64>; 3] = std::array::from_fn(|ch| {
+        let b = &rhs[ch] + DVector::from_column_slice(&c0[ch]) * eta;
+        chol.solve(&b).iter().copied().collect()
+    });
+    Ok(pbins
+        .iter()
+        .map(|&bin| {
+            basis
+                .grid()
+                .row_of_bin(bin)
+                .map_or([0.0; 3], |row| basis.synthesize_row(&coeffs, row))
+        })
+        .collect())
 }
