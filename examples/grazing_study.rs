@@ -9,7 +9,8 @@
 //! 37, builds each basis with the first N of 48 analytic dielectrics added as materials, see
 //! [`analytic_family`]; `KNN=k`, session 54, adds two extrapolations from the `k` materials of
 //! the basis nearest the seen values, see [`knn_extrapolations`], and, session 55, the basis's ridge
-//! shrunk towards them ([`local_ridge`]) and two geometric blends; `SEEN_BAND=LO,HI`, session
+//! shrunk towards them ([`local_ridge`]) and three geometric blends of the basis, `knn_anchored`
+//! and Lambert + GGX; `SEEN_BAND=LO,HI`, session
 //! 55, sees only theta_d in [LO, HI), as one light beside the camera does). Prints, per target, the
 //! environment error of each model over the whole table and with the truth kept where observed
 //! (only the extrapolation judged).
@@ -210,6 +211,7 @@ fn main() -> anyhow::Result<()> {
                 .collect();
             extra.push(compare(&tr, &probe.render_values(&mixed)).environment);
         };
+        // the last of the three, eta 40, is the basis the blends take
         let mut basis40 = Vec::new();
         for eta in [1.0, 10.0, 40.0] {
             let rec = reconstruct(&basis, &obs, &RidgeSettings { k: 64, eta })?;
@@ -417,20 +419,22 @@ fn local_ridge(
     let bins = basis.grid().bins().to_vec();
     let mut c0 = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
     for nb in near {
-        let (w, scale) = (&nb.weight, &nb.scale);
         let v: Vec<[f64; 3]> = others[nb.index]
             .1
             .values_at(&bins)
             .iter()
-            .map(|x| std::array::from_fn(|ch| x[ch] * scale[ch]))
+            .map(|x| std::array::from_fn(|ch| x[ch] * nb.scale[ch]))
             .collect();
         let c = basis.project(&v, n);
         for ch in 0..3 {
             for (o, x) in c0[ch].iter_mut().zip(&c[ch]) {
-                *o += w * x;
+                *o += nb.weight * x;
             }
         }
     }
+    // The library's `ridge::NormalSystem` shrinks towards zero only; a shifted target is the same
+    // normal equations with `eta c0` added to the right-hand side (shifting the observations
+    // instead would go through `Basis::unmap`, which clamps at zero).
     let mut gram = DMatrix::<f64>::zeros(n, n);
     let mut rhs = [
         DVector::<f64>::zeros(n),
