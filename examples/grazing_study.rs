@@ -62,11 +62,18 @@ fn main() -> anyhow::Result<()> {
         args.len() >= 4,
         "usage: THETA_D_MAX STRIDE_H STRIDE_D STRIDE_P [TARGET...]"
     );
-    let d_max: f64 = args[0].parse()?;
+    let d_max: f64 = args[0]
+        .parse()
+        .map_err(|e| anyhow::anyhow!("THETA_D_MAX {:?}: not a number ({e})", args[0]))?;
+    let stride_arg = |i: usize, name: &str| -> anyhow::Result<usize> {
+        args[i]
+            .parse()
+            .map_err(|e| anyhow::anyhow!("{name} {:?}: not a count ({e})", args[i]))
+    };
     let stride = GridStride {
-        theta_h: args[1].parse()?,
-        theta_d: args[2].parse()?,
-        phi_d: args[3].parse()?,
+        theta_h: stride_arg(1, "STRIDE_H")?,
+        theta_d: stride_arg(2, "STRIDE_D")?,
+        phi_d: stride_arg(3, "STRIDE_P")?,
     };
     let materials = load_dir(&default_dir())?;
     let targets: Vec<String> = if args.len() > 4 {
@@ -82,13 +89,16 @@ fn main() -> anyhow::Result<()> {
     };
     let family: Vec<(String, LambertGgx)> = analytic_family().into_iter().take(augment).collect();
     // `KNN=k`: also the k nearest materials' extrapolations (session 54).
-    let knn: Option<usize> = std::env::var("KNN").ok().and_then(|v| v.parse().ok());
+    let knn: Option<usize> = match std::env::var("KNN") {
+        Ok(v) => Some(
+            v.parse()
+                .map_err(|e| anyhow::anyhow!("KNN={v}: not a count ({e})"))?,
+        ),
+        Err(_) => None,
+    };
     // `SEEN_BAND=LO,HI` (session 55): only theta_d in [LO, HI) is seen, as with one light fixed
     // beside the camera (THETA_D_MAX is then ignored).
-    let seen_band: Option<(f64, f64)> = std::env::var("SEEN_BAND").ok().and_then(|v| {
-        let p: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
-        (p.len() == 2).then(|| (p[0], p[1]))
-    });
+    let seen_band: Option<(f64, f64)> = env_degrees("SEEN_BAND", 2)?.map(|p| (p[0], p[1]));
     let probe = SphereProbe::standard(ProbeSettings::default());
     let pbins = probe.bins().to_vec();
     let seen = |bin: usize| {
@@ -104,10 +114,7 @@ fn main() -> anyhow::Result<()> {
     };
     // `BAND_DROP=LO,HI,TH`: also leave unseen the rows with theta_d in [LO, HI) and theta_h
     // below TH degrees (which rows of the band decide the extrapolation).
-    let band: Option<(f64, f64, f64)> = std::env::var("BAND_DROP").ok().and_then(|v| {
-        let p: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
-        (p.len() == 3).then(|| (p[0], p[1], p[2]))
-    });
+    let band: Option<(f64, f64, f64)> = env_degrees("BAND_DROP", 3)?.map(|p| (p[0], p[1], p[2]));
     let seen = |bin: usize| {
         seen(bin)
             && !MerlBin::from_index(bin).is_some_and(|b| {
@@ -228,13 +235,6 @@ fn main() -> anyhow::Result<()> {
             })
             .collect();
         score(lggx_values.clone());
-        // the geometric mean of two tables, bin by bin
-        let geo = |a: &[[f64; 3]], b: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| std::array::from_fn(|ch| (x[ch].max(0.0) * y[ch].max(0.0)).sqrt()))
-                .collect()
-        };
         if let Some(k) = knn {
             let others: Vec<&(String, brdf_rig::brdf::nbrdf::Nbrdf)> = materials
                 .iter()
@@ -246,21 +246,10 @@ fn main() -> anyhow::Result<()> {
             for eta in [10.0, 40.0] {
                 score(local_ridge(&basis, &obs, &others, &near, &pbins, eta)?);
             }
-            score(geo(&basis40, &b));
-            score(geo(&basis40, &lggx_values));
+            score(geometric_mean(&[&basis40, &b]));
+            score(geometric_mean(&[&basis40, &lggx_values]));
             // the three guesses, each with weight 1/3
-            score(
-                basis40
-                    .iter()
-                    .zip(&b)
-                    .zip(&lggx_values)
-                    .map(|((x, y), z)| {
-                        std::array::from_fn(|ch| {
-                            (x[ch].max(0.0) * y[ch].max(0.0) * z[ch].max(0.0)).cbrt()
-                        })
-                    })
-                    .collect(),
-            );
+            score(geometric_mean(&[&basis40, &b, &lggx_values]));
         }
         println!(
             "{target} {} | {}   (alpha {:.3} f0 {:.3})",
@@ -391,6 +380,40 @@ fn knn_extrapolations(
         })
         .collect();
     (a, b, near)
+}
+
+/// `NAME=a,b,...`: `n` numbers (degrees), or an error naming the variable; unset: `None`.
+fn env_degrees(name: &str, n: usize) -> anyhow::Result<Option<Vec<f64>>> {
+    let Ok(v) = std::env::var(name) else {
+        return Ok(None);
+    };
+    let p = v
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<Vec<f64>, _>>()
+        .map_err(|e| anyhow::anyhow!("{name}={v}: not a list of numbers ({e})"))?;
+    anyhow::ensure!(
+        p.len() == n,
+        "{name}={v}: {n} numbers expected, got {}",
+        p.len()
+    );
+    Ok(Some(p))
+}
+
+/// The bin-by-bin geometric mean of tables with equal weights (negative values as zero).
+fn geometric_mean(tables: &[&[[f64; 3]]]) -> Vec<[f64; 3]> {
+    let n = tables.len().max(1) as f64;
+    (0..tables.first().map_or(0, |t| t.len()))
+        .map(|i| {
+            std::array::from_fn(|ch| {
+                tables
+                    .iter()
+                    .map(|t| t[i][ch].max(0.0))
+                    .product::<f64>()
+                    .powf(1.0 / n)
+            })
+        })
+        .collect()
 }
 
 /// One of the nearest materials: its weight (summing to 1), its per-channel scale to the seen
