@@ -1,0 +1,62 @@
+#!/usr/bin/env python3
+"""The found materials of a `brdf-rig bench materials` page against the bar, and how much the
+bar itself moves between seeds of the same object (docs/materials.md, session 56).
+
+Reads DIR/materials.json (`bench materials --out DIR`); only objects of two or more materials.
+The bar of a found material is the better of Lambert and Lambert + GGX fitted to the same
+pixels (environment error); "worse" is ours above 1.1 times the bar, the criterion of issue #17.
+Prints the geometric mean of bar / ours, the losses, and per object, rig and true material the
+bar's largest / smallest over the seeds, largest first. Standard library only.
+
+usage: scripts/bar_spread.py DIR/materials.json [ROWS]
+"""
+import json
+import math
+import sys
+from collections import defaultdict
+
+
+def main():
+    if len(sys.argv) not in (2, 3):
+        sys.exit(__doc__.strip().splitlines()[-1])
+    path = sys.argv[1]
+    rows = int(sys.argv[2]) if len(sys.argv) == 3 else 10
+    try:
+        with open(path) as f:
+            page = json.load(f)
+    except (OSError, ValueError) as e:
+        sys.exit(f"{path}: {e}")
+    ratios, losses = [], []
+    groups = defaultdict(list)
+    for o in page.get("objects", []):
+        if o.get("count", 0) < 2:
+            continue
+        for s in o.get("scores", []):
+            bar = min(s["lambert"], s["lambert_ggx"])
+            ratios.append(bar / s["ours"])
+            key = (o["mesh"], "+".join(o["materials"]), o["rig"]["kind"], s["truth"])
+            groups[key].append((o["seed"], bar, s["ours"]))
+            if s["ours"] > 1.1 * bar:
+                losses.append((o["mesh"], o["rig"]["kind"], o["seed"], s["truth"], s["model"],
+                               s["ours"], bar))
+    if not ratios:
+        sys.exit(f"{path}: no object of two or more materials")
+    gm = math.exp(sum(map(math.log, ratios)) / len(ratios))
+    print(f"found materials {len(ratios)}: bar / ours gm {gm:.3f}, worse by > 10 %: {len(losses)}")
+    for mesh, rig, seed, truth, model, ours, bar in losses:
+        print(f"  {mesh} {rig} seed {seed} {truth} ({model}): ours {ours:.3f}, bar {bar:.3f}")
+    spread = []
+    for key, v in groups.items():
+        bars = [b for _, b, _ in sorted(v)]
+        ours = [x for _, _, x in sorted(v)]
+        spread.append((max(bars) / min(bars), key, bars, ours))
+    spread.sort(key=lambda r: -r[0])
+    print("bar's largest / smallest over seeds (mesh of materials, rig, true material: bar, ours by seed)")
+    for s, (mesh, object_, rig, truth), bars, ours in spread[:rows]:
+        b = " ".join(f"{x:.3f}" for x in bars)
+        o = " ".join(f"{x:.3f}" for x in ours)
+        print(f"  {s:.2f}  {mesh} of {object_}, {rig}, {truth}: bar {b}; ours {o}")
+
+
+if __name__ == "__main__":
+    main()
