@@ -5,7 +5,8 @@ bar itself moves between seeds of the same object (docs/materials.md, session 56
 Reads DIR/materials.json (`bench materials --out DIR`); only objects of two or more materials.
 The bar of a found material is the better of Lambert and Lambert + GGX fitted to the same
 pixels (environment error); "worse" is ours above 1.1 times the bar, the criterion of issue #17.
-Prints the geometric mean of bar / ours, the losses, and per object, rig and true material the
+Prints the geometric mean of bar / ours, the losses, and per object, rig and true material
+(a group): whether our geometric mean over the seeds is worse than the bar's by > 10 %, and the
 bar's largest / smallest over the seeds, largest first. Standard library only.
 
 usage: scripts/bar_spread.py DIR/materials.json [ROWS]
@@ -32,7 +33,10 @@ def main():
         if o.get("count", 0) < 2:
             continue
         for s in o.get("scores", []):
-            bar = min(s["lambert"], s["lambert_ggx"])
+            baselines = [b for b in (s.get("lambert"), s.get("lambert_ggx")) if b is not None]
+            if not baselines or not s.get("ours"):
+                continue  # a material without a baseline or a score is not judged
+            bar = min(baselines)
             ratios.append(bar / s["ours"])
             key = (o["mesh"], "+".join(o["materials"]), o["rig"]["kind"], s["truth"])
             groups[key].append((o["seed"], bar, s["ours"]))
@@ -51,6 +55,17 @@ def main():
         ours = [x for _, _, x in sorted(v)]
         spread.append((max(bars) / min(bars), key, bars, ours))
     spread.sort(key=lambda r: -r[0])
+    mid = sorted(r[0] for r in spread)
+    median = (mid[(len(mid) - 1) // 2] + mid[len(mid) // 2]) / 2
+    print(f"groups {len(spread)}: the bar's largest / smallest over seeds, median {median:.2f}")
+
+    def gm_of(values):
+        return math.exp(sum(map(math.log, values)) / len(values))
+
+    over = [(key, gm_of(o), gm_of(b)) for _, key, b, o in spread if gm_of(o) > 1.1 * gm_of(b)]
+    print(f"groups whose geometric mean over seeds is worse than the bar's by > 10 %: {len(over)}")
+    for (mesh, object_, rig, truth), o, b in over:
+        print(f"  {mesh} of {object_}, {rig}, {truth}: ours {o:.3f}, bar {b:.3f}")
     print("bar's largest / smallest over seeds (mesh of materials, rig, true material: bar, ours by seed)")
     for s, (mesh, object_, rig, truth), bars, ours in spread[:rows]:
         b = " ".join(f"{x:.3f}" for x in bars)
