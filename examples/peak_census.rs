@@ -13,11 +13,12 @@
 //!
 //! With the job's normals and with the normals refined as `reconstruct` refines them by default
 //! (`eval::refine_case`, the object's materials found first, each with its own reflectance
-//! table, as `reconstruct` does whatever `--materials` says), for the observed pixels and for those the curvature filter keeps (assumption 1, as
-//! the pipeline applies it), per band of theta_d: the pixels within 2, 6 and 12 degrees of the
-//! peak (theta_h, from the normals), and their summed `r cos theta_i` over the truth's at the
-//! same directions (green channel): 1 where the values are the truth's at the angles the normals
-//! give, below 1 where the normals' error moves the peak's pixels off it.
+//! table, as `reconstruct` does whatever `--materials` says), for the observed pixels and for
+//! those the curvature filter keeps (assumption 1, as the pipeline applies it), per band of
+//! theta_d: the pixels within 2, 6 and 12 degrees of the peak (theta_h, from the normals), and
+//! their summed `r cos theta_i` over the truth's at the same directions (green channel): 1 where
+//! the values are the truth's at the angles the normals give, below 1 where the normals' error
+//! moves the peak's pixels off it.
 //!
 //! Neural MERL fits as truth are approximations of MERL, not measured MERL data.
 
